@@ -1,0 +1,66 @@
+# Two commands set up a fresh Debian machine and do the work:
+#   make run    the main job (installs what is missing first)
+#   make test   every test: ctest (GoogleTest) and pytest
+# Both are idempotent: stamps under build/ skip the set-up when nothing changed.
+
+SHELL      := /bin/bash
+PYTHON     ?= python3
+VENV       := .venv
+VPY        := $(VENV)/bin/python
+STAMPS     := build/.stamps
+CPP_BUILD  := build/cpp
+APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev
+SUDO       := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+NATIVE_SRC := $(shell find fsw bindings -type f \( -name '*.hpp' -o -name '*.cpp' \) 2>/dev/null) CMakeLists.txt pyproject.toml
+export OPENBLAS_NUM_THREADS ?= 1
+export OMP_NUM_THREADS ?= 1
+export MPLBACKEND ?= Agg
+
+.PHONY: run test test-cpp test-py setup bench clean
+
+run: $(STAMPS)/install
+	$(VENV)/bin/proxops run --report report
+
+test: test-cpp test-py
+
+setup: $(STAMPS)/install $(STAMPS)/cpp-configure
+
+$(STAMPS)/apt:
+	@mkdir -p $(STAMPS)
+	@dpkg -s $(APT_PKGS) >/dev/null 2>&1 || { \
+	  echo "installing Debian packages: $(APT_PKGS)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(APT_PKGS); }
+	@touch $@
+
+$(STAMPS)/venv: $(STAMPS)/apt
+	@test -x $(VPY) || $(PYTHON) -m venv $(VENV)
+	$(VPY) -m pip install -q --disable-pip-version-check "scikit-build-core>=0.10" "pybind11>=2.12" cmake ninja setuptools wheel
+	@touch $@
+
+# Editable install: Python sources are used in place; the native module is
+# rebuilt incrementally (build/<wheel tag>) when a native source changes.
+$(STAMPS)/install: $(STAMPS)/venv $(NATIVE_SRC)
+	$(VPY) -m pip install -q --disable-pip-version-check --no-build-isolation -e ".[dev]"
+	@touch $@
+
+$(STAMPS)/cpp-configure: $(STAMPS)/venv CMakeLists.txt
+	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
+	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=ON -DPROXOPS_BUILD_PYTHON=OFF >/dev/null
+	@touch $@
+
+test-cpp: $(STAMPS)/cpp-configure
+	$(VENV)/bin/cmake --build $(CPP_BUILD)
+	cd $(CPP_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2
+
+test-py: $(STAMPS)/install $(STAMPS)/cpp-configure
+	$(VENV)/bin/cmake --build $(CPP_BUILD)
+	PROXOPS_CPP_BUILD=$(abspath $(CPP_BUILD)) $(VPY) -m pytest -q
+
+# C++ benchmarks (Google Benchmark); results go to docs/PERFORMANCE.md by hand.
+bench: $(STAMPS)/cpp-configure
+	$(VENV)/bin/cmake --build $(CPP_BUILD)
+	for b in $(CPP_BUILD)/bench_*; do $$b --benchmark_repetitions=9 --benchmark_report_aggregates_only=true; done
+
+clean:
+	rm -rf build report

@@ -1,0 +1,1 @@
+"""Hardware-in-the-loop-style loop over a pseudo-terminal."""
