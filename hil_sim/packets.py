@@ -1,0 +1,370 @@
+"""The serial link on the bench side, built only from PyPI packages.
+
+Packets are CCSDS Space Packets (``spacepackets``), a CRC-16/CCITT-FALSE
+(``crc``) appended big-endian, COBS-encoded (``cobs``) and ended by 0x00. This
+module never calls the C++ framing: it is the independent implementation that
+the cross-check tests compare against. The format is specified in
+docs/LINK.md; the tables here are a second, hand-written copy of it.
+
+Layout of every packet::
+
+    primary header (6 bytes, big-endian) | time tag t_s (float64, little-endian)
+    | payload (little-endian, exact length per APID) | CRC-16 (big-endian)
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple, Union
+
+from cobs import cobs
+from crc import Calculator, Configuration
+from fastcrc.crc16 import ibm_3740 as _fast_crc16
+from spacepackets.ccsds.spacepacket import (
+    PacketType,
+    SequenceFlags,
+    SpacePacket,
+    SpacePacketHeader,
+)
+
+# CRC-16/CCITT-FALSE (= CRC-16/IBM-3740): poly 0x1021, init 0xFFFF, no reflection, no final XOR.
+CRC16_CCITT_FALSE = Configuration(
+    width=16,
+    polynomial=0x1021,
+    init_value=0xFFFF,
+    final_xor_value=0x0000,
+    reverse_input=False,
+    reverse_output=False,
+)
+CRC16_CHECK = 0x29B1  # over b"123456789"
+_CRC = Calculator(CRC16_CCITT_FALSE, optimized=True)
+
+PRIMARY_HEADER_SIZE = 6
+SECONDARY_HEADER_SIZE = 8
+PACKET_HEADER_SIZE = PRIMARY_HEADER_SIZE + SECONDARY_HEADER_SIZE
+CRC_SIZE = 2
+SEQ_MODULO = 1 << 14
+QUAT_NORM_TOL = 1e-6
+
+TO_FLIGHT = "to_flight"  # telecommand, type 1
+FROM_FLIGHT = "from_flight"  # telemetry, type 0
+
+
+@dataclass(frozen=True)
+class ApidDef:
+    apid: int
+    name: str
+    direction: str
+    fmt: str  # struct format of the payload (little-endian)
+    f64_offset: int
+    f64_count: int
+    quat_offset: Optional[int] = None
+    segmentable: bool = False
+
+    @property
+    def payload_len(self) -> int:
+        return struct.calcsize(self.fmt)
+
+    @property
+    def packet_type(self) -> PacketType:
+        return PacketType.TC if self.direction == TO_FLIGHT else PacketType.TM
+
+
+RANGE_POINTS_PER_SEGMENT = 24
+
+# The APID table (docs/LINK.md).
+APIDS: Dict[int, ApidDef] = {
+    a.apid: a
+    for a in [
+        # accel_b_mps2[3], omega_bi_b_rps[3]
+        ApidDef(0x010, "imu_sample", TO_FLIGHT, "<6d", 0, 6),
+        # r_hill_m[3], q_hb_wxyz[4], r_sigma_m, att_sigma_rad
+        ApidDef(0x011, "led_pose", TO_FLIGHT, "<9d", 0, 9, quat_offset=24),
+        # interval_s, valve_mask, 7 reserved
+        ApidDef(0x012, "thruster_valves", TO_FLIGHT, "<dB7x", 0, 1),
+        # image_id, points_total, first_point, n_points, reserved, 24 x (p_m[3], sigma_m)
+        ApidDef(0x013, "range_image_segment", TO_FLIGHT, "<IHHHH" + "d" * 96, 12, 96, segmentable=True),
+        # target_mask, reserved, r_hill_m[3], v_hill_mps[3], q_hb_wxyz[4], pos/vel/att sigma
+        ApidDef(0x020, "cmd_reset", TO_FLIGHT, "<II13d", 8, 13, quat_offset=56),
+        # param_id, reserved, value
+        ApidDef(0x021, "cmd_config", TO_FLIGHT, "<IId", 8, 1),
+        # r_hill_m[3], v_hill_mps[3], q_hb_wxyz[4]
+        ApidDef(0x040, "tm_estimate", FROM_FLIGHT, "<10d", 0, 10, quat_offset=48),
+        # n_valid, reserved, p_diag[15]
+        ApidDef(0x041, "tm_covariance_diag", FROM_FLIGHT, "<II15d", 8, 15),
+        # step_kind, status, fused, meas_dim, step_index, innovation[6], nis, log_likelihood
+        ApidDef(0x042, "tm_innovation", FROM_FLIGHT, "<BBBBI8d", 8, 8),
+        # n_samples, status, dv_b_mps[3], dw_b_rps[3], variance[6]
+        ApidDef(0x043, "tm_learner", FROM_FLIGHT, "<II12d", 8, 12),
+        # packets_accepted, frames_total, seq_gaps_total, duplicates_total, rejected[28]
+        ApidDef(0x044, "tm_link_counters", FROM_FLIGHT, "<32I", 0, 0),
+        # uptime_s, last_step_cpu_s, max_step_cpu_s, cycle_count, mode, tx_packets, reserved
+        ApidDef(0x045, "tm_housekeeping", FROM_FLIGHT, "<3d4I", 0, 3),
+    ]
+}
+APID_BY_NAME: Dict[str, ApidDef] = {a.name: a for a in APIDS.values()}
+MAX_PAYLOAD_LEN = max(a.payload_len for a in APIDS.values())
+MAX_PACKET_WITH_CRC = PACKET_HEADER_SIZE + MAX_PAYLOAD_LEN + CRC_SIZE
+MAX_FRAME_LEN = MAX_PACKET_WITH_CRC + MAX_PACKET_WITH_CRC // 254 + 1  # COBS bytes, without 0x00
+
+# Stable rejection names, in the order of their numeric codes (tm_link_counters slots).
+REJECT_REASONS: Tuple[str, ...] = (
+    "empty_frame",
+    "frame_too_long",
+    "cobs_error",
+    "too_short",
+    "bad_crc",
+    "wrong_version",
+    "wrong_type",
+    "wrong_secondary_header_flag",
+    "length_field_too_long",
+    "length_field_too_short",
+    "unknown_apid",
+    "wrong_sequence_flags",
+    "wrong_payload_length",
+    "bad_time_tag",
+    "duplicate_sequence",
+    "time_backwards",
+    "stale_sequence",
+    "non_finite_payload",
+    "non_unit_quaternion",
+    "invalid_field",
+)
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE of ``data`` (fastcrc's CRC-16/IBM-3740, the same
+    algorithm in compiled code; ``crc16_reference`` is the pure-Python
+    ``crc`` package, and the tests hold the two equal)."""
+    return _fast_crc16(bytes(data))
+
+
+def crc16_reference(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE of ``data`` with the ``crc`` package."""
+    return _CRC.checksum(bytes(data))
+
+
+# ----------------------------------------------------------------------------- build
+
+
+def build_packet(
+    apid: int,
+    seq_count: int,
+    t_s: float,
+    payload: bytes,
+    seq_flags: SequenceFlags = SequenceFlags.UNSEGMENTED,
+    packet_type: Optional[PacketType] = None,
+) -> bytes:
+    """Packet bytes with the CRC appended. ``packet_type`` defaults to the APID's direction."""
+    if packet_type is None:
+        packet_type = APIDS[apid].packet_type
+    sec = struct.pack("<d", t_s)
+    header = SpacePacketHeader(
+        packet_type=packet_type,
+        apid=apid,
+        seq_count=seq_count % SEQ_MODULO,
+        data_len=len(sec) + len(payload) - 1,
+        sec_header_flag=True,
+        seq_flags=seq_flags,
+    )
+    body = bytes(SpacePacket(header, sec_header=sec, user_data=bytes(payload)).pack())
+    return body + crc16(body).to_bytes(2, "big")
+
+
+def frame(packet_with_crc: bytes) -> bytes:
+    """COBS-encode and append the 0x00 delimiter."""
+    return cobs.encode(bytes(packet_with_crc)) + b"\x00"
+
+
+def build_frame(apid: int, seq_count: int, t_s: float, payload: bytes, **kw) -> bytes:
+    return frame(build_packet(apid, seq_count, t_s, payload, **kw))
+
+
+def pack_payload(apid: int, *values) -> bytes:
+    """Payload bytes from the APID's struct fields, in table order."""
+    return struct.pack(APIDS[apid].fmt, *values)
+
+
+def unpack_payload(apid: int, payload: bytes) -> tuple:
+    return struct.unpack(APIDS[apid].fmt, payload)
+
+
+class Sender:
+    """Keeps the per-APID 14-bit sequence counts of one direction."""
+
+    def __init__(self) -> None:
+        self.next_seq: Dict[int, int] = {}
+
+    def frame(self, apid: int, t_s: float, payload: bytes,
+              seq_flags: SequenceFlags = SequenceFlags.UNSEGMENTED) -> bytes:
+        seq = self.next_seq.get(apid, 0)
+        self.next_seq[apid] = (seq + 1) % SEQ_MODULO
+        return build_frame(apid, seq, t_s, payload, seq_flags=seq_flags)
+
+
+# ----------------------------------------------------------------------------- parse
+
+
+@dataclass
+class Packet:
+    header: SpacePacketHeader
+    t_s: float
+    payload: bytes
+    raw: bytes  # header .. payload, without the CRC
+
+    @property
+    def apid(self) -> int:
+        return self.header.apid
+
+    def values(self) -> tuple:
+        return unpack_payload(self.apid, self.payload)
+
+
+@dataclass
+class Rejection:
+    reason: str
+    apid: Optional[int] = None
+
+
+def _range_segment_ok(payload: bytes, flags: SequenceFlags) -> bool:
+    image_id, total, first, n, _ = struct.unpack_from("<IHHHH", payload, 0)
+    if total == 0 or total > 4096 or n > RANGE_POINTS_PER_SEGMENT or first + n > total:
+        return False
+    starts, ends = first == 0, first + n == total
+    ok = {
+        SequenceFlags.UNSEGMENTED: starts and ends,
+        SequenceFlags.FIRST_SEGMENT: starts and not ends,
+        SequenceFlags.CONTINUATION_SEGMENT: not starts and not ends,
+        SequenceFlags.LAST_SEGMENT: ends and not starts,
+    }[flags]
+    sigmas = struct.unpack_from("<" + "d" * 96, payload, 12)[3::4]
+    return ok and all(s >= 0.0 for s in sigmas[:n])
+
+
+def _fields_ok(a: ApidDef, flags: SequenceFlags, payload: bytes) -> bool:
+    v = struct.unpack(a.fmt, payload) if a.name != "range_image_segment" else None
+    if a.name == "led_pose":
+        return v[7] >= 0.0 and v[8] >= 0.0
+    if a.name == "thruster_valves":
+        return v[0] >= 0.0
+    if a.name == "range_image_segment":
+        return _range_segment_ok(payload, flags)
+    if a.name == "cmd_reset":
+        return min(v[12:15]) >= 0.0
+    if a.name == "tm_covariance_diag":
+        return v[0] <= 15
+    if a.name == "tm_innovation":
+        return v[1] <= 3 and v[3] <= 6
+    return True
+
+
+class Deframer:
+    """Streaming deframer with the same checks in the same order as the flight
+    side (docs/LINK.md), for the direction this end receives."""
+
+    def __init__(self, accept: str = FROM_FLIGHT) -> None:
+        self.accept = accept
+        self._buf = bytearray()
+        self._discarding = False
+        self.rejected: Dict[str, int] = {r: 0 for r in REJECT_REASONS}
+        self.accepted = 0
+        self.gaps: Dict[int, int] = {}
+        self._last: Dict[int, Tuple[int, float]] = {}
+
+    def feed(self, data: bytes) -> List[Union[Packet, Rejection]]:
+        out: List[Union[Packet, Rejection]] = []
+        pieces = bytes(data).split(b"\x00")
+        for i, piece in enumerate(pieces):
+            last = i == len(pieces) - 1  # no 0x00 after it yet
+            if not self._discarding:
+                room = MAX_FRAME_LEN - len(self._buf)
+                if len(piece) > room:
+                    self._discarding = True
+                    self._buf.clear()
+                    out.append(self._reject("frame_too_long"))
+                else:
+                    self._buf += piece
+            if last:
+                break
+            if self._discarding:
+                self._discarding = False
+            else:
+                out.append(self._frame(bytes(self._buf)))
+            self._buf.clear()
+        return out
+
+    def _reject(self, reason: str, apid: Optional[int] = None) -> Rejection:
+        self.rejected[reason] += 1
+        return Rejection(reason, apid)
+
+    def _frame(self, enc: bytes) -> Union[Packet, Rejection]:
+        if not enc:
+            return self._reject("empty_frame")
+        try:
+            dec = cobs.decode(enc)
+        except cobs.DecodeError:
+            return self._reject("cobs_error")
+        if len(dec) < PACKET_HEADER_SIZE + CRC_SIZE:
+            return self._reject("too_short")
+        body = dec[:-2]
+        if crc16(body) != int.from_bytes(dec[-2:], "big"):
+            return self._reject("bad_crc")
+        h = SpacePacketHeader.unpack(body)
+        want_type = PacketType.TC if self.accept == TO_FLIGHT else PacketType.TM
+        if h.ccsds_version != 0:
+            return self._reject("wrong_version")
+        if h.packet_type != want_type:
+            return self._reject("wrong_type")
+        if not h.sec_header_flag:
+            return self._reject("wrong_secondary_header_flag")
+        if h.packet_len > len(body):
+            return self._reject("length_field_too_long")
+        if h.packet_len < len(body):
+            return self._reject("length_field_too_short")
+        a = APIDS.get(h.apid)
+        if a is None or a.direction != self.accept:
+            return self._reject("unknown_apid", h.apid)
+        if not a.segmentable and h.seq_flags != SequenceFlags.UNSEGMENTED:
+            return self._reject("wrong_sequence_flags", h.apid)
+        payload = body[PACKET_HEADER_SIZE:]
+        if len(payload) != a.payload_len:
+            return self._reject("wrong_payload_length", h.apid)
+        (t_s,) = struct.unpack_from("<d", body, PRIMARY_HEADER_SIZE)
+        if not math.isfinite(t_s):
+            return self._reject("bad_time_tag", h.apid)
+        last = self._last.get(h.apid)
+        if last is not None:
+            delta = (h.seq_count - last[0]) % SEQ_MODULO
+            if delta == 0:
+                return self._reject("duplicate_sequence", h.apid)
+            if t_s < last[1]:
+                return self._reject("time_backwards", h.apid)
+            if delta >= SEQ_MODULO // 2:
+                if not t_s > last[1]:
+                    return self._reject("stale_sequence", h.apid)
+            else:
+                self.gaps[h.apid] = self.gaps.get(h.apid, 0) + delta - 1
+        self._last[h.apid] = (h.seq_count, t_s)
+        f64 = struct.unpack_from("<%dd" % a.f64_count, payload, a.f64_offset)
+        if not all(math.isfinite(x) for x in f64):
+            return self._reject("non_finite_payload", h.apid)
+        if a.quat_offset is not None:
+            q = struct.unpack_from("<4d", payload, a.quat_offset)
+            if not abs(math.sqrt(sum(c * c for c in q)) - 1.0) <= QUAT_NORM_TOL:
+                return self._reject("non_unit_quaternion", h.apid)
+        if not _fields_ok(a, h.seq_flags, payload):
+            return self._reject("invalid_field", h.apid)
+        self.accepted += 1
+        return Packet(header=h, t_s=t_s, payload=bytes(payload), raw=bytes(body))
+
+
+def parse_frame(frame_bytes: bytes, accept: str) -> Union[Packet, Rejection]:
+    """Parse one complete frame (with or without its trailing 0x00), stateless."""
+    d = Deframer(accept)
+    data = bytes(frame_bytes)
+    if not data.endswith(b"\x00"):
+        data += b"\x00"
+    res = d.feed(data)
+    return res[0] if len(res) == 1 else Rejection("cobs_error")
