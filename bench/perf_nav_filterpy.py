@@ -1,0 +1,214 @@
+"""Side-by-side timing, in one process, of the flight navigation UKF through
+the bindings and FilterPy's UnscentedKalmanFilter on the same 9-state problem.
+
+Both filters: state [r_hill (3), v_hill (3), attitude (3)], CW closed-form
+step with the exact constant-acceleration term (Phi, Gamma from the
+bindings), accelerometer sample rotated into Hill with the attitude, attitude
+propagated with the Hill frame turning at n, the same process noise Q and
+pose noise R, scaled sigma points alpha = 1, beta = 2, kappa = 0. FilterPy
+carries the attitude as an absolute rotation vector (its sigma points and
+means are plain vector arithmetic); ours is the multiplicative quaternion
+filter. Medians of per-call wall times (time.perf_counter_ns).
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf_nav_filterpy [--predicts 3000] [--json OUT]
+
+PROXOPS_BINDINGS_DIR=<cmake build>/python times a freshly built module
+instead of the installed one.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import importlib.util
+import os
+import platform
+import sys
+import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+
+def _load_bindings():
+    d = os.environ.get("PROXOPS_BINDINGS_DIR")
+    if d:
+        found = glob.glob(os.path.join(d, "fsw_bindings*.so"))
+        if not found:
+            raise RuntimeError(f"PROXOPS_BINDINGS_DIR={d}: no fsw_bindings module there")
+        spec = importlib.util.spec_from_file_location("fsw_bindings", found[0])
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules["fsw_bindings"] = mod
+    import fsw_bindings
+
+    return fsw_bindings
+
+
+fb = _load_bindings()
+
+DT = 0.1
+POS_SIGMA = 0.0375
+ATT_SIGMA = 0.01
+
+
+# --- small scalar-first quaternion helpers for the FilterPy model ----------
+def q_mul(a, b):
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ])
+
+
+def q_exp(phi):
+    th = np.linalg.norm(phi)
+    if th < 1e-9:
+        return np.array([1.0, *(0.5 * phi)])
+    return np.array([np.cos(th / 2), *(np.sin(th / 2) / th * phi)])
+
+
+def q_log(q):
+    if q[0] < 0:
+        q = -q
+    s = np.linalg.norm(q[1:])
+    if s < 1e-12:
+        return 2.0 * q[1:]
+    return 2.0 * np.arctan2(s, q[0]) / s * q[1:]
+
+
+def q_rot(q):
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def make_filterpy(n, Q, R, x0, P0):
+    from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+
+    phi = fb.cw_stm(n, DT)
+    gam = fb.cw_accel_response(n, DT)
+    hill = q_exp(np.array([0.0, 0.0, -n * DT]))
+
+    def fx(x, dt, accel=np.zeros(3), omega=np.zeros(3)):
+        q = q_exp(x[6:9])
+        a_mid = accel + 0.5 * dt * np.cross(omega, accel)
+        a_h = q_rot(q) @ a_mid
+        th = 0.5 * n * dt
+        a_h = np.array([a_h[0] + th * a_h[1], a_h[1] - th * a_h[0], a_h[2]])
+        out = np.empty(9)
+        out[:6] = phi @ x[:6] + gam @ a_h
+        out[6:] = q_log(q_mul(q_mul(hill, q), q_exp(omega * dt)))
+        return out
+
+    def hx(x):
+        return np.concatenate([x[:3], x[6:9]])
+
+    pts = MerweScaledSigmaPoints(9, alpha=1.0, beta=2.0, kappa=0.0)
+    ukf = UnscentedKalmanFilter(dim_x=9, dim_z=6, dt=DT, fx=fx, hx=hx, points=pts)
+    ukf.x = x0.copy()
+    ukf.P = P0.copy()
+    ukf.Q = Q.copy()
+    ukf.R = R.copy()
+    return ukf
+
+
+def run(predicts: int, seed: int) -> dict:
+    cfg = fb.NavConfig()
+    cfg.n_radps = fb.orbit_rate(fb.EARTH_RADIUS + 500e3)
+    cfg.dt_imu_s = DT
+    cfg.accel_sigma_mps2 = 0.25 * 0.020 / 3.0
+    cfg.gyro_sigma_rps = 0.005
+    n = cfg.n_radps
+    gam = fb.cw_accel_response(n, DT)
+    Q = np.zeros((9, 9))
+    Q[:6, :6] = cfg.accel_sigma_mps2**2 * gam @ gam.T
+    Q[6:, 6:] = (cfg.gyro_sigma_rps * DT) ** 2 * np.eye(3)
+    R = np.diag([POS_SIGMA**2] * 3 + [ATT_SIGMA**2] * 3)
+    P0 = np.diag([0.05**2] * 3 + [0.01**2] * 3 + [0.05**2] * 3)
+    r0 = np.array([0.75, 0.0, 0.0])
+    v0 = np.array([0.0, -2.0 * n * 0.75, 0.0])
+    phi0 = np.array([0.1, -0.2, 0.3])
+    q0 = q_exp(phi0)
+
+    ours = fb.NavUkf(cfg)
+    ours.init(0.0, r0, v0, q0, P0)
+    theirs = make_filterpy(n, Q, R, np.concatenate([r0, v0, phi0]), P0)
+
+    rng = np.random.default_rng(seed)
+    accel = 2e-3 * rng.standard_normal((predicts, 3))
+    omega = np.array([0.01, -0.02, 0.015]) + 0.005 * rng.standard_normal((predicts, 3))
+    meas_noise = rng.standard_normal((predicts // 10 + 1, 6))
+
+    t_pred = {"ours": [], "filterpy": []}
+    t_upd = {"ours": [], "filterpy": []}
+    clock = time.perf_counter_ns
+    max_pos_diff = 0.0
+    for k in range(predicts):
+        t = (k + 1) * DT
+        a, w = accel[k], omega[k]
+        t0 = clock()
+        ours.predict(t, a, w)
+        t1 = clock()
+        theirs.predict(accel=a, omega=w)
+        t2 = clock()
+        t_pred["ours"].append(t1 - t0)
+        t_pred["filterpy"].append(t2 - t1)
+        if (k + 1) % 10 == 0:
+            e = meas_noise[(k + 1) // 10]
+            r_meas = ours.r_hill_m + POS_SIGMA * e[:3]
+            q_meas = fb.boxplus(ours.q_hb, ATT_SIGMA * e[3:])
+            z = np.concatenate([r_meas, q_log(q_meas)])
+            t0 = clock()
+            ours.update_pose(t, r_meas, q_meas, R)
+            t1 = clock()
+            theirs.update(z)
+            t2 = clock()
+            t_upd["ours"].append(t1 - t0)
+            t_upd["filterpy"].append(t2 - t1)
+            max_pos_diff = max(max_pos_diff, float(np.abs(theirs.x[:3] - ours.r_hill_m).max()))
+
+    def med_us(v):
+        return float(np.median(v)) / 1e3
+
+    res = {
+        "predicts": predicts,
+        "updates": len(t_upd["ours"]),
+        "predict_median_us": {"ours": med_us(t_pred["ours"]), "filterpy": med_us(t_pred["filterpy"])},
+        "update_median_us": {"ours": med_us(t_upd["ours"]), "filterpy": med_us(t_upd["filterpy"])},
+        "max_pos_estimate_diff_m": max_pos_diff,
+        "python": platform.python_version(),
+    }
+    res["predict_ratio"] = res["predict_median_us"]["filterpy"] / res["predict_median_us"]["ours"]
+    res["update_ratio"] = res["update_median_us"]["filterpy"] / res["update_median_us"]["ours"]
+    return res
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m bench.perf_nav_filterpy", description=__doc__.splitlines()[0])
+    p.add_argument("--predicts", type=int, default=3000, help="IMU predicts (a pose update every 10th)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--json", default=None, help="write the figures here")
+    args = p.parse_args(argv)
+    res = run(args.predicts, args.seed)
+    print(f"{'step':<8} {'ours [us]':>12} {'FilterPy [us]':>14} {'ratio':>8}")
+    for step in ("predict", "update"):
+        m = res[f"{step}_median_us"]
+        print(f"{step:<8} {m['ours']:>12.2f} {m['filterpy']:>14.1f} {res[f'{step}_ratio']:>7.0f}x")
+    print(f"({res['predicts']} predicts, {res['updates']} updates, medians per call; "
+          f"largest position estimate difference {res['max_pos_estimate_diff_m']:.2e} m)")
+    if args.json:
+        from bench.report import write_json
+
+        write_json(args.json, res)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

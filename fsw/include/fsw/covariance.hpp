@@ -1,0 +1,91 @@
+// Covariance hygiene, in one place: symmetrise, bound the diagonal, and
+// Cholesky with failure reporting. Every estimator conditions its covariance
+// through condition_covariance() after each step and factors through
+// factor() / cholesky_lower(), so a failure is always detected the same way.
+// Real-time core: fixed-size Eigen only, no heap, no exceptions, no I/O.
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <cmath>
+
+namespace fsw {
+
+// P <- (P + P^T) / 2.
+template <typename S, int N>
+inline void symmetrize(Eigen::Matrix<S, N, N>& P) {
+  for (int i = 0; i < N; ++i) {
+    for (int j = i + 1; j < N; ++j) {
+      const S m = S(0.5) * (P(i, j) + P(j, i));
+      P(i, j) = m;
+      P(j, i) = m;
+    }
+  }
+}
+
+// Keeps every variance inside [var_min(i), var_max(i)] without breaking
+// positive definiteness: a variance below its floor is raised (adding a
+// non-negative diagonal term), one above its ceiling is scaled down together
+// with its row and column (a congruence D P D, which keeps correlations).
+template <typename S, int N>
+inline void bound_diagonal(Eigen::Matrix<S, N, N>& P, const Eigen::Matrix<S, N, 1>& var_min,
+                           const Eigen::Matrix<S, N, 1>& var_max) {
+  for (int i = 0; i < N; ++i) {
+    if (P(i, i) < var_min(i)) {
+      P(i, i) = var_min(i);
+    } else if (P(i, i) > var_max(i)) {
+      const S s = std::sqrt(var_max(i) / P(i, i));
+      P.row(i) *= s;
+      P.col(i) *= s;
+      P(i, i) = var_max(i);
+    }
+  }
+}
+
+// The hygiene applied after every predict and update. Returns false (P then
+// unspecified) when a variance is not positive or not finite: that is a
+// numerical breakdown to report, not something to paper over with the floor.
+template <typename S, int N>
+inline bool condition_covariance(Eigen::Matrix<S, N, N>& P, const Eigen::Matrix<S, N, 1>& var_min,
+                                 const Eigen::Matrix<S, N, 1>& var_max) {
+  for (int i = 0; i < N; ++i) {
+    if (!(P(i, i) > S(0)) || !std::isfinite(P(i, i))) return false;
+  }
+  symmetrize(P);
+  bound_diagonal(P, var_min, var_max);
+  return true;
+}
+
+// Factors A = L L^T. Returns false when A is not (numerically) positive
+// definite or holds a non-finite value; Eigen's LLT alone lets NaN through.
+template <typename S, int N>
+inline bool factor(const Eigen::Matrix<S, N, N>& A, Eigen::LLT<Eigen::Matrix<S, N, N>>& llt) {
+  if (!A.allFinite()) return false;
+  llt.compute(A);
+  if (llt.info() != Eigen::Success) return false;
+  const auto& LL = llt.matrixLLT();
+  for (int i = 0; i < N; ++i) {
+    const S d = LL(i, i);
+    if (!(d > S(0)) || !std::isfinite(d)) return false;
+  }
+  return true;
+}
+
+// Lower Cholesky factor L of A = L L^T; false (L unspecified) on failure.
+template <typename S, int N>
+inline bool cholesky_lower(const Eigen::Matrix<S, N, N>& A, Eigen::Matrix<S, N, N>& L) {
+  Eigen::LLT<Eigen::Matrix<S, N, N>> llt;
+  if (!factor(A, llt)) return false;
+  L = llt.matrixL();
+  return true;
+}
+
+// log det(A) from a successful factorisation.
+template <typename S, int N>
+inline S log_det(const Eigen::LLT<Eigen::Matrix<S, N, N>>& llt) {
+  S acc = S(0);
+  for (int i = 0; i < N; ++i) acc += std::log(llt.matrixLLT()(i, i));
+  return S(2) * acc;
+}
+
+}  // namespace fsw
