@@ -1,0 +1,130 @@
+"""`proxops nav`: seeded Monte Carlo of the docking scenario with the flight
+navigation filter; summary table, JSON metrics and the paper's Figs. 3-6."""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from bench.nav_campaign import run_campaign
+from bench.report import matplotlib_agg, report_dir, write_json
+from bench.scenario_docking import ScenarioConfig, errors_from_first_update
+from bench.sensors import NoiseProfile
+
+
+def register(sub):
+    p = sub.add_parser("nav", help="navigation Monte Carlo over the docking scenario (issue 3)")
+    p.add_argument("--runs", type=int, default=50, help="number of docking runs")
+    p.add_argument("--seed", type=int, default=1, help="campaign seed (run i uses seed*1000 + i)")
+    p.add_argument("--json", default=None, help="write the metrics here")
+    p.add_argument("--plots", default=None, help="folder for the figures")
+    p.add_argument("--dynamics", choices=("nonlinear", "cw"), default="nonlinear", help="truth translation model")
+    p.add_argument("--profile", choices=("paper", "biased"), default="paper", help="sensor noise profile")
+    p.add_argument("--pose-latency-s", type=float, default=0.0, help="delivery delay of each pose [s]")
+    p.add_argument("--pose-r-from", choices=("estimate", "measurement"), default="estimate",
+                   help="range the pose covariance handed to the filter is built from")
+    p.add_argument("--init", choices=("pose", "truth_draw"), default="pose", help="filter initialisation")
+    p.set_defaults(func=main)
+
+
+def _progress(i, n, m, dt):
+    print(f"run {i + 1:3d}/{n} seed {m.seed:6d}  {'docked' if m.docked else 'NOT docked'} at {m.t_end_s:6.1f} s  "
+          f"max|dr| {m.max_pos_err_m:.4f} m  max|dv| {m.max_vel_err_mps:.4f} m/s  "
+          f"NEES {np.mean(m.nees):5.2f}  NIS {np.mean(m.nis) if m.nis.size else float('nan'):5.2f}  "
+          f"({dt:.1f} s)", flush=True)
+
+
+def print_summary(s: dict) -> None:
+    c = s["checks"]
+    ok = lambda b: "yes" if b else "NO"  # noqa: E731
+    rows = [
+        ("max position error p95 [m]", s["max_pos_err_m"]["p95"], "<= 0.10", ok(c["pos_p95_le_0.10"])),
+        ("max position error median [m]", s["max_pos_err_m"]["median"], "<= 0.05", ok(c["pos_median_le_0.05"])),
+        ("max velocity error p95 [m/s]", s["max_vel_err_mps"]["p95"], "<= 0.03", ok(c["vel_p95_le_0.03"])),
+        ("max velocity error median [m/s]", s["max_vel_err_mps"]["median"], "<= 0.015", ok(c["vel_median_le_0.015"])),
+        ("NEES mean (9 dof)", s["nees_mean"], "[{:.3f}, {:.3f}]".format(*s["nees_band"]), ok(c["nees_in_band"])),
+        ("NIS mean (6 dof)", s["nis_mean"], "[{:.3f}, {:.3f}]".format(*s["nis_band"]), ok(c["nis_in_band"])),
+        ("NEES mean after updates (1 Hz)", s["nees_post_update_mean"],
+         "[{:.3f}, {:.3f}]".format(*s["nees_post_update_band"]), ""),
+        ("NEES mean every 10 s", s["nees_thinned_mean"], "[{:.3f}, {:.3f}]".format(*s["nees_thinned_band"]),
+         ok(s["nees_thinned_band"][0] <= s["nees_thinned_mean"] <= s["nees_thinned_band"][1])),
+    ]
+    print(f"\n{s['runs']} runs, seed {s['seed']}, {s['dynamics']} truth, docked {s['docked']}/{s['runs']}")
+    print(f"{'metric':34s} {'value':>10s}  {'required':>18s}  pass")
+    for name, v, req, p in rows:
+        print(f"{name:34s} {v:10.4f}  {req:>18s}  {p}")
+    if s["nees_mean_std_error"] is not None:
+        print(f"NEES mean standard error from the per-run means: {s['nees_mean_std_error']:.3f}")
+    nb, ib = s["nees_block_means"], s["nis_block_means"]
+    print(f"NEES blocks (3 dof each): pos {nb['pos']:.3f} vel {nb['vel']:.3f} att {nb['att']:.3f}; "
+          f"NIS blocks: pos {ib['pos']:.3f} att {ib['att']:.3f}")
+    print(f"gated {s['gated_count']}, statuses {s['status_counts']}")
+
+
+def make_plots(runs, summary, folder) -> None:
+    plt = matplotlib_agg()
+    out = report_dir(folder)
+    # Fig. 3: trace of P, every kept run.
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for r in runs:
+        ax.semilogy(r["t"], np.trace(r["P"], axis1=1, axis2=2), lw=0.7)
+    ax.set(xlabel="time [s]", ylabel="trace P", title="UKF uncertainty (trace of P)")
+    fig.tight_layout()
+    fig.savefig(out / "nav_trace_p.png", dpi=120)
+    plt.close(fig)
+    # Figs. 4-6: errors per axis with 3-sigma bounds, first run.
+    e = errors_from_first_update(runs[0])
+    for key, blk, unit, title, fname in (("pos", 0, "m", "position error", "nav_pos_err.png"),
+                                         ("vel", 1, "m/s", "velocity error", "nav_vel_err.png"),
+                                         ("att", 2, "rad", "attitude error (body frame)", "nav_att_err.png")):
+        fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
+        for j, ax in enumerate(axes):
+            sig = 3 * e["sigma"][:, 3 * blk + j]
+            ax.plot(e["t"], e[key][:, j], lw=0.8, label="error")
+            ax.plot(e["t"], sig, "k--", lw=0.6, label="3-sigma")
+            ax.plot(e["t"], -sig, "k--", lw=0.6)
+            ax.set_ylabel(f"{'xyz'[j]} [{unit}]")
+        axes[0].set_title(f"UKF {title}, seed {runs[0]['summary']['seed']}")
+        axes[0].legend(loc="upper right", fontsize=7)
+        axes[-1].set_xlabel("time [s]")
+        fig.tight_layout()
+        fig.savefig(out / fname, dpi=120)
+        plt.close(fig)
+    # NIS of the kept runs against the per-sample 95 % band.
+    from scipy.stats import chi2
+
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for r in runs:
+        u = r["updates"]
+        ax.plot(u["t_capture"], u["nis"], ".", ms=3)
+    lo, hi = chi2.ppf([0.025, 0.975], 6)
+    ax.axhline(lo, color="k", ls="--", lw=0.6)
+    ax.axhline(hi, color="k", ls="--", lw=0.6)
+    ax.set(xlabel="capture time [s]", ylabel="NIS (6 dof)",
+           title=f"NIS per pose update; campaign mean {summary['nis_mean']:.2f}")
+    fig.tight_layout()
+    fig.savefig(out / "nav_nis.png", dpi=120)
+    plt.close(fig)
+
+
+def main(args):
+    if args.runs < 1:
+        raise ValueError("--runs must be at least 1")
+    import fsw_bindings
+
+    if not hasattr(fsw_bindings, "NavUkf"):
+        raise ValueError(f"{fsw_bindings.__file__} has no NavUkf: rebuild the bindings with bind_nav")
+    profile = NoiseProfile.paper() if args.profile == "paper" else NoiseProfile.biased()
+    profile = profile.with_(pose_latency_s=args.pose_latency_s)
+    cfg = ScenarioConfig(profile=profile, dynamics=args.dynamics, pose_R_from=args.pose_r_from, init=args.init)
+    keep = min(args.runs, 5) if args.plots else 0
+    summary, runs = run_campaign(args.runs, args.seed, cfg, progress=_progress, keep_runs=keep)
+    print_summary(summary)
+    if args.json:
+        write_json(args.json, summary)
+        print(f"wrote {args.json}")
+    if args.plots:
+        make_plots(runs, summary, args.plots)
+        print(f"plots in {args.plots}")
+    sys.stdout.flush()
+    return 0

@@ -1,0 +1,319 @@
+"""The paper's docking scenario: the inspector starts 0.75 m from the host's
+centre of mass and docks autonomously, navigating with the flight UKF
+(fsw_bindings.NavUkf) from a 10 Hz IMU and a 1 Hz LED pose.
+
+Loop, per 0.1 s control interval [t_k, t_k+1):
+  1. the controller picks a valve configuration from the navigation estimate
+     at t_k and the latest gyro samples;
+  2. the truth plant integrates the interval with that configuration held;
+  3. the IMU sample stamped t_k+1 (mean over the interval) drives
+     NavUkf.predict(t_k+1, ...);
+  4. at whole seconds the LED pose is captured; it is delivered after the
+     profile's latency and fused with NavUkf.update_pose(t_capture, ...).
+The run ends at contact (the inspector's docking face reaches the port
+plane) or at ``t_max_s``.
+
+Initial conditions (seeded): start direction within ``start_cone_deg`` of
+the approach axis at ``start_range_m`` from the host, velocity
+N(0, v0_sigma_mps = 3 mm/s) per axis (released from a hold), attitude
+Exp(N(0, 0.05 rad)) from the docking attitude, body rate relative to Hill
+N(0, 0.005 rad/s).
+
+Filter initialisation (``init``):
+  * "pose" (default): position and attitude from the LED pose captured at
+    t = 0, with that pose's own covariance R; velocity 0 with
+    P0_v = v0_sigma_mps^2 I, the true spread of the start velocity. So
+    P0 = blockdiag(R_pos(t=0), (3 mm/s)^2 I, (0.01 rad)^2 I) and the initial
+    error is exactly a draw from P0. The first fused pose is the one
+    captured at t = 1 s.
+  * "truth_draw": the truth plus a draw from
+    P0 = diag(0.05 m, 0.01 m/s, 0.05 rad)^2 (per axis), and the pose captured
+    at t = 0 fused at once.
+
+Physical effects (``effects``: an EffectSet, bench/effects.py and
+docs/EFFECTS.md) change the truth plant, the truth vehicle and the sensors;
+the controller and the filter keep their nominal models. Camera latency
+(the frame tagged t shows the truth at t - latency, interpolated between
+control steps) and the IMU clock (time tags scaled by 1 + eps; the flight
+software keeps time by it, so pose frames carry the tag of their IMU tick)
+act in this loop.
+Without effects the run is the same, bit for bit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.controller import APPROACH_AXIS_HILL, ControllerParams, DockingController, DOCK_HILL_M
+from bench.plant import N_RADPS, Plant, PlantState, boxminus, boxplus, qexp, qnormalize, rotmat
+from bench.sensors import Imu, NoiseProfile, PoseSensor
+from bench.vehicle import Vehicle
+
+P0_SIGMAS = np.array([0.05] * 3 + [0.01] * 3 + [0.05] * 3)  # [m, m/s, rad]
+NAV_DOF = 9
+POSE_DOF = 6
+
+
+@dataclass
+class ScenarioConfig:
+    profile: NoiseProfile = field(default_factory=NoiseProfile.paper)
+    dynamics: str = "nonlinear"
+    dt_s: float = 0.1
+    pose_period_s: float = 1.0
+    start_range_m: float = 0.75
+    start_cone_deg: float = 30.0
+    t_max_s: float = 240.0
+    substep_s: float = 0.02
+    gate_chi2: float = 22.46
+    nav: str = "ukf"  # "ukf": fsw_bindings.NavUkf; "truth": the estimate is the truth (controller tests)
+    # The filter's noise settings; None means "same as the simulated sensors".
+    nav_accel_sigma_mps2: float | None = None
+    nav_gyro_sigma_rps: float | None = None
+    # "pose": r, q from the pose captured at t = 0 (its own R), v = 0 with
+    # sigma v0_sigma_mps; first fused update at t = 1 s. "truth_draw": truth
+    # plus a draw from P0_SIGMAS, and the t = 0 pose fused at once.
+    init: str = "pose"
+    # Range from which the pose covariance handed to the filter is built:
+    # "estimate" (the filter's range at fusion: independent of the pose's own
+    # noise) or "measurement" (the measured range: a noisy measurement then
+    # carries a correlated R, which biases NIS and NEES slightly upward).
+    pose_R_from: str = "estimate"
+    v0_sigma_mps: float = 0.003
+    controller: ControllerParams = field(default_factory=ControllerParams)
+    truth_vehicle: Vehicle = field(default_factory=Vehicle)
+    effects: dict | None = None  # EffectSet (bench/effects.py): physics the nominal model leaves out
+
+
+class _TruthNav:
+    """Perfect navigation, for exercising the controller and plant alone."""
+
+    def __init__(self, plant: Plant):
+        self.plant = plant
+        self.P = None
+
+    def state(self):
+        s = self.plant.state
+        return np.concatenate([s.r_hill_m, s.v_hill_mps, s.q_hb])
+
+
+def nav_config(cfg: ScenarioConfig):
+    """fsw_bindings.NavConfig whose noise settings are the simulated sensors'."""
+    import fsw_bindings as fb
+
+    nc = fb.NavConfig()
+    nc.n_radps = fb.orbit_rate(fb.EARTH_RADIUS + 500e3)
+    nc.dt_imu_s = cfg.dt_s
+    nc.accel_sigma_mps2 = cfg.profile.accel_sigma_mps2 if cfg.nav_accel_sigma_mps2 is None else cfg.nav_accel_sigma_mps2
+    nc.gyro_sigma_rps = cfg.profile.gyro_sigma_rps if cfg.nav_gyro_sigma_rps is None else cfg.nav_gyro_sigma_rps
+    nc.gate_chi2 = cfg.gate_chi2
+    nc.max_delay_s = 0.5
+    return nc
+
+
+def make_nav_ukf(cfg: ScenarioConfig):
+    import fsw_bindings as fb
+
+    return fb.NavUkf(nav_config(cfg))
+
+
+def initial_truth(rng: np.random.Generator, cfg: ScenarioConfig) -> PlantState:
+    # Direction within the start cone around -approach axis.
+    ang = np.deg2rad(cfg.start_cone_deg) * np.sqrt(rng.uniform())
+    az = rng.uniform(0.0, 2 * np.pi)
+    u = np.array([np.sin(ang) * np.cos(az), -np.cos(ang), np.sin(ang) * np.sin(az)])
+    r0 = cfg.start_range_m * u
+    v0 = cfg.v0_sigma_mps * rng.standard_normal(3)
+    q0 = qnormalize(qexp(0.05 * rng.standard_normal(3)))
+    w_bh = 0.005 * rng.standard_normal(3)
+    w_bi = w_bh + rotmat(q0).T @ np.array([0.0, 0.0, N_RADPS])
+    return PlantState(0.0, r0, v0, q0, w_bi)
+
+
+def nav_error(truth_r, truth_v, truth_q, est):
+    """[r_true - r_est, v_true - v_est, boxminus(q_true, q_est)] (9,)."""
+    return np.concatenate([truth_r - est[0:3], truth_v - est[3:6], boxminus(truth_q, est[6:10])])
+
+
+def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=None) -> dict:
+    """One docking run. Returns time histories (numpy arrays) and a summary."""
+    cfg = cfg or ScenarioConfig()
+    rng = np.random.default_rng(seed)
+    rng_imu, rng_pose, rng_init, rng_p0 = (np.random.default_rng(s) for s in rng.integers(0, 2**63, 4))
+    if cfg.effects:
+        from bench.effects import realise
+
+        fx = realise(cfg.effects, cfg.truth_vehicle, cfg.profile, seed)
+        plant = Plant(initial_truth(rng_init, cfg), vehicle=fx.vehicle, dynamics=cfg.dynamics,
+                      substep_s=cfg.substep_s, effects=fx.plant)
+        imu = Imu(fx.profile, rng_imu, c_imu_b=fx.c_imu_b)
+        pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=fx.lever_arm_b_m, occlusion=fx.occlusion)
+        latency_s, clock_rate = fx.camera_latency_s, fx.imu_clock_rate
+    else:
+        plant = Plant(initial_truth(rng_init, cfg), vehicle=cfg.truth_vehicle, dynamics=cfg.dynamics,
+                      substep_s=cfg.substep_s)
+        imu = Imu(cfg.profile, rng_imu)
+        pose = PoseSensor(cfg.profile, rng_pose)
+        latency_s, clock_rate = 0.0, 1.0
+    ctrl = DockingController(params=cfg.controller)
+
+    def seen(t_tag):
+        """(r, q) the camera sees in the frame tagged t_tag: the truth at
+        t_tag - latency, interpolated over the recorded control steps."""
+        s = plant.state
+        tc = max(t_tag - latency_s, 0.0)
+        if latency_s == 0.0 or tc >= s.t_s:
+            return s.r_hill_m, s.q_hb
+        ts = h["t"] + [s.t_s]
+        rs, qs = h["r_true"] + [s.r_hill_m], h["q_true"] + [s.q_hb]
+        j = min(max(int(np.searchsorted(ts, tc, side="right")) - 1, 0), len(ts) - 1)
+        if j == len(ts) - 1:
+            return rs[j], qs[j]
+        f = (tc - ts[j]) / (ts[j + 1] - ts[j])
+        return rs[j] + f * (rs[j + 1] - rs[j]), boxplus(qs[j], f * boxminus(qs[j + 1], qs[j]))
+
+    s0 = plant.state
+    if cfg.nav == "ukf":
+        # ``nav``: any object with NavUkf's interface (the HIL link's LinkNav);
+        # None builds the in-process filter.
+        nav = make_nav_ukf(cfg) if nav is None else nav
+        if cfg.init == "pose":
+            m0 = pose.measure(0.0, *seen(0.0))
+            P0 = np.zeros((9, 9))
+            P0[0:3, 0:3], P0[6:9, 6:9] = m0.R[0:3, 0:3], m0.R[3:6, 3:6]
+            P0[3:6, 3:6] = cfg.v0_sigma_mps**2 * np.eye(3)
+            nav.init(0.0, m0.r_hill_m, np.zeros(3), m0.q_hb, P0)
+        elif cfg.init == "truth_draw":
+            d0 = P0_SIGMAS * rng_p0.standard_normal(NAV_DOF)
+            P0 = np.diag(P0_SIGMAS**2)
+            nav.init(0.0, s0.r_hill_m + d0[0:3], s0.v_hill_mps + d0[3:6], boxplus(s0.q_hb, -d0[6:9]), P0)
+        else:
+            raise ValueError(f"init must be 'pose' or 'truth_draw', not {cfg.init!r}")
+    elif cfg.nav == "truth":
+        nav = _TruthNav(plant)
+    else:
+        raise ValueError(f"nav must be 'ukf' or 'truth', not {cfg.nav!r}")
+
+    h = {k: [] for k in ("t", "r_true", "v_true", "q_true", "w_true", "est", "P", "nees", "config",
+                         "predict_status")}
+    upd = {k: [] for k in ("t_capture", "t_fused", "nis", "status", "fused", "innovation", "S", "loglik",
+                           "r_meas", "q_meas", "r_sigma", "att_sigma")}
+    imu_log = {"t": [], "accel": [], "gyro": []}
+    pending = []
+    n_steps_pose = int(round(cfg.pose_period_s / cfg.dt_s))
+    gyro_last = s0.omega_bi_b_rps.copy()  # before the first sample: the initial rate, no better guess
+    first_update_t = None
+
+    def deliver(t_now):
+        nonlocal first_update_t
+        while pending and pending[0].t_deliver_s <= t_now + 1e-9:
+            m = pending.pop(0)
+            if cfg.nav != "ukf":
+                continue
+            R = m.R if cfg.pose_R_from == "measurement" else pose.covariance(np.asarray(nav.r_hill_m, float))
+            rec = nav.update_pose(m.t_capture_s, m.r_hill_m, m.q_hb, R)
+            upd["t_capture"].append(m.t_capture_s)
+            upd["t_fused"].append(t_now if clock_rate == 1.0 else t_now * clock_rate)
+            upd["nis"].append(rec.nis)
+            upd["status"].append(rec.status)
+            upd["fused"].append(bool(rec.fused))
+            upd["innovation"].append(np.asarray(rec.innovation))
+            upd["S"].append(np.asarray(rec.innovation_cov))
+            upd["loglik"].append(rec.log_likelihood)
+            upd["r_meas"].append(np.asarray(m.r_hill_m, float))
+            upd["q_meas"].append(np.asarray(m.q_hb, float))
+            upd["r_sigma"].append(float(np.sqrt(R[0, 0])))
+            upd["att_sigma"].append(float(np.sqrt(R[3, 3])))
+            if first_update_t is None:
+                first_update_t = t_now
+
+    def record(status):
+        s = plant.state
+        est = np.asarray(nav.state(), float)
+        h["t"].append(s.t_s)
+        h["r_true"].append(s.r_hill_m.copy())
+        h["v_true"].append(s.v_hill_mps.copy())
+        h["q_true"].append(s.q_hb.copy())
+        h["w_true"].append(s.omega_bi_b_rps.copy())
+        h["est"].append(est)
+        P = None if nav.P is None else np.asarray(nav.P, float)
+        h["P"].append(np.full((9, 9), np.nan) if P is None else P)
+        if P is None:
+            h["nees"].append(np.nan)
+        else:
+            e = nav_error(s.r_hill_m, s.v_hill_mps, s.q_hb, est)
+            h["nees"].append(float(e @ np.linalg.solve(P, e)))
+        h["predict_status"].append(status)
+
+    if not (cfg.nav == "ukf" and cfg.init == "pose"):
+        pending.append(pose.measure(0.0, *seen(0.0)))
+        deliver(0.0)
+    record("init")
+    k = 0
+    contact = False
+    while plant.state.t_s < cfg.t_max_s - 1e-9:
+        est = np.asarray(nav.state(), float)
+        dec = ctrl.step(est[0:3], est[3:6], est[6:10], gyro_last)
+        step = plant.step(dec.valves, cfg.dt_s)
+        k += 1
+        t = k * cfg.dt_s
+        t_imu = t if clock_rate == 1.0 else t * clock_rate  # the IMU's own (drifting) time tag
+        sample = imu.sample(t_imu, step.specific_force_b_mps2, step.omega_mean_bi_b_rps)
+        gyro_last = sample.omega_bi_b_rps
+        imu_log["t"].append(t_imu)
+        imu_log["accel"].append(np.asarray(sample.accel_b_mps2, float))
+        imu_log["gyro"].append(np.asarray(sample.omega_bi_b_rps, float))
+        if on_step is not None:
+            on_step(t)
+        status = "ok"
+        if cfg.nav == "ukf":
+            status = nav.predict(t_imu, sample.accel_b_mps2, sample.omega_bi_b_rps).status
+        if k % n_steps_pose == 0:
+            m = pose.measure(t, *seen(t))
+            if clock_rate != 1.0:
+                m.t_capture_s = t_imu  # the flight clock (the IMU's) tags the frame with its tick
+            pending.append(m)
+        deliver(t)
+        record(status)
+        h["config"].append(dec.config)
+        d_axial = float((DOCK_HILL_M - plant.state.r_hill_m) @ APPROACH_AXIS_HILL)
+        if d_axial <= 0.0:
+            contact = True
+            break
+
+    out = {key: np.array(v) for key, v in h.items()}
+    out["config"] = np.array(h["config"], dtype=int)
+    out["updates"] = {key: np.array(v) for key, v in upd.items()}
+    for key in ("r_meas", "innovation"):
+        out["updates"][key] = out["updates"][key].reshape(-1, 3 if key == "r_meas" else 6)
+    out["updates"]["q_meas"] = out["updates"]["q_meas"].reshape(-1, 4)
+    out["imu_t"] = np.array(imu_log["t"])
+    out["imu_accel"] = np.array(imu_log["accel"]).reshape(-1, 3)
+    out["imu_gyro"] = np.array(imu_log["gyro"]).reshape(-1, 3)
+    s = plant.state
+    e_lat = s.r_hill_m - DOCK_HILL_M
+    e_lat = e_lat - (e_lat @ APPROACH_AXIS_HILL) * APPROACH_AXIS_HILL
+    out["summary"] = {
+        "seed": int(seed),
+        "docked": bool(contact),
+        "t_end_s": float(s.t_s),
+        "contact_speed_mps": float(s.v_hill_mps @ APPROACH_AXIS_HILL),
+        "lateral_miss_m": float(np.linalg.norm(e_lat)),
+        "attitude_miss_rad": float(np.linalg.norm(boxminus(s.q_hb, ctrl.q_des_hb))),
+        "first_update_t_s": first_update_t,
+        "valve_seconds": float(np.sum([bin(c).count("1") for c in h["config"]]) * cfg.dt_s),
+    }
+    return out
+
+
+def errors_from_first_update(run: dict) -> dict:
+    """Per-axis errors (N, 3) of position, velocity and attitude from the first
+    pose update on, with the matching 1-sigma bounds from P."""
+    t0 = run["summary"]["first_update_t_s"]
+    sel = run["t"] >= (t0 if t0 is not None else np.inf) - 1e-9
+    est = run["est"][sel]
+    e = np.array([nav_error(r, v, q, x) for r, v, q, x in
+                  zip(run["r_true"][sel], run["v_true"][sel], run["q_true"][sel], est)])
+    sig = np.sqrt(np.array([np.diag(P) for P in run["P"][sel]]))
+    return {"t": run["t"][sel], "pos": e[:, 0:3], "vel": e[:, 3:6], "att": e[:, 6:9], "sigma": sig,
+            "nees": run["nees"][sel]}

@@ -1,0 +1,81 @@
+"""A small seeded docking campaign through the flight filter (fsw_bindings.NavUkf):
+errors within the issue-3 bounds and the filter consistent with the bench's
+sensors. The 50-run campaign is the `proxops nav` command (docs/perf/nav_campaign.md)."""
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+fb = pytest.importorskip("fsw_bindings")
+if not hasattr(fb, "NavUkf"):
+    pytest.skip("fsw_bindings has no NavUkf (bindings not built with bind_nav)", allow_module_level=True)
+
+from bench.nav_campaign import chi2_mean_band, run_campaign  # noqa: E402
+from bench.scenario_docking import ScenarioConfig, nav_config  # noqa: E402
+from bench.sensors import NoiseProfile  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    summary, _ = run_campaign(5, seed=1, cfg=ScenarioConfig())
+    return summary
+
+
+def test_filter_noise_settings_match_simulated_sensors():
+    nc = nav_config(ScenarioConfig())
+    p = NoiseProfile.paper()
+    assert nc.accel_sigma_mps2 == p.accel_sigma_mps2 == pytest.approx(0.25 * 0.020 / 3.0, rel=1e-15)
+    assert nc.gyro_sigma_rps == p.gyro_sigma_rps == 0.005
+    assert nc.dt_imu_s == ScenarioConfig().dt_s
+    assert nc.n_radps == pytest.approx(fb.orbit_rate(fb.EARTH_RADIUS + 500e3), rel=1e-15)
+
+
+def test_every_run_docks(campaign):
+    assert campaign["docked"] == 5
+
+
+def test_each_runs_max_errors_within_paper_bounds(campaign):
+    assert max(campaign["max_pos_err_m"]["per_run"]) <= 0.10
+    assert max(campaign["max_vel_err_mps"]["per_run"]) <= 0.03
+    assert campaign["max_pos_err_m"]["median"] <= 0.05
+    assert campaign["max_vel_err_mps"]["median"] <= 0.015
+
+
+def test_nis_mean_inside_its_chi_square_band(campaign):
+    lo, hi = campaign["nis_band"]
+    assert lo <= campaign["nis_mean"] <= hi
+
+
+def test_nearly_independent_nees_mean_inside_its_chi_square_band(campaign):
+    lo, hi = campaign["nees_thinned_band"]
+    assert lo <= campaign["nees_thinned_mean"] <= hi
+
+
+def test_no_more_than_two_updates_gated(campaign):
+    assert campaign["gated_count"] <= 2
+
+
+def test_bands_are_two_sided_95_percent_of_the_mean():
+    lo, hi = chi2_mean_band(6, 100)
+    assert lo == pytest.approx(chi2.ppf(0.025, 600) / 100) and hi == pytest.approx(chi2.ppf(0.975, 600) / 100)
+    assert lo < 6.0 < hi
+
+
+def test_summary_has_the_issue_fields(campaign):
+    for k in ("runs", "max_pos_err_m", "max_vel_err_mps", "nees_mean", "nis_mean", "nees_band", "nis_band",
+              "gated_count"):
+        assert k in campaign
+    for k in ("per_run", "median", "p95"):
+        assert k in campaign["max_pos_err_m"] and k in campaign["max_vel_err_mps"]
+    assert campaign["runs"] == len(campaign["max_pos_err_m"]["per_run"]) == 5
+    assert np.isfinite(campaign["nees_mean"]) and np.isfinite(campaign["nis_mean"])
+
+
+def test_half_second_pose_latency_run_docks_within_bounds():
+    from bench.nav_campaign import run_metrics
+    from bench.scenario_docking import run_docking
+
+    cfg = ScenarioConfig(profile=NoiseProfile.paper().with_(pose_latency_s=0.5))
+    m = run_metrics(run_docking(1000, cfg))
+    assert m.docked and m.statuses.get("bad_input", 0) == 0
+    assert m.max_pos_err_m <= 0.10 and m.max_vel_err_mps <= 0.03
+    assert len(m.nis) >= 0.95 * m.t_end_s  # nearly every pose fused despite the delay
