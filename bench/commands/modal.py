@@ -1,0 +1,260 @@
+"""`proxops modal` and `proxops modal-timing`: the modal estimator (seed 000)
+on the seed's simulation and experiment, and its timing grid (Table I)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bench.report import matplotlib_agg, report_dir, write_json
+
+# Seed 000, experiment: 20 trials converged to these (value, +- spread).
+PAPER_OMEGA = [(4.31, 0.01), (8.68, 0.02)]
+PAPER_ALPHA = [(0.049, 0.007), (0.143, 0.008)]
+# Seed 000 Table I, seconds per sample on a 1 GHz Pentium III (None: not given).
+PAPER_TABLE = {
+    10: [0.030, 0.038, 0.18, 1.4],
+    20: [0.22, 0.24, 0.65, 4.4],
+    30: [0.87, 0.89, 1.7, 9.1],
+    40: [2.1, 2.2, 3.5, None],
+    50: [4.6, 4.8, 6.6, None],
+}
+GRID_N = [100, 1000, 10000, 100000]
+
+
+def register(sub):
+    p = sub.add_parser("modal", help="modal estimator: plate simulation or quadruple-pendulum experiment analogue")
+    p.add_argument("--scenario", choices=["structure", "pendulum"], required=True)
+    p.add_argument("--modes", type=int, default=10, help="modes estimated (structure: 10 or 50; pendulum: 3)")
+    p.add_argument("--trials", type=int, default=1)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--filter", choices=["bank", "joint"], default="bank")
+    p.add_argument("--images", type=int, default=None, help="images per trial (default: structure 180, pendulum 150)")
+    p.add_argument("--dt", type=float, default=None, help="image interval [s] (default: structure 60, pendulum 1/15)")
+    p.add_argument("--json", default=None)
+    p.add_argument("--plots", default=None, help="folder for the figures")
+    p.set_defaults(func=main)
+
+    t = sub.add_parser("modal-timing", help="Table I grid: flight code vs numpy vs the seed's figures")
+    t.add_argument("--bench-exe", default=None, help="bench_modal executable (Google Benchmark) for the full flight grid")
+    t.add_argument("--max-points", type=int, default=100000)
+    t.add_argument("--repeats", type=int, default=5)
+    t.add_argument("--json", default=None)
+    t.set_defaults(func=timing_main)
+
+
+def _summary(vals):
+    v = np.asarray(vals, float)
+    return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+            "half_range": float((v.max() - v.min()) / 2), "min": float(v.min()), "max": float(v.max())}
+
+
+def main(args):
+    from bench import modal_campaign as mc
+
+    trials = []
+    if args.scenario == "pendulum":
+        if args.modes != 3:
+            raise ValueError("the pendulum scenario estimates 3 modes (--modes 3)")
+        dur = (args.images or 150) * (args.dt or 1 / 15)
+        for k in range(args.trials):
+            trials.append(mc.pendulum_trial(args.seed + k, kind=args.filter, duration_s=dur,
+                                            rate_hz=1 / (args.dt or 1 / 15), keep_series=(k == 0 and args.plots)))
+        out = {"scenario": "pendulum", "filter": args.filter, "trials": [], "paper": {
+            "omega_radps": PAPER_OMEGA, "alpha_ps": PAPER_ALPHA, "measurements_to_converge_max": 90}}
+        for tr in trials:
+            out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
+        for i in range(2):
+            out[f"omega{i+1}"] = _summary([t["omega_final_radps"][i] for t in trials])
+            out[f"alpha{i+1}"] = _summary([t["alpha_final_ps"][i] for t in trials])
+        nc = [t["measurements_to_converge"] for t in trials]
+        out["measurements_to_converge_max"] = None if any(v is None for v in nc) else int(max(nc))
+        for i in range(2):
+            w, a = out[f"omega{i+1}"], out[f"alpha{i+1}"]
+            print(f"mode {i+1}: omega {w['mean']:.4f} +- {w['std']:.4f} (half-range {w['half_range']:.4f}) rad/s "
+                  f"[paper {PAPER_OMEGA[i][0]} +- {PAPER_OMEGA[i][1]}];  alpha {a['mean']:.4f} +- {a['std']:.4f} "
+                  f"(half-range {a['half_range']:.4f}) 1/s [paper {PAPER_ALPHA[i][0]} +- {PAPER_ALPHA[i][1]}]")
+        print(f"measurements to converge (max over trials): {out['measurements_to_converge_max']} (paper < 90)")
+        if args.plots:
+            _plot_pendulum(trials[0], report_dir(args.plots))
+    else:
+        n_img = args.images or 180
+        for k in range(args.trials):
+            trials.append(mc.plate_trial(args.seed + k, n_modes=args.modes, kind=args.filter, n_images=n_img,
+                                         dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots)))
+        out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "trials": []}
+        for tr in trials:
+            out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
+            print(f"seed {tr['seed']}: all freqs within 1 % after {tr['measurements_to_converge_1pct']} images "
+                  f"({_fmt(tr['time_to_converge_1pct_periods'])} lowest-mode periods); modes excited >= 0.2: "
+                  f"{_fmt(tr['time_to_converge_1pct_excited_periods'])} periods; final max rel err "
+                  f"{tr['freq_rel_err_final_max']:.2e}; shape RMS at floor ({tr['shape_noise_floor_m']:.2f} m) after "
+                  f"{_fmt(tr['shape_converge_periods'])} periods; cond(M_Y) {tr['condition_number_median']:.1f}")
+        out["ill_conditioned_cases"] = mc.plate_aliased_case(args.modes)
+        print("ill-conditioned cases:", out["ill_conditioned_cases"])
+        if args.plots:
+            _plot_structure(trials[0], report_dir(args.plots))
+    if args.json:
+        write_json(args.json, out)
+    return 0
+
+
+def _fmt(v):
+    return "never" if v is None else f"{v:.2f}"
+
+
+def _plot_pendulum(tr, folder: Path):
+    plt = matplotlib_agg()
+    t, est, coarse = tr["t_s"], tr["est"], tr["coarse"]
+    fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    for i in range(3):
+        ax[i].plot(t, coarse[:, i], "k-", lw=0.8, label="coarse A~ (eq. 3)")
+        ax[i].plot(t, est[:, i, 0], color="0.6", lw=2, label="filtered A^")
+        ax[i].set_ylabel(f"mode {i+1} [m]")
+    ax[0].legend(loc="upper right")
+    ax[-1].set_xlabel("time [s]")
+    fig.suptitle("Pendulum: coarse and filtered modal coefficients (cf. seed Fig. 9)")
+    fig.savefig(folder / "modal_pendulum_fig9.png", dpi=110)
+    fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    for i, (w, a) in enumerate(zip([4.31, 8.68], [0.049, 0.143])):
+        ax[0].plot(t, est[:, i, 2]); ax[0].axhline(w, ls=":", color="k")
+        ax[1].plot(t, est[:, i, 3]); ax[1].axhline(a, ls=":", color="k")
+    ax[0].set_ylabel("omega [rad/s]"); ax[1].set_ylabel("alpha [1/s]"); ax[1].set_xlabel("time [s]")
+    fig.savefig(folder / "modal_pendulum_params.png", dpi=110)
+    plt.close("all")
+
+
+def _plot_structure(tr, folder: Path):
+    plt = matplotlib_agg()
+    t = tr["t_s"] / 60.0
+    est, coarse = tr["est"], tr["coarse"]
+    m = est.shape[1]
+    show = sorted({0, 1, m // 2, m - 1})
+    fig, ax = plt.subplots(len(show), 1, figsize=(8, 2 * len(show)), sharex=True)
+    for a, i in zip(ax, show):
+        a.plot(t, coarse[:, i], "k-", lw=0.8)
+        a.plot(t, est[:, i, 0], color="0.6", lw=2)
+        a.set_ylabel(f"A{i+1}")
+    ax[-1].set_xlabel("time [min]")
+    fig.suptitle(f"Plate, {m} modes: coarse (black) and filtered (grey) coefficients (cf. seed Fig. 4)")
+    fig.savefig(folder / f"modal_structure{m}_fig4.png", dpi=110)
+    fig, a = plt.subplots(figsize=(8, 4))
+    a.plot(t, est[:, :, 2] / np.asarray(tr["omega_true_radps"])[None, :], lw=0.8)
+    a.axhline(1.0, ls=":", color="k"); a.set_ylim(0.8, 1.2)
+    a.set_xlabel("time [min]"); a.set_ylabel("omega^ / omega")
+    a.set_title(f"Frequency estimates, {m} modes (cf. seed Fig. 5)")
+    fig.savefig(folder / f"modal_structure{m}_fig5.png", dpi=110)
+    fig, a = plt.subplots(figsize=(8, 4))
+    a.semilogy(np.arange(len(t)), tr["shape_rms_m"], label="estimator")
+    a.semilogy(np.arange(len(t)), tr["shape_rms_oracle_m"], label="known omega (floor)")
+    a.semilogy(np.arange(len(t)), tr["shape_sigma_m"], ls="--", label="eq. 9 1-sigma (RMS)")
+    a.set_xlabel("measurement"); a.set_ylabel("shape RMS error [m]"); a.legend()
+    a.set_title(f"Shape error over the whole plate, {m} modes (cf. seed Fig. 6)")
+    fig.savefig(folder / f"modal_structure{m}_fig6.png", dpi=110)
+    plt.close("all")
+
+
+# ---------------------------------------------------------------------------
+# Timing
+
+
+def _flight_bindings(m, n, kind, repeats):
+    """Seconds per image through the bindings (decompose + step), M in MODAL_SIZES."""
+    import fsw_bindings as fb
+
+    rng = np.random.default_rng(1)
+    x, y = rng.uniform(size=n), rng.uniform(size=n)
+    p = 1 + np.arange(m) % 7
+    q = 1 + np.arange(m) // 7
+    phi = np.ascontiguousarray(np.sin(p * np.pi * x[:, None]) * np.sin(q * np.pi * y[:, None]))
+    z = phi @ (0.1 * np.cos(np.arange(m))) + 0.01 * rng.standard_normal(n)
+    from bench.modal_campaign import make_filter
+
+    w = 0.01 * (1 + np.arange(m))
+    f = make_filter(kind, m, w, np.zeros(m), w, 0.1 * w, 1e-5, 1e-8, 1e-10)
+    dec = getattr(fb, f"ModalDecomposition{m}")(sigma_e_m=0.01)
+    f.step(60.0, dec.decompose(phi, z))
+    times = []
+    for _ in range(repeats):
+        k, t0 = 0, time.perf_counter()
+        while True:
+            f.step(60.0, dec.decompose(phi, z))
+            k += 1
+            if time.perf_counter() - t0 >= 0.05:
+                break
+        times.append((time.perf_counter() - t0) / k)
+    return float(np.median(times))
+
+
+def _run_bench_exe(exe):
+    out = subprocess.run([exe, "--benchmark_repetitions=9", "--benchmark_report_aggregates_only=true",
+                          "--benchmark_format=json"], check=True, capture_output=True, text=True).stdout
+    res = {}
+    for b in json.loads(out)["benchmarks"]:
+        if b.get("aggregate_name") != "median":
+            continue
+        name = b["run_name"]  # BM_Joint<10>/1000
+        kind, rest = name.split("<", 1)
+        m = int(rest.split(">")[0])
+        n = int(name.split("/")[-1])
+        scale = {"us": 1e-6, "ms": 1e-3, "ns": 1e-9, "s": 1.0}[b["time_unit"]]
+        res[(kind.replace("BM_", "").lower(), m, n)] = b["real_time"] * scale
+    return res
+
+
+def _fit(cells):
+    """Least-squares c1, c2 of t = c1 m n + c2 m^3 over (m, n, t) cells."""
+    a = np.array([[m * n, m**3] for m, n, _ in cells], float)
+    t = np.array([c[2] for c in cells], float)
+    w = 1.0 / t  # relative residuals
+    c, *_ = np.linalg.lstsq(a * w[:, None], t * w, rcond=None)
+    return float(c[0]), float(c[1])
+
+
+def timing_main(args):
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    from bench import modal_numpy as mn
+
+    ns = [n for n in GRID_N if n <= args.max_points]
+    flight = _run_bench_exe(args.bench_exe) if args.bench_exe else {}
+    rows = []
+    for m in sorted(PAPER_TABLE):
+        for j, n in enumerate(ns):
+            row = {"modes": m, "points": n, "paper_s": PAPER_TABLE[m][j]}
+            for kind in ("bank", "joint"):
+                row[f"numpy_{kind}_s"] = mn.time_cell(m, n, kind, repeats=args.repeats)
+                key = ("decoupled" if kind == "bank" else "joint", m, n)
+                if key in flight:
+                    row[f"flight_{kind}_s"] = flight[key]
+                elif m in (10, 50):
+                    row[f"flight_{kind}_bindings_s"] = _flight_bindings(m, n, kind, args.repeats)
+            if ("decomposition", m, n) in flight:
+                row["flight_decomposition_s"] = flight[("decomposition", m, n)]
+            rows.append(row)
+            fl = row.get("flight_bank_s", row.get("flight_bank_bindings_s"))
+            fj = row.get("flight_joint_s", row.get("flight_joint_bindings_s"))
+            print(f"m={m:2d} n={n:6d}  paper {_s(row['paper_s'])}  numpy bank {_s(row['numpy_bank_s'])} "
+                  f"joint {_s(row['numpy_joint_s'])}  flight bank {_s(fl)} joint {_s(fj)}", flush=True)
+    out = {"rows": rows, "paper_fit": {"c1": 1.4e-6, "c2": 3.6e-5}}
+    for kind in ("bank", "joint"):
+        for src in ("numpy", "flight"):
+            cells = [(r["modes"], r["points"], r.get(f"{src}_{kind}_s", r.get(f"{src}_{kind}_bindings_s")))
+                     for r in rows]
+            cells = [c for c in cells if c[2] is not None]
+            if len(cells) >= 2:
+                out[f"fit_{src}_{kind}"] = dict(zip(("c1", "c2"), _fit(cells)))
+                print(f"fit {src} {kind}: c1 = {out[f'fit_{src}_{kind}']['c1']:.3e} s, "
+                      f"c2 = {out[f'fit_{src}_{kind}']['c2']:.3e} s")
+    if args.json:
+        write_json(args.json, out)
+    return 0
+
+
+def _s(v):
+    if v is None:
+        return "     -    "
+    return f"{v*1e3:9.3f}ms" if v >= 1e-3 else f"{v*1e6:9.1f}us"

@@ -1,0 +1,225 @@
+"""Modal-estimator campaigns: the seed's simulation (plate) and experiment
+(quadruple pendulum), run through the flight code (fsw_bindings).
+
+Per image: the estimator's mode shapes at the measured points -> flight
+decomposition (eqs. 2-4) -> flight filter step (bank or joint, eqs. 5-7) ->
+shape reconstruction (eqs. 8-9) for the shape error.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bench import structure as st
+
+
+def _fb():
+    import fsw_bindings as fb
+
+    return fb
+
+
+def make_filter(kind, m, omega, alpha, sigma_v0, sigma_w0, sigma_a0, q_a, q_v, q_w=None, q_al=None):
+    fb = _fb()
+    cls = getattr(fb, ("ModalUkfBank" if kind == "bank" else "ModalUkfJoint") + str(m))
+    z = np.zeros(m)
+    return cls(
+        omega_radps=np.asarray(omega, float),
+        alpha_ps=np.asarray(alpha, float),
+        sigma_v0_ps=np.broadcast_to(np.asarray(sigma_v0, float), (m,)).copy(),
+        sigma_omega0_radps=np.broadcast_to(np.asarray(sigma_w0, float), (m,)).copy(),
+        sigma_alpha0_ps=np.broadcast_to(np.asarray(sigma_a0, float), (m,)).copy(),
+        q_a=np.broadcast_to(np.asarray(q_a, float), (m,)).copy(),
+        q_v=np.broadcast_to(np.asarray(q_v, float), (m,)).copy(),
+        q_omega=z if q_w is None else np.broadcast_to(np.asarray(q_w, float), (m,)).copy(),
+        q_alpha=z if q_al is None else np.broadcast_to(np.asarray(q_al, float), (m,)).copy(),
+    )
+
+
+def _converged_index(est, truth, rel=None, abs_=None):
+    """First index from which every later estimate is within the band (None: never)."""
+    est = np.asarray(est, float).reshape(len(est), -1)
+    truth = np.asarray(truth, float).reshape(1, -1)
+    band = rel * np.abs(truth) if rel is not None else abs_
+    bad = np.nonzero(np.any(np.abs(est - truth) > band, axis=1))[0]
+    if bad.size == 0:
+        return 0
+    k = int(bad[-1]) + 1
+    return k if k < est.shape[0] else None
+
+
+# ---------------------------------------------------------------------------
+# Pendulum (experiment analogue)
+
+
+def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate_hz: float = 15.0,
+                   n_points: int = 600, noise_m: float = 0.003, keep_series: bool = False):
+    fb = _fb()
+    rng = np.random.default_rng(seed)
+    pend = st.Pendulum()
+    m = 3
+    amp = np.array([0.05, 0.03, 0.03]) * rng.uniform(0.7, 1.0, m)
+    phase = rng.uniform(0, 2 * np.pi, m)
+    th_est = pend.estimator_modes(rng, n_modes=m)
+    w0 = st.PENDULUM_OMEGA_PRIOR
+    filt = make_filter(kind, m, w0, st.PENDULUM_ALPHA_PRIOR, sigma_v0=w0 * 0.05,
+                       sigma_w0=0.1 * w0, sigma_a0=[0.1, 0.1, 1.0], q_a=1e-9, q_v=1e-7)
+    dec = fb.ModalDecomposition3(sigma_e_m=noise_m)
+    dt = 1.0 / rate_hz
+    steps = int(round(duration_s * rate_hz))
+    est = np.zeros((steps, m, 4))
+    coarse = np.full((steps, m), np.nan)
+    truth = np.zeros((steps, m))
+    statuses, n_nan = [], 0
+    for k in range(steps):
+        t = k * dt
+        a = st.pendulum_coeffs(amp, phase, t)
+        s, z = st.pendulum_image(pend, a, rng, n_points=n_points, noise_m=noise_m)
+        phi = pend.phi(th_est, s)
+        rec = dec.decompose(phi, z)
+        n_nan += rec.n_nonfinite
+        if rec.ok:
+            coarse[k] = rec.a_coarse
+        r = filt.step(dt, rec)
+        statuses.append(r["status"])
+        est[k] = filt.state
+        truth[k] = a
+    w_true, a_true = st.PENDULUM_OMEGA[:2], st.PENDULUM_ALPHA[:2]
+    kw = _converged_index(est[:, :2, 2], w_true, rel=0.01)
+    ka = _converged_index(est[:, :2, 3], a_true, abs_=0.02)
+    n_conv = None if kw is None or ka is None else max(kw, ka) + 1  # measurements, the first included
+    out = {
+        "seed": seed,
+        "omega_final_radps": est[-1, :, 2],
+        "alpha_final_ps": est[-1, :, 3],
+        "omega_std_radps": filt.state_std[:, 2],
+        "alpha_std_ps": filt.state_std[:, 3],
+        "measurements_to_converge": n_conv,
+        "n_nonfinite_points": n_nan,
+        "n_not_ok": int(sum(s != "ok" for s in statuses)),
+    }
+    if keep_series:
+        out.update(t_s=np.arange(steps) * dt, est=est, coarse=coarse, truth=truth)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Plate (simulation)
+
+
+def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
+                prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True):
+    """One simulation run. prior_err: a priori frequency error, drawn per mode
+    uniformly in +-prior_err (the seed assumes it bounded by about 20 %)."""
+    fb = _fb()
+    rng = np.random.default_rng(seed)
+    plate = st.Plate(n_modes=n_modes)
+    sensor = st.plate_sensor(plate)
+    amp, phase = st.plate_truth(plate, rng)
+    w_true = plate.omega_radps
+    w_prior = w_true * (1 + rng.uniform(-prior_err, prior_err, n_modes))
+    gx, gy = plate.grid(40)
+    phi_grid = plate.phi(gx, gy)
+
+    def new_filter(w0, sw0):
+        return make_filter(kind, n_modes, w0, np.zeros(n_modes), sigma_v0=w0 * 1.0, sigma_w0=sw0,
+                           sigma_a0=1e-6, q_a=0.0, q_v=0.0)
+
+    filt = new_filter(w_prior, 0.1 * w_prior)
+    orc = new_filter(w_true, 1e-6 * w_true) if oracle else None
+    dec = getattr(fb, f"ModalDecomposition{n_modes}")()
+    shape = getattr(fb, f"reconstruct_shape{n_modes}")
+    est = np.zeros((n_images, n_modes, 4))
+    coarse = np.full((n_images, n_modes), np.nan)
+    truth = np.zeros((n_images, n_modes))
+    shape_rms = np.full(n_images, np.nan)
+    shape_rms_oracle = np.full(n_images, np.nan)
+    shape_sigma = np.full(n_images, np.nan)
+    cond, n_used, n_nan, statuses = [], [], [], []
+    for k in range(n_images):
+        t = k * dt_s
+        a = st.plate_coeffs(plate, amp, phase, t)
+        r_meas, d = st.plate_range_image(plate, sensor, a, rng, noise_frac=noise_frac)
+        phi, z, var = st.plate_points(plate, sensor, r_meas, d, noise_frac=noise_frac)
+        rec = dec.decompose(phi, z, var)
+        cond.append(rec.condition_number)
+        n_used.append(rec.n_used)
+        n_nan.append(rec.n_nonfinite)
+        if rec.ok:
+            coarse[k] = rec.a_coarse
+        statuses.append(filt.step(dt_s, rec)["status"])
+        est[k] = filt.state
+        truth[k] = a
+        z_true = phi_grid @ a
+        if filt.initialized:
+            z_hat, var_hat = shape(filt.amplitudes, filt.amplitude_cov, phi_grid)
+            shape_rms[k] = np.sqrt(np.mean((z_hat - z_true) ** 2))
+            shape_sigma[k] = np.sqrt(np.mean(var_hat))
+        if orc is not None:
+            orc.step(dt_s, rec)
+            if orc.initialized:
+                z_o, _ = shape(orc.amplitudes, orc.amplitude_cov, phi_grid)
+                shape_rms_oracle[k] = np.sqrt(np.mean((z_o - z_true) ** 2))
+    t = np.arange(n_images) * dt_s
+    period1 = 2 * np.pi / w_true[0]
+    kw = _converged_index(est[:, :, 2], w_true, rel=0.01)
+    per_mode = [_converged_index(est[:, i, 2], w_true[i], rel=0.01) for i in range(n_modes)]
+    # Modes excited to at least 0.2 (of the U[0, 1] range): weaker ones carry
+    # too little signal at this noise for their frequency to show in a few periods.
+    strong = amp >= 0.2
+    ks = [per_mode[i] for i in np.nonzero(strong)[0]]
+    k_strong = None if any(v is None for v in ks) else (max(ks) if ks else 0)
+    out = {
+        "seed": seed,
+        "n_modes": n_modes,
+        "amp_true": amp,
+        "mode_converge_index_1pct": per_mode,
+        "measurements_to_converge_1pct_excited": k_strong,
+        "time_to_converge_1pct_excited_periods": None if k_strong is None else k_strong * dt_s / (2 * np.pi / w_true[0]),
+        "kind": kind,
+        "dt_s": dt_s,
+        "period1_s": period1,
+        "omega_true_radps": w_true,
+        "omega_prior_radps": w_prior,
+        "omega_final_radps": est[-1, :, 2],
+        "freq_rel_err_final_max": float(np.max(np.abs(est[-1, :, 2] / w_true - 1))),
+        "measurements_to_converge_1pct": kw,
+        "time_to_converge_1pct_periods": None if kw is None else kw * dt_s / period1,
+        "shape_rms_m": shape_rms,
+        "shape_rms_oracle_m": shape_rms_oracle,
+        "shape_sigma_m": shape_sigma,
+        "condition_number_median": float(np.median(cond)),
+        "n_points_used_median": float(np.median(n_used)),
+        "n_nonfinite_median": float(np.median(n_nan)),
+        "n_not_ok": int(sum(s != "ok" for s in statuses)),
+    }
+    if oracle:
+        half = n_images // 2
+        floor = float(np.median(shape_rms_oracle[half:]))
+        out["shape_noise_floor_m"] = floor
+        # first image from which the 5-image running median stays within 2x the floor
+        rm = np.array([np.nanmedian(shape_rms[max(0, i - 2): i + 3]) for i in range(n_images)])
+        ok = rm <= 2.0 * floor
+        bad = np.nonzero(~ok)[0]
+        ks = 0 if bad.size == 0 else int(bad[-1]) + 1
+        out["shape_converge_index"] = ks if ks < n_images else None
+        out["shape_converge_periods"] = None if ks >= n_images else ks * dt_s / period1
+    if keep_series:
+        out.update(t_s=t, est=est, coarse=coarse, truth=truth)
+    return out
+
+
+def plate_aliased_case(n_modes: int = 10):
+    """The ill-conditioned cases, reported by the flight decomposition:
+    (a) fewer points than modes, (b) points only on the diagonal x/Lx = y/Ly
+    of a square plate, where modes (p, q) and (q, p) coincide (aliased)."""
+    fb = _fb()
+    dec = getattr(fb, f"ModalDecomposition{n_modes}")()
+    plate = st.Plate(n_modes=n_modes)
+    x = np.linspace(10, plate.lx_m - 10, n_modes - 1)
+    few = dec.decompose(plate.phi(x, x * plate.ly_m / plate.lx_m), np.zeros(x.size))
+    sq = st.Plate(n_modes=n_modes, ly_m=2000.0)
+    x = np.linspace(10, sq.lx_m - 10, 500)
+    alias = dec.decompose(sq.phi(x, x), np.zeros(x.size))
+    return {"too_few_points": {"status": few.status, "n_used": few.n_used},
+            "aliased_diagonal": {"status": alias.status, "condition_number": alias.condition_number,
+                                 "n_used": alias.n_used}}

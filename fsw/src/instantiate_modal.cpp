@@ -1,0 +1,34 @@
+// Explicit instantiations of the modal estimator for float and double, at the
+// smallest and largest mode counts the bench uses (pendulum 3, structure 50), so a
+// float-only compile error cannot hide.
+#include "fsw/modal_decomposition.hpp"
+#include "fsw/modal_shape.hpp"
+#include "fsw/modal_ukf.hpp"
+
+namespace fsw {
+template class ModalDecomposition<double, 3>;
+template class ModalDecomposition<float, 3>;
+template class ModalDecomposition<double, 50>;
+template class ModalDecomposition<float, 50>;
+template class ModeUkf<double>;
+template class ModeUkf<float>;
+template class ModalUkfBank<double, 3>;
+template class ModalUkfBank<float, 3>;
+template class ModalUkfBank<double, 50>;
+template class ModalUkfBank<float, 50>;
+template class ModalUkfJoint<double, 3>;
+template class ModalUkfJoint<float, 3>;
+template class ModalUkfJoint<double, 50>;
+template class ModalUkfJoint<float, 50>;
+template ShapeRecord reconstruct_shape<double, 3>(const Eigen::Matrix<double, 3, 1>&,
+                                                  const Eigen::Matrix<double, 3, 3>&, const double*, int, double*,
+                                                  double*);
+template ShapeRecord reconstruct_shape<float, 3>(const Eigen::Matrix<float, 3, 1>&, const Eigen::Matrix<float, 3, 3>&,
+                                                 const float*, int, float*, float*);
+template ShapeRecord reconstruct_shape<double, 50>(const Eigen::Matrix<double, 50, 1>&,
+                                                   const Eigen::Matrix<double, 50, 50>&, const double*, int,
+                                                   double*, double*);
+template ShapeRecord reconstruct_shape<float, 50>(const Eigen::Matrix<float, 50, 1>&,
+                                                  const Eigen::Matrix<float, 50, 50>&, const float*, int, float*,
+                                                  float*);
+}  // namespace fsw
