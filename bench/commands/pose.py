@@ -1,0 +1,62 @@
+"""`proxops pose`: the LED pose pipeline's accuracy campaign on rendered
+images (bench/pose_campaign.py, docs/VISION.md)."""
+from __future__ import annotations
+
+import time
+
+from bench.report import write_json
+
+
+def register(sub):
+    p = sub.add_parser("pose", help="pose from images: accuracy, NEES and failures by condition; distortion effect")
+    p.add_argument("--experiment", choices=["images"], required=True)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--runs", type=int, default=200, help="random poses (each rendered under every condition)")
+    p.add_argument("--distortion-runs", type=int, default=60, help="poses per k1 value in the distortion experiment")
+    p.add_argument("--json", default=None)
+    p.add_argument("--plots", default=None, help="folder for the figures")
+    p.set_defaults(func=main)
+
+
+def _print(result):
+    print(f"pose images: seed {result['seed']}, {result['images']['runs']} poses, 0.3-5 m, "
+          "centroid sigma per blob from the pixel-noise model")
+    print(f"{'condition':<9} {'ok':>4} {'fail%':>6} {'pos med [mm]':>12} {'pos p95':>8} {'att med [deg]':>13} "
+          f"{'NEES mean':>9} {'band95':>13} {'gross':>5}  failures")
+    for name, s in result["images"]["summary"].items():
+        if s["ok"]:
+            band = "{:.2f}-{:.2f}".format(*s["nees_mean_band95"])
+            print(f"{name:<9} {s['ok']:>4} {100 * s['failure_rate']:>6.1f} {1e3 * s['pos_err_m']['median']:>12.2f} "
+                  f"{1e3 * s['pos_err_m']['p95']:>8.1f} {s['att_err_deg']['median']:>13.3f} "
+                  f"{s['nees_mean_without_gross']:>9.2f} {band:>13} {s['gross_errors']:>5}  {s['failures_by_reason']}")
+        else:
+            print(f"{name:<9} {0:>4} {100 * s['failure_rate']:>6.1f}  {s['failures_by_reason']}")
+    if "distortion" in result:
+        print("unmodelled distortion: k1, median position error measured / predicted [mm], slope, corr")
+        for r in result["distortion"]["rows"]:
+            if "pos_err_m_median" not in r:
+                continue
+            extra = ""
+            if "pos_slope_measured_on_predicted" in r:
+                extra = f"  slope {r['pos_slope_measured_on_predicted']:.2f}  corr {r['pos_correlation']:.3f}"
+            print(f"  k1 {r['k1']:+.2f}: {1e3 * r['pos_err_m_median']:8.2f} / {1e3 * r['pos_pred_m_median']:8.2f}"
+                  f"{extra}  (ok {r['ok']}, failed {r['failures']})")
+
+
+def main(args):
+    from bench import pose_campaign as pc
+
+    if args.runs < 1:
+        raise ValueError("--runs must be >= 1")
+    t0 = time.perf_counter()
+    result = {"experiment": "images", "seed": args.seed,
+              "images": pc.image_campaign(args.seed, args.runs)}
+    if args.distortion_runs > 0:
+        result["distortion"] = pc.distortion_experiment(args.seed, args.distortion_runs)
+    result["wall_s"] = time.perf_counter() - t0
+    _print(result)
+    if args.plots:
+        result["plots"] = pc.plots(result, args.plots)
+    if args.json:
+        write_json(args.json, result)
+    return 0

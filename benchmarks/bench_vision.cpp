@@ -1,0 +1,58 @@
+// Image to pose for a 640 x 480 frame (detection, identification, PnP,
+// covariance): the LED pose pipeline's per-frame cost (1 Hz budget; target
+// at most 5 ms median).
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+
+#include "fsw_vision/led_pose.hpp"
+
+namespace {
+
+// A frame with the pattern 1.5 m away, tilted, Gaussian spots on a noisy background.
+cv::Mat make_frame(const fsw_vision::LedPoseEstimator& est, int clutter_spots) {
+  // Inspector on the host's +x side (the LED face), boresight towards -x Hill.
+  const Eigen::Quaterniond q_hb = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ())) *
+                                  Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 0.9, 0.1).normalized()));
+  const Eigen::Vector3d r_hill = q_hb * Eigen::Vector3d(-1.6, 0.05, 0.02);
+  std::array<cv::Point2d, fsw_vision::kNumLeds> px;
+  est.project(r_hill, q_hb, Eigen::Quaterniond::Identity(), px);
+  cv::Mat img(480, 640, CV_32F, cv::Scalar(6.0));
+  cv::RNG rng(1);
+  auto spot = [&](double u, double v, double sigma, double amp) {
+    for (int r = int(v) - 6; r <= int(v) + 6; ++r)
+      for (int c = int(u) - 6; c <= int(u) + 6; ++c)
+        if (r >= 0 && r < 480 && c >= 0 && c < 640)
+          img.at<float>(r, c) += float(amp * std::exp(-0.5 * ((c - u) * (c - u) + (r - v) * (r - v)) / (sigma * sigma)));
+  };
+  for (const auto& p : px) spot(p.x, p.y, 1.2, 200.0);
+  for (int k = 0; k < clutter_spots; ++k) spot(rng.uniform(0.0, 640.0), rng.uniform(0.0, 480.0), 1.0, 150.0);
+  cv::Mat noise(480, 640, CV_32F);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.5);
+  img += noise;
+  cv::Mat out;
+  img.convertTo(out, CV_8U);
+  return out;
+}
+
+void BM_ImageToPose(benchmark::State& state) {
+  const fsw_vision::LedPoseEstimator est;
+  const cv::Mat img = make_frame(est, static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    const auto m = est.estimate(img, 0.0);
+    if (m.status != fsw_vision::PoseStatus::Ok) state.SkipWithError("no pose");
+    benchmark::DoNotOptimize(m.r_hill_m);
+  }
+}
+BENCHMARK(BM_ImageToPose)->Arg(0)->Arg(6)->Unit(benchmark::kMillisecond);
+
+void BM_Detect(benchmark::State& state) {
+  const fsw_vision::LedPoseEstimator est;
+  const cv::Mat img = make_frame(est, 0);
+  for (auto _ : state) benchmark::DoNotOptimize(est.detect(img));
+}
+BENCHMARK(BM_Detect)->Unit(benchmark::kMillisecond);
+
+}  // namespace

@@ -1,0 +1,192 @@
+// LED pose: the inspector's 1 Hz relative pose from a camera image of the
+// host's LED pattern (docs/VISION.md).
+//
+// Pipeline: blob detection (local-background subtraction, threshold,
+// connected components, shape gates) -> identification of the five pattern
+// LEDs (four square corners plus an identifier on one edge, a quarter of the
+// way from corner 0 to corner 1; collinearity survives projection, so the
+// identifier marks the edge and its off-centre position the direction) ->
+// pose by cv::solvePnP (IPPE, both planar solutions), a RANSAC consistency
+// gate (cv::solvePnPRansac, every LED must be an inlier) and Levenberg-
+// Marquardt refinement (cv::solvePnPRefineLM) -> covariance from the
+// reprojection Jacobian, (J^T W J)^-1 with W the inverse centroid variances
+// (from a pixel-noise model per blob), taken directly with respect
+// to the navigation filter's measurement coordinates.
+//
+// Frames: host body (pattern coordinates, origin at the host's centre of
+// mass), Hill (DESIGN.md), inspector body b, camera c (OpenCV: x right,
+// y down, z along the optical axis). Quaternions rotate body vectors into the
+// frame named first: q_hb takes inspector body to Hill, q_h_host takes host
+// body to Hill. Boundary arrays are scalar-first [w, x, y, z].
+//
+// Vision layer: runs at 1 Hz, may allocate, uses OpenCV; never part of the
+// real-time core. Bad input and every failure give a status, never a crash.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <opencv2/core.hpp>
+#include <vector>
+
+namespace fsw_vision {
+
+enum class PoseStatus : int {
+  Ok = 0,
+  TooFewLeds,          // fewer than the five pattern LEDs found
+  AmbiguousIdentity,   // identifier not seen (square symmetry) or several labellings fit
+  TargetBehindCamera,  // solution has an LED behind the camera or shows the pattern's back side
+  DegenerateGeometry,  // LEDs (nearly) collinear, J^T J ill-conditioned, or planar mirror pose not excluded
+  SolverFailed,        // PnP failed, or no labelling reprojects within the gate
+  BadInput,            // image not 8-bit single channel, or wrong size
+};
+const char* to_string(PoseStatus s);
+
+constexpr int kNumLeds = 5;     // corners 0..3, identifier 4
+constexpr int kIdentifier = 4;
+
+// Pinhole camera with OpenCV's radial-tangential distortion and its mount on
+// the inspector. Defaults: 640 x 480, 60 degree horizontal field of view
+// (fx = 320 / tan 30 deg), principal point at the image centre (pixel centres
+// at integer coordinates), no distortion; boresight along inspector body +x,
+// image right along body -y, image down along body -z; camera centre at
+// [0.10, 0.02, -0.03] m from the inspector's centre of mass.
+struct CameraModel {
+  int width = 640;
+  int height = 480;
+  double fx_px = 554.2562584220407;
+  double fy_px = 554.2562584220407;
+  double cx_px = 319.5;
+  double cy_px = 239.5;
+  std::array<double, 5> dist{{0.0, 0.0, 0.0, 0.0, 0.0}};  // k1, k2, p1, p2, k3
+  Eigen::Matrix3d R_bc = default_R_bc();                  // camera -> inspector body
+  Eigen::Vector3d p_cam_b_m{0.10, 0.02, -0.03};           // camera centre, body frame [m]
+
+  static Eigen::Matrix3d default_R_bc() {
+    Eigen::Matrix3d R;
+    // Columns: camera x, y, z axes expressed in the inspector body frame.
+    R << 0.0, 0.0, 1.0,  //
+        -1.0, 0.0, 0.0,  //
+        0.0, -1.0, 0.0;
+    return R;
+  }
+};
+
+// LED positions in the host body frame [m] and the outward normal of the
+// face that carries them. Default: a 0.16 m square on the host's +x face
+// (x = 0.15 m); corners 0..3 at (y, z) = (-a,-a), (a,-a), (a,a), (-a,a) with
+// a = 0.08 m; identifier at (-a/2, -a), on edge 0-1 a quarter of the way.
+struct LedPattern {
+  std::array<Eigen::Vector3d, kNumLeds> p_host_m;
+  Eigen::Vector3d normal_host{1.0, 0.0, 0.0};
+  double id_fraction = 0.25;  // identifier position along edge 0 -> 1
+};
+LedPattern default_pattern(double half_side_m = 0.08, double face_offset_m = 0.15);
+
+struct LedPoseConfig {
+  CameraModel camera;
+  LedPattern pattern = default_pattern();
+  // Detection.
+  int background_kernel_px = 31;   // box filter for the local background
+  int threshold_counts = 20;       // above local background
+  int min_area_px = 2;
+  int max_area_px = 2500;
+  int max_extent_px = 80;          // bounding-box side
+  double max_elongation = 4.0;     // ratio of second-moment eigenvalues
+  int max_blobs = 16;              // brightest kept for identification
+  // Identification.
+  double line_tol_px = 1.5;        // identifier off the edge: absolute part
+  double line_tol_rel = 0.04;      // ... and relative to the edge length
+  double id_fraction_min = 0.08;   // accepted image fraction along edge 0 -> 1
+  double id_fraction_max = 0.45;
+  double min_quad_area_px2 = 30.0;
+  int max_hypotheses = 8;         // best-scored labellings solved
+  // Pose.
+  double ransac_threshold_px = 4.0;
+  double max_reproj_rms_px = 2.0;  // a labelling must reproject within this
+  double ambiguity_ratio = 3.0;    // runner-up labelling closer than this in rms -> ambiguous
+  double min_depth_m = 0.02;
+  double pixel_sigma_px = 0.25;    // centroid noise for points given without their own sigma
+  double read_noise_counts = 1.5;  // pixel noise model of the centroid variance:
+  double shot_gain = 0.05;         //   var = read^2 + shot_gain * signal [counts^2]
+  double centroid_floor_px = 0.008; // added in quadrature to each blob's sigma
+  double max_condition = 1e12;     // of J^T J
+  double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
+};
+
+struct Blob {
+  double u_px;  // column, pixel centres at integers
+  double v_px;  // row
+  double flux;  // background-subtracted sum [counts]
+  int area_px;
+  double sigma_px;  // centroid standard deviation from the pixel-noise model
+};
+
+// A pose measurement ready for the navigation update (NavUkf::update_pose):
+// r_hill_m of the inspector relative to the host, q_hb, and R over
+// [position (Hill) m^2, body-frame attitude error rad^2] with
+// q_true = q_hb * Exp(dtheta).
+struct LedPoseMeasurement {
+  PoseStatus status = PoseStatus::SolverFailed;
+  double t_capture_s = 0.0;
+  Eigen::Vector3d r_hill_m = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_hb = Eigen::Quaterniond::Identity();
+  Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
+  // Diagnostics.
+  int n_blobs = 0;                            // blobs passing the shape gates
+  int n_hypotheses = 0;                       // labellings tried
+  double reproj_rms_px = 0.0;
+  double flip_weight = 0.0;                   // weight of the planar mirror solution folded into R
+  double range_m = 0.0;                       // camera to pattern centre
+  std::array<int, kNumLeds> blob_of_led{{-1, -1, -1, -1, -1}};
+  Eigen::Matrix3d R_cp = Eigen::Matrix3d::Identity();  // host body -> camera
+  Eigen::Vector3d t_cp_m = Eigen::Vector3d::Zero();    // host origin in camera frame
+};
+
+class LedPoseEstimator {
+ public:
+  explicit LedPoseEstimator(const LedPoseConfig& cfg = LedPoseConfig());
+
+  const LedPoseConfig& config() const { return cfg_; }
+
+  // Blobs of an 8-bit single-channel image, brightest first.
+  std::vector<Blob> detect(const cv::Mat& gray) const;
+
+  // Full pipeline. q_h_host: host attitude (host body -> Hill).
+  LedPoseMeasurement estimate(const cv::Mat& gray, double t_capture_s,
+                              const Eigen::Quaterniond& q_h_host = Eigen::Quaterniond::Identity()) const;
+
+  // Identification and pose from blob centres (pixels), for tests and for
+  // detectors other than detect().
+  // sigma_px: centroid standard deviation per point (pixel_sigma_px where
+  // not given).
+  LedPoseMeasurement estimate_from_points(const std::vector<cv::Point2d>& pts, double t_capture_s,
+                                          const Eigen::Quaterniond& q_h_host = Eigen::Quaterniond::Identity(),
+                                          const std::vector<double>& sigma_px = {}) const;
+
+  // The pattern's pixel coordinates for an inspector pose (r_hill_m, q_hb)
+  // with the configured camera (including distortion). Returns false if an
+  // LED is at depth <= 0 (its coordinates are then meaningless).
+  bool project(const Eigen::Vector3d& r_hill_m, const Eigen::Quaterniond& q_hb, const Eigen::Quaterniond& q_h_host,
+               std::array<cv::Point2d, kNumLeds>& px) const;
+
+  // Camera-frame pose of the host (R_cp, t_cp) from the inspector pose and back.
+  void camera_from_nav(const Eigen::Vector3d& r_hill_m, const Eigen::Quaterniond& q_hb,
+                       const Eigen::Quaterniond& q_h_host, Eigen::Matrix3d& R_cp, Eigen::Vector3d& t_cp_m) const;
+  void nav_from_camera(const Eigen::Matrix3d& R_cp, const Eigen::Vector3d& t_cp_m, const Eigen::Quaterniond& q_h_host,
+                       Eigen::Vector3d& r_hill_m, Eigen::Quaterniond& q_hb) const;
+
+  // d(pixels)/d[r_hill_m, dtheta_b] (10 x 6), central differences through
+  // project(); the covariance is (J^T W J)^-1, W = diag(1 / sigma_px^2).
+  bool jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Quaterniond& q_hb, const Eigen::Quaterniond& q_h_host,
+                Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const;
+
+ private:
+  LedPoseConfig cfg_;
+  cv::Mat K_;
+  cv::Mat dist_;
+  std::vector<cv::Point3d> obj_;
+  std::vector<cv::Point2f> plane_uv_;
+};
+
+}  // namespace fsw_vision

@@ -1,0 +1,552 @@
+// LED pose pipeline: detection, identification, PnP, covariance.
+// See led_pose.hpp and docs/VISION.md.
+#include "fsw_vision/led_pose.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace fsw_vision {
+
+const char* to_string(PoseStatus s) {
+  switch (s) {
+    case PoseStatus::Ok: return "Ok";
+    case PoseStatus::TooFewLeds: return "TooFewLeds";
+    case PoseStatus::AmbiguousIdentity: return "AmbiguousIdentity";
+    case PoseStatus::TargetBehindCamera: return "TargetBehindCamera";
+    case PoseStatus::DegenerateGeometry: return "DegenerateGeometry";
+    case PoseStatus::SolverFailed: return "SolverFailed";
+    case PoseStatus::BadInput: return "BadInput";
+  }
+  return "Unknown";
+}
+
+LedPattern default_pattern(double a, double face) {
+  LedPattern p;
+  p.p_host_m[0] = Eigen::Vector3d(face, -a, -a);
+  p.p_host_m[1] = Eigen::Vector3d(face, a, -a);
+  p.p_host_m[2] = Eigen::Vector3d(face, a, a);
+  p.p_host_m[3] = Eigen::Vector3d(face, -a, a);
+  p.p_host_m[kIdentifier] = p.p_host_m[0] + p.id_fraction * (p.p_host_m[1] - p.p_host_m[0]);
+  p.normal_host = Eigen::Vector3d(1.0, 0.0, 0.0);
+  return p;
+}
+
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+double cross2(const cv::Point2d& a, const cv::Point2d& b) { return a.x * b.y - a.y * b.x; }
+
+Eigen::Quaterniond quat_from_R(const Eigen::Matrix3d& R) {
+  Eigen::Quaterniond q(R);
+  q.normalize();
+  if (q.w() < 0.0) q.coeffs() = -q.coeffs();
+  return q;
+}
+
+Eigen::Quaterniond exp_q(const Eigen::Vector3d& phi) {
+  const double a = phi.norm();
+  if (a < 1e-12) return Eigen::Quaterniond(1.0, 0.5 * phi.x(), 0.5 * phi.y(), 0.5 * phi.z()).normalized();
+  return Eigen::Quaterniond(Eigen::AngleAxisd(a, phi / a));
+}
+
+// Twice the signed area of the quadrilateral q0 q1 q2 q3 if it is convex
+// (all turns of one sign), else 0.
+double convex_quad_area2(const cv::Point2d* q[4]) {
+  double sgn = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    const cv::Point2d e0 = *q[(i + 1) % 4] - *q[i];
+    const cv::Point2d e1 = *q[(i + 2) % 4] - *q[(i + 1) % 4];
+    const double c = cross2(e0, e1);
+    if (c == 0.0) return 0.0;
+    if (sgn == 0.0) sgn = c;
+    else if ((c > 0.0) != (sgn > 0.0)) return 0.0;
+  }
+  double a2 = 0.0;
+  for (int i = 0; i < 4; ++i) a2 += cross2(*q[i], *q[(i + 1) % 4]);
+  return std::abs(a2);
+}
+
+struct Solution {
+  Eigen::Matrix3d R_cp;
+  Eigen::Vector3d t_cp;
+  double ssr = 0.0;   // sum of squared reprojection residuals [px^2]
+  double wssr = 0.0;  // ... each divided by its centroid variance
+};
+
+struct Hypothesis {
+  std::array<int, kNumLeds> idx;
+  double score = 0.0;  // identifier's distance from its homography prediction [px]
+  double rms = std::numeric_limits<double>::infinity();
+  bool behind = false;  // a solution was behind the camera / back-facing
+  std::vector<Solution> solutions;  // physical ones, best first
+};
+
+}  // namespace
+
+LedPoseEstimator::LedPoseEstimator(const LedPoseConfig& cfg) : cfg_(cfg) {
+  const CameraModel& c = cfg_.camera;
+  K_ = (cv::Mat_<double>(3, 3) << c.fx_px, 0.0, c.cx_px, 0.0, c.fy_px, c.cy_px, 0.0, 0.0, 1.0);
+  dist_ = (cv::Mat_<double>(1, 5) << c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]);
+  // In-plane coordinates of the LEDs (origin corner 0, axes along edge 0-1
+  // and normal x edge), for the identification homography.
+  const Eigen::Vector3d& c0 = cfg_.pattern.p_host_m[0];
+  const Eigen::Vector3d ax = (cfg_.pattern.p_host_m[1] - c0).normalized();
+  const Eigen::Vector3d ay = cfg_.pattern.normal_host.normalized().cross(ax);
+  for (int i = 0; i < kNumLeds; ++i) {
+    const Eigen::Vector3d& p = cfg_.pattern.p_host_m[i];
+    obj_.emplace_back(p.x(), p.y(), p.z());
+    plane_uv_.emplace_back(float((p - c0).dot(ax)), float((p - c0).dot(ay)));
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Geometry.
+
+void LedPoseEstimator::camera_from_nav(const Eigen::Vector3d& r_hill_m, const Eigen::Quaterniond& q_hb,
+                                       const Eigen::Quaterniond& q_h_host, Eigen::Matrix3d& R_cp,
+                                       Eigen::Vector3d& t_cp_m) const {
+  const Eigen::Matrix3d R_hb = q_hb.normalized().toRotationMatrix();
+  const Eigen::Matrix3d R_hp = q_h_host.normalized().toRotationMatrix();
+  const Eigen::Matrix3d& R_bc = cfg_.camera.R_bc;
+  const Eigen::Vector3d p_host_b = -R_hb.transpose() * r_hill_m;  // host origin, inspector body
+  t_cp_m = R_bc.transpose() * (p_host_b - cfg_.camera.p_cam_b_m);
+  R_cp = R_bc.transpose() * R_hb.transpose() * R_hp;
+}
+
+void LedPoseEstimator::nav_from_camera(const Eigen::Matrix3d& R_cp, const Eigen::Vector3d& t_cp_m,
+                                       const Eigen::Quaterniond& q_h_host, Eigen::Vector3d& r_hill_m,
+                                       Eigen::Quaterniond& q_hb) const {
+  const Eigen::Matrix3d R_hp = q_h_host.normalized().toRotationMatrix();
+  const Eigen::Matrix3d& R_bc = cfg_.camera.R_bc;
+  const Eigen::Matrix3d R_hb = R_hp * R_cp.transpose() * R_bc.transpose();
+  const Eigen::Vector3d p_host_b = R_bc * t_cp_m + cfg_.camera.p_cam_b_m;
+  r_hill_m = -R_hb * p_host_b;
+  q_hb = quat_from_R(R_hb);
+}
+
+bool LedPoseEstimator::project(const Eigen::Vector3d& r_hill_m, const Eigen::Quaterniond& q_hb,
+                               const Eigen::Quaterniond& q_h_host, std::array<cv::Point2d, kNumLeds>& px) const {
+  Eigen::Matrix3d R_cp;
+  Eigen::Vector3d t;
+  camera_from_nav(r_hill_m, q_hb, q_h_host, R_cp, t);
+  const CameraModel& c = cfg_.camera;
+  const double k1 = c.dist[0], k2 = c.dist[1], p1 = c.dist[2], p2 = c.dist[3], k3 = c.dist[4];
+  bool ok = true;
+  for (int i = 0; i < kNumLeds; ++i) {
+    const Eigen::Vector3d X = R_cp * cfg_.pattern.p_host_m[i] + t;
+    if (!(X.z() > 0.0)) {
+      ok = false;
+      px[i] = cv::Point2d(0.0, 0.0);
+      continue;
+    }
+    // OpenCV's radial-tangential model (k4..k6 = 0).
+    const double x = X.x() / X.z(), y = X.y() / X.z();
+    const double r2 = x * x + y * y;
+    const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    const double xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+    const double yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+    px[i] = cv::Point2d(c.fx_px * xd + c.cx_px, c.fy_px * yd + c.cy_px);
+  }
+  return ok;
+}
+
+bool LedPoseEstimator::jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Quaterniond& q_hb,
+                                const Eigen::Quaterniond& q_h_host, Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const {
+  constexpr double kStepM = 1e-6;
+  constexpr double kStepRad = 1e-6;
+  std::array<cv::Point2d, kNumLeds> plus, minus;
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Vector3d rp = r_hill_m, rm = r_hill_m;
+    Eigen::Quaterniond qp = q_hb, qm = q_hb;
+    double h;
+    if (k < 3) {
+      h = kStepM;
+      rp(k) += h;
+      rm(k) -= h;
+    } else {
+      h = kStepRad;
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      d(k - 3) = h;
+      qp = q_hb * exp_q(d);  // body-frame perturbation, as the filter's dtheta
+      qm = q_hb * exp_q(-d);
+    }
+    if (!project(rp, qp, q_h_host, plus) || !project(rm, qm, q_h_host, minus)) return false;
+    for (int i = 0; i < kNumLeds; ++i) {
+      J(2 * i, k) = (plus[i].x - minus[i].x) / (2.0 * h);
+      J(2 * i + 1, k) = (plus[i].y - minus[i].y) / (2.0 * h);
+    }
+  }
+  return J.allFinite();
+}
+
+// ---------------------------------------------------------------------------
+// Detection.
+
+std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
+  std::vector<Blob> out;
+  if (gray.empty() || gray.type() != CV_8UC1) return out;
+  cv::Mat bg, diff, mask, labels, stats, cents;
+  const int k = std::max(3, cfg_.background_kernel_px | 1);
+  cv::blur(gray, bg, cv::Size(k, k), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+  cv::subtract(gray, bg, diff);  // saturates at 0
+  cv::threshold(diff, mask, cfg_.threshold_counts, 255, cv::THRESH_BINARY);
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, cents, 8, CV_32S);
+  for (int l = 1; l < n; ++l) {
+    const int area = stats.at<int>(l, cv::CC_STAT_AREA);
+    const int x0 = stats.at<int>(l, cv::CC_STAT_LEFT), y0 = stats.at<int>(l, cv::CC_STAT_TOP);
+    const int w = stats.at<int>(l, cv::CC_STAT_WIDTH), h = stats.at<int>(l, cv::CC_STAT_HEIGHT);
+    if (area < cfg_.min_area_px || area > cfg_.max_area_px) continue;
+    if (w > cfg_.max_extent_px || h > cfg_.max_extent_px) continue;
+    // Background-subtracted intensity moments over the component's pixels.
+    double s = 0.0, su = 0.0, sv = 0.0, suu = 0.0, svv = 0.0, suv = 0.0;
+    double sn = 0.0, snu = 0.0, snv = 0.0, snuu = 0.0, snvv = 0.0;  // pixel-noise moments
+    // Over the component's box grown by kPad, so that the spot's tails below
+    // the threshold count too (a centroid of the thresholded core alone is
+    // pulled towards pixel centres); pixels of other components excluded.
+    constexpr int kPad = 2;
+    const int ra = std::max(y0 - kPad, 0), rb = std::min(y0 + h + kPad, gray.rows);
+    const int ca = std::max(x0 - kPad, 0), cb = std::min(x0 + w + kPad, gray.cols);
+    for (int r = ra; r < rb; ++r) {
+      const int* lab = labels.ptr<int>(r);
+      const uint8_t* d = diff.ptr<uint8_t>(r);
+      const uint8_t* g = gray.ptr<uint8_t>(r);
+      for (int c = ca; c < cb; ++c) {
+        if (lab[c] != l && lab[c] != 0) continue;
+        const double wgt = d[c];
+        s += wgt;
+        su += wgt * c;
+        sv += wgt * r;
+        suu += wgt * c * c;
+        svv += wgt * r * r;
+        suv += wgt * c * r;
+        // A saturated pixel carries no noise (it carries no information either,
+        // but its weight is the clipped value, symmetric about the centre).
+        const double nv = g[c] == 255 ? 0.0 : cfg_.read_noise_counts * cfg_.read_noise_counts + cfg_.shot_gain * wgt;
+        sn += nv;
+        snu += nv * c;
+        snv += nv * r;
+        snuu += nv * c * c;
+        snvv += nv * r * r;
+      }
+    }
+    if (!(s > 0.0)) continue;
+    const double mu = su / s, mv = sv / s;
+    // Second moments, plus a pixel's own variance so that tiny blobs are round.
+    const double a = suu / s - mu * mu + 1.0 / 12.0;
+    const double c = svv / s - mv * mv + 1.0 / 12.0;
+    const double b = suv / s - mu * mv;
+    const double half_tr = 0.5 * (a + c);
+    const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
+    const double lam1 = half_tr + disc, lam2 = std::max(half_tr - disc, 1e-9);
+    if (std::sqrt(lam1 / lam2) > cfg_.max_elongation) continue;  // lines, streaks
+    // Centroid variance from the pixel noise, plus a floor for what the
+    // noise model leaves out (saturation, spot asymmetry, quantisation).
+    const double var_u = (snuu - 2.0 * mu * snu + mu * mu * sn) / (s * s);
+    const double var_v = (snvv - 2.0 * mv * snv + mv * mv * sn) / (s * s);
+    const double sig = std::sqrt(std::max(var_u, var_v) + cfg_.centroid_floor_px * cfg_.centroid_floor_px);
+    out.push_back(Blob{mu, mv, s, area, sig});
+  }
+  std::sort(out.begin(), out.end(), [](const Blob& x, const Blob& y) { return x.flux > y.flux; });
+  if (static_cast<int>(out.size()) > cfg_.max_blobs) out.resize(cfg_.max_blobs);
+  return out;
+}
+
+LedPoseMeasurement LedPoseEstimator::estimate(const cv::Mat& gray, double t_capture_s,
+                                              const Eigen::Quaterniond& q_h_host) const {
+  if (gray.empty() || gray.type() != CV_8UC1 || gray.cols != cfg_.camera.width || gray.rows != cfg_.camera.height) {
+    LedPoseMeasurement m;
+    m.t_capture_s = t_capture_s;
+    m.status = PoseStatus::BadInput;
+    return m;
+  }
+  const std::vector<Blob> blobs = detect(gray);
+  std::vector<cv::Point2d> pts;
+  std::vector<double> sig;
+  for (const Blob& b : blobs) {
+    pts.emplace_back(b.u_px, b.v_px);
+    sig.push_back(b.sigma_px);
+  }
+  return estimate_from_points(pts, t_capture_s, q_h_host, sig);
+}
+
+// ---------------------------------------------------------------------------
+// Identification and pose.
+
+LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::Point2d>& pts_in, double t_capture_s,
+                                                          const Eigen::Quaterniond& q_h_host,
+                                                          const std::vector<double>& sigma_px) const {
+  LedPoseMeasurement m;
+  m.t_capture_s = t_capture_s;
+  const double qn = q_h_host.norm();
+  if (!std::isfinite(t_capture_s) || !(std::abs(qn - 1.0) < 1e-3)) {
+    m.status = PoseStatus::BadInput;
+    return m;
+  }
+  std::vector<cv::Point2d> pts;
+  std::vector<double> sig;  // centroid sigma per point [px]
+  for (size_t i = 0; i < pts_in.size(); ++i) {
+    const cv::Point2d& p = pts_in[i];
+    const double si = i < sigma_px.size() ? sigma_px[i] : cfg_.pixel_sigma_px;
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !(si > 0.0) || !std::isfinite(si)) continue;
+    pts.push_back(p);
+    sig.push_back(si);
+    if (static_cast<int>(pts.size()) >= cfg_.max_blobs) break;
+  }
+  const int n = static_cast<int>(pts.size());
+  m.n_blobs = n;
+  if (n < 4) {
+    m.status = PoseStatus::TooFewLeds;
+    return m;
+  }
+
+  // Degenerate spread: all points (nearly) on a line or a tiny hull.
+  {
+    std::vector<cv::Point2f> pf(pts.begin(), pts.end()), hull;
+    cv::convexHull(pf, hull);
+    if (cv::contourArea(hull) < 0.5 * cfg_.min_quad_area_px2) {
+      m.status = PoseStatus::DegenerateGeometry;
+      return m;
+    }
+  }
+
+  auto on_edge = [&](const cv::Point2d& a, const cv::Point2d& b, const cv::Point2d& p, double& t) {
+    const cv::Point2d e = b - a;
+    const double L = std::sqrt(e.dot(e));
+    if (L < 2.0) return false;
+    const double dist = std::abs(cross2(e, p - a)) / L;
+    t = e.dot(p - a) / (L * L);
+    return dist <= cfg_.line_tol_px + cfg_.line_tol_rel * L;
+  };
+
+  // Labellings: identifier k on edge (i -> j) at fraction t in the accepted
+  // range, and i, j, c2, c3 a convex quadrilateral in that order. Each is
+  // scored by where the plane homography of its four corners puts the
+  // identifier (exact under projection for the planar pattern).
+  std::vector<Hypothesis> hyps;
+  bool any_collinear_triple = false;
+  constexpr int kMaxCandidates = 2000;  // bounds the work on a cluttered frame
+  int candidates = 0;
+  std::vector<cv::Point2f> quad_px(4);
+  for (int i = 0; i < n && candidates < kMaxCandidates; ++i) {
+    for (int j = 0; j < n; ++j) {
+      if (j == i) continue;
+      for (int k = 0; k < n; ++k) {
+        if (k == i || k == j) continue;
+        double t = 0.0;
+        if (!on_edge(pts[i], pts[j], pts[k], t)) continue;
+        if (t > 0.0 && t < 1.0) any_collinear_triple = true;
+        if (t < cfg_.id_fraction_min || t > cfg_.id_fraction_max) continue;
+        const cv::Point2d e = pts[j] - pts[i];
+        const double tol = cfg_.line_tol_px + cfg_.line_tol_rel * std::sqrt(e.dot(e));
+        for (int c2 = 0; c2 < n; ++c2) {
+          if (c2 == i || c2 == j || c2 == k) continue;
+          for (int c3 = 0; c3 < n; ++c3) {
+            if (c3 == i || c3 == j || c3 == k || c3 == c2) continue;
+            const cv::Point2d* q[4] = {&pts[i], &pts[j], &pts[c2], &pts[c3]};
+            if (0.5 * convex_quad_area2(q) < cfg_.min_quad_area_px2) continue;
+            ++candidates;
+            for (int c = 0; c < 4; ++c) quad_px[c] = cv::Point2f(float(q[c]->x), float(q[c]->y));
+            const cv::Mat H = cv::getPerspectiveTransform(plane_uv_.data(), quad_px.data());
+            const cv::Point2f& id = plane_uv_[kIdentifier];
+            const double w = H.at<double>(2, 0) * id.x + H.at<double>(2, 1) * id.y + H.at<double>(2, 2);
+            if (!(std::abs(w) > 1e-12)) continue;
+            const cv::Point2d mapped((H.at<double>(0, 0) * id.x + H.at<double>(0, 1) * id.y + H.at<double>(0, 2)) / w,
+                                     (H.at<double>(1, 0) * id.x + H.at<double>(1, 1) * id.y + H.at<double>(1, 2)) / w);
+            const cv::Point2d dd = mapped - pts[k];
+            const double score = std::sqrt(dd.dot(dd));
+            if (!(score <= tol)) continue;
+            Hypothesis h;
+            h.idx = {{i, j, c2, c3, k}};
+            h.score = score;
+            hyps.push_back(h);
+          }
+        }
+      }
+    }
+  }
+  std::sort(hyps.begin(), hyps.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.score < b.score; });
+  if (static_cast<int>(hyps.size()) > cfg_.max_hypotheses) hyps.resize(cfg_.max_hypotheses);
+  m.n_hypotheses = static_cast<int>(hyps.size());
+
+  if (hyps.empty()) {
+    if (n == 4) {
+      // Four points: a corner missing (identifier on an edge of three) or the
+      // identifier missing (a bare square, four-fold symmetric).
+      const cv::Point2d* q[4] = {&pts[0], &pts[1], &pts[2], &pts[3]};
+      bool convex = false;
+      const int orders[3][4] = {{0, 1, 2, 3}, {0, 2, 1, 3}, {0, 1, 3, 2}};
+      for (const auto& o : orders) {
+        const cv::Point2d* qo[4] = {q[o[0]], q[o[1]], q[o[2]], q[o[3]]};
+        if (0.5 * convex_quad_area2(qo) >= cfg_.min_quad_area_px2) convex = true;
+      }
+      m.status = (convex && !any_collinear_triple) ? PoseStatus::AmbiguousIdentity : PoseStatus::TooFewLeds;
+    } else {
+      m.status = PoseStatus::TooFewLeds;
+    }
+    return m;
+  }
+
+  // Pose per labelling: IPPE (both planar solutions) and a RANSAC solution,
+  // each refined by Levenberg-Marquardt; the physical ones are kept and the
+  // labelling's best is the one with the smallest reprojection error.
+  const Eigen::Vector3d centre_p = [&] {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 4; ++i) c += cfg_.pattern.p_host_m[i];
+    return Eigen::Vector3d(c / 4.0);
+  }();
+  auto to_eigen = [](const cv::Mat& rvec, const cv::Mat& tvec, Eigen::Matrix3d& R, Eigen::Vector3d& t) {
+    cv::Mat Rcv;
+    cv::Rodrigues(rvec, Rcv);
+    for (int r = 0; r < 3; ++r) {
+      t(r) = tvec.at<double>(r);
+      for (int c = 0; c < 3; ++c) R(r, c) = Rcv.at<double>(r, c);
+    }
+  };
+  auto physical = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+    for (int i = 0; i < kNumLeds; ++i) {
+      if ((R * cfg_.pattern.p_host_m[i] + t).z() <= cfg_.min_depth_m) return false;
+    }
+    // The LEDs shine from the face's outer side only.
+    return (R * cfg_.pattern.normal_host).dot(R * centre_p + t) < 0.0;
+  };
+
+  try {
+    for (Hypothesis& h : hyps) {
+      std::vector<cv::Point2d> img(kNumLeds);
+      for (int l = 0; l < kNumLeds; ++l) img[l] = pts[h.idx[l]];
+      std::vector<cv::Mat> rvecs, tvecs;
+      cv::solvePnPGeneric(obj_, img, K_, dist_, rvecs, tvecs, false, cv::SOLVEPNP_IPPE);
+      // Robust gate: with more than four correspondences, every LED must be
+      // an inlier of a RANSAC fit from minimal subsets.
+      if (static_cast<int>(img.size()) > 4) {
+        cv::Mat rv, tv;
+        std::vector<int> inliers;
+        const bool ok = cv::solvePnPRansac(obj_, img, K_, dist_, rv, tv, false, 50, cfg_.ransac_threshold_px, 0.99,
+                                           inliers, cv::SOLVEPNP_AP3P);
+        if (ok && static_cast<int>(inliers.size()) < kNumLeds) continue;
+        if (ok) {
+          rvecs.push_back(rv);
+          tvecs.push_back(tv);
+        }
+      }
+      for (size_t s = 0; s < rvecs.size(); ++s) {
+        cv::Mat rv = rvecs[s].clone(), tv = tvecs[s].clone();
+        rv.convertTo(rv, CV_64F);
+        tv.convertTo(tv, CV_64F);
+        cv::solvePnPRefineLM(obj_, img, K_, dist_, rv, tv);
+        Solution sol;
+        to_eigen(rv, tv, sol.R_cp, sol.t_cp);
+        if (!sol.R_cp.allFinite() || !sol.t_cp.allFinite() || !physical(sol.R_cp, sol.t_cp)) {
+          h.behind = true;
+          continue;
+        }
+        std::vector<cv::Point2d> rep;
+        cv::projectPoints(obj_, rv, tv, K_, dist_, rep);
+        sol.ssr = 0.0;
+        for (int l = 0; l < kNumLeds; ++l) {
+          const cv::Point2d d = rep[l] - img[l];
+          sol.ssr += d.dot(d);
+          sol.wssr += d.dot(d) / (sig[h.idx[l]] * sig[h.idx[l]]);
+        }
+        h.solutions.push_back(sol);
+        h.rms = std::min(h.rms, std::sqrt(sol.ssr / kNumLeds));
+      }
+      std::sort(h.solutions.begin(), h.solutions.end(),
+                [](const Solution& a, const Solution& b) { return a.ssr < b.ssr; });
+    }
+  } catch (const cv::Exception&) {
+    m.status = PoseStatus::SolverFailed;
+    return m;
+  }
+
+  std::sort(hyps.begin(), hyps.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.rms < b.rms; });
+  const Hypothesis& best = hyps.front();
+  if (best.solutions.empty()) {
+    bool behind = false;
+    for (const Hypothesis& h : hyps) behind = behind || h.behind;
+    m.status = behind ? PoseStatus::TargetBehindCamera : PoseStatus::SolverFailed;
+    return m;
+  }
+  m.reproj_rms_px = best.rms;
+  if (best.rms > cfg_.max_reproj_rms_px) {
+    m.status = PoseStatus::SolverFailed;
+    return m;
+  }
+  if (hyps.size() > 1) {
+    const Hypothesis& second = hyps[1];
+    if (second.rms <= cfg_.max_reproj_rms_px &&
+        second.rms < cfg_.ambiguity_ratio * std::max(best.rms, sig[best.idx[0]])) {
+      m.status = PoseStatus::AmbiguousIdentity;
+      return m;
+    }
+  }
+
+  // Camera-frame pose -> navigation measurement.
+  const Solution& sb = best.solutions.front();
+  m.R_cp = sb.R_cp;
+  m.t_cp_m = sb.t_cp;
+  m.blob_of_led = best.idx;
+  m.range_m = (m.R_cp * centre_p + m.t_cp_m).norm();
+  nav_from_camera(m.R_cp, m.t_cp_m, q_h_host, m.r_hill_m, m.q_hb);
+
+  // Covariance: (J^T W J)^-1 in [r_hill_m, dtheta_b], W the inverse centroid
+  // variances (sigma^2 (J^T J)^-1 when all are equal).
+  Eigen::Matrix<double, 2 * kNumLeds, 1> inv_sig;
+  for (int l = 0; l < kNumLeds; ++l) inv_sig(2 * l) = inv_sig(2 * l + 1) = 1.0 / sig[best.idx[l]];
+  auto covariance = [&](const Eigen::Vector3d& r, const Eigen::Quaterniond& q, Mat6& C, Mat6& info) {
+    Eigen::Matrix<double, 2 * kNumLeds, 6> J;
+    if (!jacobian(r, q, q_h_host, J)) return false;
+    J = inv_sig.asDiagonal() * J;  // whitened: J^T W J, W = diag(1 / sigma^2)
+    const Mat6 JtJ = J.transpose() * J;
+    const Eigen::SelfAdjointEigenSolver<Mat6> es(JtJ);
+    const double lmin = es.eigenvalues()(0), lmax = es.eigenvalues()(5);
+    if (!(lmin > 0.0) || lmax / lmin > cfg_.max_condition) return false;
+    C = es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+    info = JtJ;
+    return true;
+  };
+  Mat6 R, info;
+  if (!covariance(m.r_hill_m, m.q_hb, R, info)) {
+    m.status = PoseStatus::DegenerateGeometry;
+    return m;
+  }
+
+  // Planar pose ambiguity: a distinct second solution of the same labelling
+  // (the tilt mirrored about the line of sight) that fits nearly as well.
+  // Its posterior weight w (from the residual difference) decides: above
+  // flip_weight_max the pose is withheld (DegenerateGeometry); below it the
+  // covariance about the chosen solution becomes the two-component mixture's,
+  // (1 - w) R + w (R_other + d d^T).
+  for (size_t s = 1; s < best.solutions.size(); ++s) {
+    const Solution& so = best.solutions[s];
+    Eigen::Vector3d r_o;
+    Eigen::Quaterniond q_o;
+    nav_from_camera(so.R_cp, so.t_cp, q_h_host, r_o, q_o);
+    Vec6 d;
+    d.head<3>() = r_o - m.r_hill_m;
+    const Eigen::AngleAxisd aa(m.q_hb.conjugate() * q_o);
+    d.tail<3>() = aa.angle() * aa.axis();
+    if (d.dot(info * d) < 1.0) continue;  // the same minimum
+    const double x = 0.5 * (so.wssr - sb.wssr);
+    const double w = x > 50.0 ? 0.0 : 1.0 / (1.0 + std::exp(x));
+    m.flip_weight = w;
+    if (w > cfg_.flip_weight_max) {
+      m.status = PoseStatus::DegenerateGeometry;
+      return m;
+    }
+    Mat6 R_o, info_o;
+    if (w > 0.0 && covariance(r_o, q_o, R_o, info_o)) R = (1.0 - w) * R + w * (R_o + d * d.transpose());
+    break;
+  }
+  m.R = 0.5 * (R + R.transpose());
+  m.status = PoseStatus::Ok;
+  return m;
+}
+
+}  // namespace fsw_vision

@@ -1,0 +1,348 @@
+// LED pose pipeline: projection and frame chain, identification under
+// permutation and clutter, every no-pose status, the covariance against a
+// Monte Carlo of pixel noise, and an end-to-end rendered image.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "fsw_vision/led_pose.hpp"
+
+using fsw_vision::LedPoseConfig;
+using fsw_vision::LedPoseEstimator;
+using fsw_vision::LedPoseMeasurement;
+using fsw_vision::PoseStatus;
+
+namespace {
+
+constexpr int kN = fsw_vision::kNumLeds;
+
+// Pattern normal (host +x) towards the camera, host y to image right, host z
+// to image up; then a tilt.
+Eigen::Matrix3d facing_rotation(const Eigen::Vector3d& tilt_rad) {
+  Eigen::Matrix3d R0;
+  R0.col(0) = Eigen::Vector3d(0, 0, -1);
+  R0.col(1) = Eigen::Vector3d(1, 0, 0);
+  R0.col(2) = R0.col(0).cross(R0.col(1));
+  const double a = tilt_rad.norm();
+  const Eigen::Matrix3d Rt =
+      a > 0 ? Eigen::AngleAxisd(a, tilt_rad / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
+  return Rt * R0;
+}
+
+Eigen::Vector3d pattern_centre(const LedPoseConfig& cfg) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 4; ++i) c += cfg.pattern.p_host_m[i];
+  return c / 4.0;
+}
+
+struct CamPose {
+  Eigen::Matrix3d R_cp;
+  Eigen::Vector3d t_cp;
+};
+
+CamPose cam_pose(const LedPoseConfig& cfg, const Eigen::Vector3d& centre_c, const Eigen::Vector3d& tilt) {
+  CamPose p;
+  p.R_cp = facing_rotation(tilt);
+  p.t_cp = centre_c - p.R_cp * pattern_centre(cfg);
+  return p;
+}
+
+// Independent projection through OpenCV.
+std::vector<cv::Point2d> cv_project(const LedPoseConfig& cfg, const CamPose& p) {
+  std::vector<cv::Point3d> obj;
+  for (const auto& x : cfg.pattern.p_host_m) obj.emplace_back(x.x(), x.y(), x.z());
+  cv::Mat R(3, 3, CV_64F), rvec, tvec(3, 1, CV_64F);
+  for (int r = 0; r < 3; ++r) {
+    tvec.at<double>(r) = p.t_cp(r);
+    for (int c = 0; c < 3; ++c) R.at<double>(r, c) = p.R_cp(r, c);
+  }
+  cv::Rodrigues(R, rvec);
+  const auto& c = cfg.camera;
+  const cv::Mat K = (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
+  const cv::Mat D = (cv::Mat_<double>(1, 5) << c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]);
+  std::vector<cv::Point2d> px;
+  cv::projectPoints(obj, rvec, tvec, K, D, px);
+  return px;
+}
+
+Eigen::Quaterniond host_attitude() {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.3, -0.5, 0.8).normalized()));
+}
+
+double angle_between(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return a.angularDistance(b);
+}
+
+class LedPoseTest : public ::testing::Test {
+ protected:
+  LedPoseConfig cfg;
+  CamPose truth = cam_pose(cfg, Eigen::Vector3d(0.10, -0.05, 1.5), Eigen::Vector3d(0.3, -0.2, 0.1));
+};
+
+}  // namespace
+
+TEST_F(LedPoseTest, ProjectMatchesCvProjectPointsWithDistortion) {
+  cfg.camera.dist = {{-0.12, 0.03, 0.001, -0.0005, 0.0}};
+  const LedPoseEstimator est(cfg);
+  const auto q_host = host_attitude();
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  est.nav_from_camera(truth.R_cp, truth.t_cp, q_host, r, q);
+  std::array<cv::Point2d, kN> px;
+  ASSERT_TRUE(est.project(r, q, q_host, px));
+  const auto ref = cv_project(cfg, truth);
+  for (int i = 0; i < kN; ++i) {
+    EXPECT_NEAR(px[i].x, ref[i].x, 1e-9);
+    EXPECT_NEAR(px[i].y, ref[i].y, 1e-9);
+  }
+}
+
+TEST_F(LedPoseTest, CameraNavRoundTrip) {
+  const LedPoseEstimator est(cfg);
+  const auto q_host = host_attitude();
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  est.nav_from_camera(truth.R_cp, truth.t_cp, q_host, r, q);
+  Eigen::Matrix3d R2;
+  Eigen::Vector3d t2;
+  est.camera_from_nav(r, q, q_host, R2, t2);
+  EXPECT_LT((R2 - truth.R_cp).norm(), 1e-12);
+  EXPECT_LT((t2 - truth.t_cp).norm(), 1e-12);
+  EXPECT_NEAR(q.norm(), 1.0, 1e-12);
+  EXPECT_GE(q.w(), 0.0);
+}
+
+TEST_F(LedPoseTest, InspectorPositionIsMinusHostPositionThroughMount) {
+  // Identity attitudes: the host centre of mass seen at t_cp in the camera is
+  // at R_bc t_cp + p_cam_b in the body; the inspector is at minus that.
+  const LedPoseEstimator est(cfg);
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  const Eigen::Matrix3d R_cp = cfg.camera.R_bc.transpose();  // makes q_hb the identity
+  const Eigen::Vector3d t(0.2, -0.1, 2.0);
+  est.nav_from_camera(R_cp, t, Eigen::Quaterniond::Identity(), r, q);
+  EXPECT_LT(angle_between(q, Eigen::Quaterniond::Identity()), 1e-12);
+  const Eigen::Vector3d expect = -(cfg.camera.R_bc * t + cfg.camera.p_cam_b_m);
+  EXPECT_LT((r - expect).norm(), 1e-12);
+  // Boresight is body +x: a target 2 m ahead puts the inspector at x = -2.1 m.
+  EXPECT_NEAR(r.x(), -2.1, 1e-12);
+}
+
+TEST_F(LedPoseTest, RecoversExactPoseFromNoiseFreePoints) {
+  const LedPoseEstimator est(cfg);
+  const auto q_host = host_attitude();
+  const auto px = cv_project(cfg, truth);
+  const LedPoseMeasurement m = est.estimate_from_points(px, 12.5, q_host);
+  ASSERT_EQ(m.status, PoseStatus::Ok) << fsw_vision::to_string(m.status);
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  est.nav_from_camera(truth.R_cp, truth.t_cp, q_host, r, q);
+  EXPECT_LT((m.r_hill_m - r).norm(), 1e-7);
+  EXPECT_LT(angle_between(m.q_hb, q), 1e-7);
+  EXPECT_DOUBLE_EQ(m.t_capture_s, 12.5);
+  EXPECT_LT(m.reproj_rms_px, 1e-6);
+  for (int l = 0; l < kN; ++l) EXPECT_EQ(m.blob_of_led[l], l);
+}
+
+TEST_F(LedPoseTest, IdentifiesUnderEveryPermutation) {
+  const LedPoseEstimator est(cfg);
+  const auto px = cv_project(cfg, truth);
+  std::array<int, kN> perm;
+  std::iota(perm.begin(), perm.end(), 0);
+  int count = 0;
+  do {
+    std::vector<cv::Point2d> shuffled(kN);
+    for (int i = 0; i < kN; ++i) shuffled[i] = px[perm[i]];
+    const LedPoseMeasurement m = est.estimate_from_points(shuffled, 0.0);
+    ASSERT_EQ(m.status, PoseStatus::Ok);
+    for (int l = 0; l < kN; ++l) ASSERT_EQ(perm[m.blob_of_led[l]], l);
+    ++count;
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  EXPECT_EQ(count, 120);
+}
+
+TEST_F(LedPoseTest, IdentifiesAmongClutterPoints) {
+  const LedPoseEstimator est(cfg);
+  auto px = cv_project(cfg, truth);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  int ok = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<cv::Point2d> pts(px.begin(), px.end());
+    for (int c = 0; c < 4; ++c) pts.emplace_back(640.0 * U(rng), 480.0 * U(rng));
+    std::shuffle(pts.begin(), pts.end(), rng);
+    const LedPoseMeasurement m = est.estimate_from_points(pts, 0.0);
+    if (m.status == PoseStatus::Ok) {
+      ++ok;
+      for (int l = 0; l < kN; ++l) EXPECT_LT(cv::norm(pts[m.blob_of_led[l]] - px[l]), 1e-9);
+    } else {
+      // The only acceptable refusal with random clutter is a declared ambiguity.
+      EXPECT_EQ(m.status, PoseStatus::AmbiguousIdentity);
+    }
+  }
+  EXPECT_GE(ok, 18);
+}
+
+TEST_F(LedPoseTest, TooFewLedsWithThreePoints) {
+  const LedPoseEstimator est(cfg);
+  auto px = cv_project(cfg, truth);
+  px.resize(3);
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::TooFewLeds);
+}
+
+TEST_F(LedPoseTest, TooFewLedsWhenACornerIsOccluded) {
+  const LedPoseEstimator est(cfg);
+  auto px = cv_project(cfg, truth);
+  px.erase(px.begin() + 2);  // corner 2; identifier still on edge 0-1
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::TooFewLeds);
+}
+
+TEST_F(LedPoseTest, AmbiguousIdentityWhenIdentifierIsOccluded) {
+  const LedPoseEstimator est(cfg);
+  auto px = cv_project(cfg, truth);
+  px.pop_back();  // the four corners: a square with four-fold symmetry
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::AmbiguousIdentity);
+}
+
+TEST_F(LedPoseTest, AmbiguousIdentityWhenASecondIdentifierFits) {
+  const LedPoseEstimator est(cfg);
+  auto px = cv_project(cfg, truth);
+  // A spurious spot on edge 2-3 a quarter of the way from corner 2 gives a
+  // second labelling that reprojects as well (rotated by 180 degrees).
+  px.push_back(px[2] + 0.25 * (px[3] - px[2]));
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::AmbiguousIdentity);
+}
+
+TEST_F(LedPoseTest, DegenerateGeometryWhenSeenEdgeOn) {
+  const LedPoseEstimator est(cfg);
+  // Camera in the pattern plane: all LEDs on one image line.
+  const CamPose edge_on = cam_pose(cfg, Eigen::Vector3d(0.0, 0.0, 1.0), Eigen::Vector3d(M_PI / 2, 0.0, 0.0));
+  const auto px = cv_project(cfg, edge_on);
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::DegenerateGeometry);
+}
+
+TEST_F(LedPoseTest, TargetBehindCameraWhenBackSideIsSeen) {
+  const LedPoseEstimator est(cfg);
+  // Pattern turned by 180 degrees about the image vertical: the camera looks
+  // at the back of the face (mirror-image labelling).
+  const CamPose back = cam_pose(cfg, Eigen::Vector3d(0.05, 0.02, 1.2), Eigen::Vector3d(0.0, M_PI - 0.2, 0.0));
+  const auto px = cv_project(cfg, back);
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::TargetBehindCamera);
+}
+
+TEST_F(LedPoseTest, BadInputForWrongImageTypeOrSize) {
+  const LedPoseEstimator est(cfg);
+  EXPECT_EQ(est.estimate(cv::Mat(), 0.0).status, PoseStatus::BadInput);
+  EXPECT_EQ(est.estimate(cv::Mat::zeros(480, 640, CV_32F), 0.0).status, PoseStatus::BadInput);
+  EXPECT_EQ(est.estimate(cv::Mat::zeros(240, 320, CV_8U), 0.0).status, PoseStatus::BadInput);
+  EXPECT_EQ(est.estimate(cv::Mat::zeros(480, 640, CV_8U), 0.0).status, PoseStatus::TooFewLeds);
+  const Eigen::Quaterniond not_unit(2.0, 0.0, 0.0, 0.0);
+  EXPECT_EQ(est.estimate_from_points(cv_project(cfg, truth), 0.0, not_unit).status, PoseStatus::BadInput);
+}
+
+TEST_F(LedPoseTest, NonFinitePointsAreDropped) {
+  const LedPoseEstimator est(cfg);
+  auto px = cv_project(cfg, truth);
+  px.insert(px.begin() + 1, cv::Point2d(std::nan(""), 3.0));
+  EXPECT_EQ(est.estimate_from_points(px, 0.0).status, PoseStatus::Ok);
+}
+
+// The reported covariance is the spread of the estimate under pixel noise of
+// the configured sigma: mean NEES over trials near 6, inside its 99% band.
+TEST_F(LedPoseTest, CovarianceMatchesMonteCarloOfPixelNoise) {
+  const LedPoseEstimator est(cfg);
+  const auto q_host = host_attitude();
+  // 1.6 m, tilted by 35 degrees: the planar mirror solution is excluded.
+  const CamPose far = cam_pose(cfg, Eigen::Vector3d(-0.2, 0.1, 1.6), Eigen::Vector3d(0.45, 0.35, -0.2));
+  const auto px = cv_project(cfg, far);
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  est.nav_from_camera(far.R_cp, far.t_cp, q_host, r, q);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> N(0.0, cfg.pixel_sigma_px);
+  const int trials = 400;
+  double nees_sum = 0.0;
+  int ok = 0;
+  for (int k = 0; k < trials; ++k) {
+    std::vector<cv::Point2d> noisy(px);
+    for (auto& p : noisy) p += cv::Point2d(N(rng), N(rng));
+    const LedPoseMeasurement m = est.estimate_from_points(noisy, 0.0, q_host);
+    if (m.status != PoseStatus::Ok) continue;
+    ++ok;
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = m.r_hill_m - r;
+    const Eigen::Quaterniond dq = q.inverse() * m.q_hb;  // body-frame error
+    const Eigen::AngleAxisd aa(dq);
+    e.tail<3>() = aa.angle() * aa.axis();
+    if (aa.angle() > M_PI) e.tail<3>() -= 2 * M_PI * aa.axis();
+    nees_sum += e.dot(m.R.ldlt().solve(e));
+  }
+  ASSERT_EQ(ok, trials);
+  const double mean = nees_sum / ok;
+  // Mean of 400 chi2(6) draws: 6 +- 2.58 * sqrt(12 / 400).
+  EXPECT_GT(mean, 6.0 - 2.58 * std::sqrt(12.0 / trials));
+  EXPECT_LT(mean, 6.0 + 2.58 * std::sqrt(12.0 / trials));
+}
+
+TEST_F(LedPoseTest, CovarianceGrowsWithRange) {
+  const LedPoseEstimator est(cfg);
+  const auto near = est.estimate_from_points(cv_project(cfg, cam_pose(cfg, {0, 0, 1.0}, {0.6, 0.3, 0})), 0.0);
+  const auto far = est.estimate_from_points(cv_project(cfg, cam_pose(cfg, {0, 0, 2.5}, {0.6, 0.3, 0})), 0.0);
+  ASSERT_EQ(near.status, PoseStatus::Ok);
+  ASSERT_EQ(far.status, PoseStatus::Ok);
+  const double pos_far = far.R.topLeftCorner<3, 3>().trace(), pos_near = near.R.topLeftCorner<3, 3>().trace();
+  const double att_far = far.R.bottomRightCorner<3, 3>().trace(), att_near = near.R.bottomRightCorner<3, 3>().trace();
+  EXPECT_GT(pos_far, 10.0 * pos_near);
+  EXPECT_GT(att_far, att_near);
+}
+
+// End to end: Gaussian LED spots drawn into a noisy 8-bit image.
+TEST_F(LedPoseTest, EstimatesPoseFromRenderedImage) {
+  const LedPoseEstimator est(cfg);
+  const auto q_host = host_attitude();
+  const auto px = cv_project(cfg, truth);
+  cv::Mat img(480, 640, CV_32F, cv::Scalar(10.0));
+  const double sigma = 1.2, amp = 180.0;
+  for (const auto& p : px) {
+    for (int r = int(p.y) - 6; r <= int(p.y) + 6; ++r)
+      for (int c = int(p.x) - 6; c <= int(p.x) + 6; ++c) {
+        const double d2 = (c - p.x) * (c - p.x) + (r - p.y) * (r - p.y);
+        img.at<float>(r, c) += float(amp * std::exp(-0.5 * d2 / (sigma * sigma)));
+      }
+  }
+  cv::Mat noise(480, 640, CV_32F);
+  cv::RNG cvrng(3);
+  cvrng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+  img += noise;
+  cv::Mat img8;
+  img.convertTo(img8, CV_8U);
+  const LedPoseMeasurement m = est.estimate(img8, 1.0, q_host);
+  ASSERT_EQ(m.status, PoseStatus::Ok) << fsw_vision::to_string(m.status);
+  EXPECT_EQ(m.n_blobs, kN);
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  est.nav_from_camera(truth.R_cp, truth.t_cp, q_host, r, q);
+  const double sig_pos = std::sqrt(m.R.topLeftCorner<3, 3>().trace());
+  const double sig_att = std::sqrt(m.R.bottomRightCorner<3, 3>().trace());
+  EXPECT_LT((m.r_hill_m - r).norm(), 5.0 * sig_pos);
+  EXPECT_LT(angle_between(m.q_hb, q), 5.0 * sig_att);
+  EXPECT_LT(m.reproj_rms_px, 0.5);
+}
+
+TEST_F(LedPoseTest, DetectorRejectsLinesAndLargeGlare) {
+  const LedPoseEstimator est(cfg);
+  cv::Mat img(480, 640, CV_8U, cv::Scalar(10));
+  cv::line(img, {50, 50}, {200, 120}, cv::Scalar(200), 2);
+  cv::line(img, {300, 400}, {600, 400}, cv::Scalar(220), 1);
+  cv::circle(img, {450, 150}, 70, cv::Scalar(255), -1);
+  cv::circle(img, {100, 300}, 2, cv::Scalar(200), -1);  // one LED-like spot
+  const auto blobs = est.detect(img);
+  ASSERT_EQ(blobs.size(), 1u);
+  EXPECT_NEAR(blobs[0].u_px, 100.0, 0.1);
+  EXPECT_NEAR(blobs[0].v_px, 300.0, 0.1);
+}
