@@ -1,0 +1,35 @@
+"""`proxops validate-gap --runs N --seed S --json OUT`: blind validation of the
+gap diagnoser on drawn null, in-library and out-of-library runs."""
+from __future__ import annotations
+
+
+def register(sub):
+    p = sub.add_parser("validate-gap", help="blind validation campaign of the gap diagnoser")
+    p.add_argument("--runs", type=int, default=40)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", default=None, help="write the scores here (and OUT.prereg.json with the key hashes first)")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds per run")
+    p.set_defaults(func=main)
+
+
+def main(args):
+    from bench.gap.validate import default_workers, run_campaign
+    from bench.report import write_json
+
+    workers = args.workers or default_workers()
+    res = run_campaign(args.runs, args.seed, args.json, workers, args.duration)
+    if args.json:
+        write_json(args.json, res)
+    print(f"runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {workers} workers)")
+    print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")
+    for s, v in res["in_library_by_scale"].items():
+        print(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")
+    if "out_of_library" in res:
+        o = res["out_of_library"]
+        print(f"out-of-library: unexplained {o['unexplained_rate']:.2f}, not detected {o['not_detected_rate']:.2f}, "
+              f"confident misattribution {o['confident_misattribution_rate']:.2f} (n = {o['n']})")
+    sh = res["shrink_heldout"]
+    print(f"held-out shrink median: true effect {sh['true_effect_median']}, wrong effect {sh['wrong_effect_median']}")
+    print(f"95 % interval coverage: {res['interval_coverage_95']['fraction']}")
+    return 0

@@ -1,0 +1,182 @@
+"""Which in-library effect explains the gap.
+
+Two channels of whitened residuals, each N(0, 1) per element under the
+nominal model: the navigation replay's pose innovations (bench/gap/replay.py)
+and the dynamics channel, IMU against the valve model (bench/gap/dyn.py).
+
+1. Screen (cheap, every candidate): the candidate's signature is its
+   Jacobian on both channels: by finite differences through the filter (one
+   replay per parameter) and in closed form on the dynamics channel. A
+   linearised generalised likelihood ratio on the training rows,
+       theta_hat = argmin |e0 + J theta|^2 (inside the plausible bounds),
+       2 dLL = |e0|^2 - |e0 + J theta_hat|^2,
+   ranked by BIC evidence 2 dLL - rank(J) ln(n).
+2. Confirm (the top few): refit with the full filter (scipy least_squares,
+   every residual evaluation a full replay), then the exact training
+   log-likelihood gain and its BIC.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.gap.candidates import CANDIDATES, Candidate
+from bench.gap.replay import LogData, replay
+
+BF_AMBIGUOUS = 6.0  # BIC difference below which two candidates are not told apart (Bayes factor < ~20)
+
+
+@dataclass
+class Pass:
+    """One navigation replay, on the full set of pose indices (NaN where not fused)."""
+
+    white: np.ndarray  # (M, 6)
+    nis: np.ndarray
+    loglik: np.ndarray
+    innovation: np.ndarray
+    res: object = None
+
+
+def run_pass(d: LogData, corr=None, keep=False) -> Pass:
+    r = replay(d, corr)
+    m = d.pose_tc.size
+    white = np.full((m, 6), np.nan)
+    nis = np.full(m, np.nan)
+    ll = np.full(m, np.nan)
+    inn = np.full((m, 6), np.nan)
+    white[r.index] = r.whitened()
+    nis[r.index] = r.nis
+    ll[r.index] = r.loglik
+    inn[r.index] = r.innovation
+    return Pass(white, nis, ll, inn, r if keep else None)
+
+
+@dataclass
+class Context:
+    d: LogData
+    nominal: Pass
+    ch: object  # DynChannel or None
+    train_nav: np.ndarray
+    held_nav: np.ndarray
+    train_dyn: np.ndarray | None
+    held_dyn: np.ndarray | None
+
+
+@dataclass
+class Fit:
+    name: str
+    kind: str
+    theta: np.ndarray
+    sigma: np.ndarray
+    screen_2dll: float
+    screen_bic: float
+    rank: int = 0
+    dll_train: float = float("nan")
+    bic: float = float("nan")
+    confirmed: bool = False
+    after_nav: Pass | None = None
+    after_dyn: np.ndarray | None = None  # (R, 3) dynamics rows with the candidate
+
+
+def _dyn_jac(ctx: Context, name: str):
+    if ctx.ch is None:
+        return None
+    return ctx.ch.jacobian(name)
+
+
+def screen(ctx: Context, names=None, progress=None) -> list:
+    d, nominal = ctx.d, ctx.nominal
+    e_nav = nominal.white[ctx.train_nav]
+    rows_ok = np.all(np.isfinite(e_nav), axis=1)
+    e_nav = e_nav[rows_ok].ravel()
+    e_dyn = ctx.ch.e0[ctx.train_dyn].ravel() if ctx.ch is not None else np.zeros(0)
+    e0 = np.concatenate([e_nav, e_dyn])
+    n_obs = e0.size
+    fits = []
+    for name in names or CANDIDATES:
+        c = CANDIDATES[name]
+        Jn = np.zeros((e_nav.size, c.n_params))
+        if c.nav:
+            for i in range(c.n_params):
+                th = np.zeros(c.n_params)
+                th[i] = c.scale
+                w = run_pass(d, c.corrections(th, d)).white[ctx.train_nav][rows_ok].ravel()
+                Jn[:, i] = (np.nan_to_num(w, nan=0.0) - e_nav) / c.scale
+                if progress:
+                    progress()
+        Jd_full = _dyn_jac(ctx, name)
+        Jd = (Jd_full[ctx.train_dyn].reshape(-1, c.n_params) if Jd_full is not None
+              else np.zeros((e_dyn.size, c.n_params)))
+        J = np.vstack([Jn, Jd])
+        rank = int(np.linalg.matrix_rank(J / (np.linalg.norm(J, axis=0) + 1e-300)))
+        if rank == 0:
+            fits.append(Fit(name, c.kind, np.zeros(c.n_params), np.full(c.n_params, np.nan), 0.0, -np.inf, 0))
+            continue
+        u, *_ = np.linalg.lstsq(J, -e0, rcond=None)
+        if np.any(np.abs(u) > c.bound):
+            from scipy.optimize import lsq_linear
+
+            u = lsq_linear(J, -e0, bounds=(-c.bound, c.bound)).x
+        r1 = e0 + J @ u
+        two_dll = float(e0 @ e0 - r1 @ r1)
+        sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0, None))
+        f = Fit(name, c.kind, u, sig, two_dll, two_dll - rank * np.log(n_obs), rank)
+        f.Jd_full = Jd_full
+        fits.append(f)
+    fits.sort(key=lambda f: -f.screen_bic)
+    return fits
+
+
+def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
+    """Refit with the full filter likelihood on the training rows (both channels)."""
+    from scipy.optimize import least_squares
+
+    d, nominal = ctx.d, ctx.nominal
+    c: Candidate = CANDIDATES[fit.name]
+    Jd_full = getattr(fit, "Jd_full", None)
+    if Jd_full is None:
+        Jd_full = _dyn_jac(ctx, fit.name)
+    e_dyn0 = ctx.ch.e0 if ctx.ch is not None else None
+
+    def dyn_after(theta):
+        if e_dyn0 is None:
+            return None
+        if Jd_full is None:
+            return e_dyn0
+        return e_dyn0 + np.einsum("rak,k->ra", Jd_full, theta)
+
+    if c.nav:
+        rows_ok = np.isfinite(nominal.white[ctx.train_nav]).all(axis=1)
+        sc = np.full(c.n_params, c.scale)
+
+        def resid(u):
+            w = run_pass(d, c.corrections(u * sc, d)).white[ctx.train_nav][rows_ok].ravel()
+            parts = [np.nan_to_num(w, nan=1e3)]
+            if e_dyn0 is not None and Jd_full is not None:
+                parts.append(dyn_after(u * sc)[ctx.train_dyn].ravel())
+            return np.concatenate(parts)
+
+        ub = c.bound / c.scale
+        u0 = np.clip(np.nan_to_num(fit.theta / sc), -0.999 * ub, 0.999 * ub)
+        kw = dict(max_nfev=max_nfev * (c.n_params + 1), diff_step=1e-3)
+        sol = (least_squares(resid, u0, method="trf", bounds=(-ub, ub), **kw) if np.isfinite(ub)
+               else least_squares(resid, u0, method="lm", **kw))
+        theta = sol.x * sc
+        sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
+        after = run_pass(d, c.corrections(theta, d))
+        dll = float(np.nansum(after.loglik[ctx.train_nav]) - np.nansum(nominal.loglik[ctx.train_nav]))
+    else:
+        theta, sigma, after, dll = fit.theta, fit.sigma, nominal, 0.0
+    ad = dyn_after(theta)
+    if ad is not None:
+        e0 = e_dyn0[ctx.train_dyn].ravel()
+        e1 = ad[ctx.train_dyn].ravel()
+        dll += 0.5 * float(e0 @ e0 - e1 @ e1)
+    n_obs = int(np.isfinite(nominal.white[ctx.train_nav]).all(axis=1).sum()) * 6 + (
+        int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0)
+    fit.theta, fit.sigma, fit.dll_train = theta, sigma, dll
+    fit.bic = 2 * dll - max(fit.rank, 1) * np.log(max(n_obs, 2))
+    fit.confirmed = True
+    fit.after_nav, fit.after_dyn = after, ad
+    return fit

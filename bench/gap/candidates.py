@@ -1,0 +1,133 @@
+"""The diagnoser's own parametric model of each in-library effect: a map from
+a small parameter vector to corrections of the filter's inputs
+(bench/gap/replay.py). These are written independently of the plant's
+physics (bench/effects.py): the diagnoser sees an effect only through what
+it does to the IMU and pose streams and to the relative dynamics.
+
+Effects that change the thrust (thrust loss, thruster misalignment, mass
+depletion) leave the navigation replay untouched (the accelerometer and gyro
+measure what the vehicle really did); they are seen through the dynamics
+channel (bench/gap/dyn.py), whose closed-form Jacobians cover them and the
+IMU effects (``nav=False``: dynamics channel only). The flexible mode has
+no candidate yet (``NOT_MODELLED``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.gap.replay import Corrections, LogData
+
+
+@dataclass(frozen=True)
+class Candidate:
+    name: str
+    kind: str  # "sensor" | "dynamics"
+    params: tuple  # parameter names, with units
+    scale: float  # a typical size, for finite differences and the optimiser's scaling
+    separate_by: str  # the manoeuvre that tells it apart from look-alikes
+    bound: float = float("inf")  # physically plausible |parameter| (fits are kept inside)
+    nav: bool = True  # has a signature in the navigation replay (else only in the dynamics channel)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.params)
+
+    def corrections(self, theta, d: LogData) -> Corrections:
+        if not self.nav:
+            return Corrections()
+        return _BUILDERS[self.name](np.asarray(theta, float), d)
+
+
+def _zero3():
+    return np.zeros(3)
+
+
+def _t(d: LogData) -> np.ndarray:
+    return d.imu_t - d.t_init
+
+
+def _ecc(theta, d: LogData) -> Corrections:
+    # First order in e of the relative motion about an elliptical host orbit,
+    # minus the circular CW model: M = M0 + n t, theta = [e cos M0, e sin M0].
+    n = d.n_radps
+    nt = n * _t(d)
+    ec = theta[0] * np.cos(nt) - theta[1] * np.sin(nt)  # e cos M
+    es = theta[1] * np.cos(nt) + theta[0] * np.sin(nt)  # e sin M
+    r, v = d.ref_r, d.ref_v
+    a = np.empty_like(r)
+    a[:, 0] = 4 * n * ec * v[:, 1] - 2 * n * n * es * r[:, 1] + 10 * n * n * ec * r[:, 0]
+    a[:, 1] = -4 * n * ec * v[:, 0] + 2 * n * n * es * r[:, 0] + n * n * ec * r[:, 1]
+    a[:, 2] = -3 * n * n * ec * r[:, 2]
+    return Corrections(hill_accel=a)
+
+
+def _j2(theta, d: LogData) -> Corrections:
+    # Differential J2 over a short arc: a gravity-gradient-like symmetric,
+    # trace-free matrix K (5 parameters, [1/s^2]) acting on the position.
+    k = np.array([[theta[0], theta[2], theta[3]], [theta[2], theta[1], theta[4]],
+                  [theta[3], theta[4], -theta[0] - theta[1]]])
+    return Corrections(hill_accel=d.ref_r @ k.T)
+
+
+def _drag(theta, d: LogData) -> Corrections:
+    # Differential drag: a constant along-track acceleration [m/s^2].
+    a = np.zeros((d.imu_t.size, 3))
+    a[:, 1] = theta[0]
+    return Corrections(hill_accel=a)
+
+
+def _com(theta, d: LogData) -> Corrections:
+    # Accelerometer away from the centre of mass: with the centre of mass at
+    # c from the IMU (body axes) the IMU reads a_cm - wdot x c - w x (w x c);
+    # wdot from the gyro by central differences.
+    w = d.gyro
+    wdot = np.gradient(w, d.dt_s, axis=0)
+    extra = np.cross(wdot, theta) + np.cross(w, np.cross(w, theta))
+    return Corrections(accel_extra_b=extra)
+
+
+_BUILDERS = {
+    "com_offset": _com,
+    "accel_bias": lambda th, d: Corrections(accel_bias=th),
+    "gyro_bias": lambda th, d: Corrections(gyro_bias=th),
+    "gyro_scale": lambda th, d: Corrections(gyro_scale=th),
+    "imu_misalignment": lambda th, d: Corrections(imu_misalign=th),
+    "camera_latency": lambda th, d: Corrections(latency_s=float(th[0])),
+    "camera_lever_arm": lambda th, d: Corrections(lever_arm_b=th),
+    "host_eccentricity": _ecc,
+    "differential_j2": _j2,
+    "differential_drag": _drag,
+}
+
+CANDIDATES = {c.name: c for c in (
+    Candidate("thrust_loss", "dynamics", tuple(f"loss_{i} [1]" for i in range(8)), 0.1,
+              "fire each valve alone for a few seconds: a loss scales one valve's force and torque", bound=0.9, nav=False),
+    Candidate("thruster_misalignment", "dynamics", tuple(f"phi_{i}{a} [rad]" for i in range(8) for a in "xyz"), 0.05,
+              "fire each valve alone: a tilt adds a force and torque across its nominal direction", bound=0.5, nav=False),
+    Candidate("mass_depletion", "dynamics", ("mdot [kg/s per open valve]",), 1e-3,
+              "a long firing: the acceleration per valve grows as propellant is used", bound=0.02, nav=False),
+    Candidate("com_offset", "dynamics", ("c_x [m]", "c_y [m]", "c_z [m]"), 0.01,
+              "fast slews with pure couples: the accelerometer's lever arm reads w x (w x c) and wdot x c", bound=0.1),
+    Candidate("accel_bias", "sensor", ("b_x [m/s^2]", "b_y [m/s^2]", "b_z [m/s^2]"), 3e-4,
+              "a slew during a coast: a body-fixed bias turns with the body, a Hill-frame acceleration does not", bound=1e-2),
+    Candidate("gyro_bias", "sensor", ("b_x [rad/s]", "b_y [rad/s]", "b_z [rad/s]"), 1e-3,
+              "hold attitude, then slew about each axis at two rates: a bias is rate-independent", bound=5e-2),
+    Candidate("gyro_scale", "sensor", ("s_x [1]", "s_y [1]", "s_z [1]"), 0.05,
+              "slew about each axis at two rates: a scale error grows with the rate", bound=0.5),
+    Candidate("imu_misalignment", "sensor", ("e_x [rad]", "e_y [rad]", "e_z [rad]"), 0.01,
+              "fire single-axis translations and slews: misalignment couples axes", bound=0.5),
+    Candidate("camera_latency", "sensor", ("tau [s]",), 0.2,
+              "fast translation and slew at constant range: latency scales with the speed", bound=3.0),
+    Candidate("camera_lever_arm", "sensor", ("l_x [m]", "l_y [m]", "l_z [m]"), 0.02,
+              "slew at a fixed position: a lever arm moves the measured position with the attitude", bound=0.3),
+    Candidate("host_eccentricity", "dynamics", ("e cos M0 [1]", "e sin M0 [1]"), 0.02,
+              "a long coast at larger radial offset: the terms scale with position and orbit phase", bound=0.3),
+    Candidate("differential_j2", "dynamics", ("K_xx", "K_yy", "K_xy", "K_xz", "K_yz [1/s^2]"), 1e-5,
+              "coasts at offsets along each Hill axis: a gradient scales with the offset", bound=1e-3),
+    Candidate("differential_drag", "dynamics", ("a_y [m/s^2]",), 1e-4,
+              "a coast near the host: drag is constant along-track, independent of position and attitude", bound=1e-2),
+)}
+
+NOT_MODELLED = ("flex_mode",)

@@ -1,0 +1,202 @@
+"""The whole diagnosis of one flight log: localise, attribute, quantify, verdict.
+
+Detection uses two statistics, each with a threshold from the null
+calibration (bench/gap/null.py): the largest |z| of the gap map, and the
+best screening evidence (BIC of the linearised GLR) over the candidates.
+
+Verdict when a gap is detected (the best confirmed candidate by BIC):
+  explained    it wins the held-out data: held-out log-likelihood gain
+               > HELDOUT_DLL_MIN, shrink >= SHRINK_MIN (when the held-out
+               deficit stands out of its null spread), and the gap map
+               after the fix is below the null threshold (or below
+               MAP_REMAINDER of its value before, for a large gap);
+  ambiguous    it does, but a second confirmed candidate is within
+               BF_AMBIGUOUS of its BIC and also explains the held-out data;
+  unexplained  otherwise (nothing in the library accounts for the gap).
+Without a detected gap the verdict is "no_gap".
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from bench.gap import dyn, localise, null as nullmod, quantify
+from bench.gap.attribute import BF_AMBIGUOUS, Context, Pass, confirm, screen
+from bench.gap.candidates import CANDIDATES, NOT_MODELLED
+from bench.gap.replay import LogData, prepare, reference
+
+HELDOUT_DLL_MIN = 3.0
+SHRINK_MIN = 0.5
+MAP_REMAINDER = 0.1
+N_CONFIRM = 3
+
+
+class _Progress:
+    def __init__(self, total: int, enabled: bool, label: str = "diagnose"):
+        self.total, self.done, self.enabled, self.label = total, 0, enabled, label
+        self.t0 = self.t_last = time.time()
+
+    def __call__(self, n: int = 1):
+        self.done += n
+        if self.enabled and time.time() - self.t_last > 0.5:
+            self.t_last = time.time()
+            print(f"\r  {self.label}: {min(self.done, self.total)}/{self.total} replays, "
+                  f"{time.time() - self.t0:5.1f} s", end="", flush=True)
+
+    def close(self):
+        if self.enabled:
+            print(f"\r  {self.label}: {self.done} replays, {time.time() - self.t0:5.1f} s")
+
+
+def _pass_from(res, d: LogData) -> Pass:
+    m = d.pose_tc.size
+    white = np.full((m, 6), np.nan)
+    nis, ll = np.full(m, np.nan), np.full(m, np.nan)
+    inn = np.full((m, 6), np.nan)
+    white[res.index] = res.whitened()
+    nis[res.index], ll[res.index], inn[res.index] = res.nis, res.loglik, res.innovation
+    return Pass(white, nis, ll, inn, res)
+
+
+def _map_of(d: LogData, p: Pass):
+    ok = np.isfinite(p.nis)
+    res = p.res
+    if res is None:
+        from bench.gap.replay import ReplayResult
+
+        idx = np.flatnonzero(ok)
+        res = ReplayResult(d.pose_tc[idx], idx, p.innovation[idx], np.zeros((idx.size, 6, 6)), p.nis[idx],
+                           p.loglik[idx], np.ones(idx.size, bool))
+    return localise.gap_map(d, res, white=p.white[ok])
+
+
+def diagnose(log, calibration: dict | None = None, progress: bool = False, n_confirm: int = N_CONFIRM,
+             confirm_always: bool = False) -> dict:
+    """Diagnose one log. Returns a JSON-ready dict; ``result["_internal"]``
+    holds arrays for the report (drop it before writing JSON)."""
+    t_start = time.time()
+    cal = calibration if calibration is not None else nullmod.load()
+    d = prepare(log)
+    n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
+    prog = _Progress(1 + n_screen, progress)
+    ref = reference(d)
+    prog()
+    nominal = _pass_from(ref, d)
+    ch = dyn.build(d)
+    edges = quantify.block_edges(d.imu_t[0], d.imu_t[-1])
+    train, held = quantify.split_blocks(d.pose_tc, edges=edges)
+    ok = np.isfinite(nominal.nis)
+    train &= ok
+    held &= ok
+    train_dyn, held_dyn = quantify.split_blocks(ch.t, edges=edges) if ch is not None else (None, None)
+    ctx = Context(d, nominal, ch, train, held, train_dyn, held_dyn)
+    cells = _map_of(d, nominal) + localise.dyn_cells(d, ch)
+    t_map = localise.map_statistic(cells)
+    fits = screen(ctx, progress=prog)
+    t_glr = max(f.screen_bic for f in fits)
+    thr = cal.get("thresholds", {})
+    thr_map, thr_glr = float(thr.get("map_max_abs_z", np.inf)), float(thr.get("screen_bic", np.inf))
+    detected = bool(t_map > thr_map or t_glr > thr_glr)
+
+    def held_shrink(after_nav: Pass, after_dyn):
+        q0 = q1 = td = None
+        if ch is not None:
+            td = ch.t[held_dyn]
+            q0 = np.sum(ch.e0[held_dyn] ** 2, axis=1)
+            q1 = np.sum((after_dyn if after_dyn is not None else ch.e0)[held_dyn] ** 2, axis=1)
+        return quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], after_nav.nis[held], td, q0, q1)
+
+    def held_dll(after_nav: Pass, after_dyn):
+        v = float(np.nansum(after_nav.loglik[held]) - np.nansum(nominal.loglik[held]))
+        if ch is not None and after_dyn is not None:
+            e0, e1 = ch.e0[held_dyn].ravel(), after_dyn[held_dyn].ravel()
+            v += 0.5 * float(e0 @ e0 - e1 @ e1)
+        return v
+
+    ranking = []
+    if detected or confirm_always:
+        prog.total += n_confirm * 10
+        for f in fits[:n_confirm]:
+            if not np.isfinite(f.screen_bic):
+                continue
+            confirm(ctx, f)
+            prog(10)
+            sh = held_shrink(f.after_nav, f.after_dyn)
+            dll_held = held_dll(f.after_nav, f.after_dyn)
+            cells_after = _map_of(d, f.after_nav) + localise.dyn_cells(d, ch, f.after_dyn)
+            map_after = localise.map_statistic(cells_after)
+            # What is left must look like the null, or be a small remainder of a
+            # large gap (a first-order candidate model of a large effect).
+            # A shrink is required only where the held-out deficit stands out of its noise.
+            shrink_ok = (np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
+            explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok
+                            and map_after <= max(thr_map, MAP_REMAINDER * t_map))
+            c = CANDIDATES[f.name]
+            ranking.append({
+                "effect": f.name, "kind": f.kind, "evidence": {"bic": f.bic, "dll_train": f.dll_train,
+                                                              "screen_bic": f.screen_bic, "dll_heldout": dll_held},
+                "parameters": {p: {"value": float(v), "sigma": float(s)} for p, v, s in zip(c.params, f.theta, f.sigma)},
+                "shrink_heldout": sh, "map_max_abs_z_after": map_after, "explains_heldout": explains,
+                "separate_by": c.separate_by,
+                "replay_rms_heldout_after": quantify.channel_rms(f.after_nav.innovation[held]),
+            })
+        ranking.sort(key=lambda r: -r["evidence"]["bic"])
+    prog.close()
+
+    verdict = "no_gap"
+    ambiguous_with = []
+    if detected:
+        verdict = "unexplained"
+        if ranking and ranking[0]["explains_heldout"]:
+            verdict = "explained"
+            best = ranking[0]
+            for r in ranking[1:]:
+                if best["evidence"]["bic"] - r["evidence"]["bic"] < BF_AMBIGUOUS and r["explains_heldout"]:
+                    ambiguous_with.append({"effect": r["effect"], "bic_difference": best["evidence"]["bic"] - r["evidence"]["bic"],
+                                           "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
+            if ambiguous_with:
+                verdict = "ambiguous"
+
+    summ = localise.summarise(cells, cal.get("null_map_max_abs_z"))
+    where = summ["where"]
+    dyn_or_sensor = None
+    if detected:
+        if verdict in ("explained", "ambiguous"):
+            dyn_or_sensor = ranking[0]["kind"]
+        elif where is not None:
+            # Thrust-model or position-only low-frequency gaps point at the
+            # dynamics; attitude, broadband or IMU-scatter gaps at a sensor.
+            s, st = where["stream"], where["stat"]
+            dyn_or_sensor = "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques") and where["regime_peak"] == "firing") \
+                or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
+    best = ranking[0] if ranking else None
+    shrink_best = best["shrink_heldout"] if best else None
+    screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "screen_bic": f.screen_bic}
+                    for f in fits]
+    out = {
+        "gap_detected": detected,
+        "statistics": {"map_max_abs_z": t_map, "map_threshold": thr_map, "screen_bic_max": t_glr,
+                       "screen_bic_threshold": thr_glr, "false_alarm_rate": cal.get("false_alarm_rate"),
+                       "calibration_runs": cal.get("runs")},
+        "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"]},
+        "attribution": ranking,
+        "screening": screen_table,
+        "verdict": verdict,
+        "ambiguous_with": ambiguous_with,
+        "shrink_heldout": ({"effect": best["effect"], "fraction": shrink_best["fraction"], "ci95": shrink_best["ci95"]}
+                           if best else None),
+        "replay_rms_heldout_before": quantify.channel_rms(nominal.innovation[held]),
+        "not_modelled": list(NOT_MODELLED),
+        "log": {"duration_s": d.duration_s, "imu_samples": int(d.imu_t.size), "pose_updates": int(d.pose_tc.size),
+                "segments": int(d.pose_start.sum()), "valves": d.valves is not None,
+                "train_updates": int(train.sum()), "heldout_updates": int(held.sum())},
+        "elapsed_s": time.time() - t_start,
+    }
+    out["_internal"] = {"d": d, "nominal": nominal, "fits": fits, "train": train, "held": held, "cells": cells,
+                        "ctx": ctx, "held_shrink": held_shrink}
+    return out
+
+
+def public(result: dict) -> dict:
+    return {k: v for k, v in result.items() if not k.startswith("_")}

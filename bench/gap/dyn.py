@@ -1,0 +1,206 @@
+"""The dynamics channel: the IMU against what the nominal vehicle model says
+the commanded valves should do. The navigation filter cannot see an effect
+that changes the thrust (the accelerometer and gyro measure what really
+happened), but this replay can:
+
+  accel    e_a,k = (a_meas,k - F_nom(valves_k) / m) / sigma_a          (body, per IMU sample)
+  gyro     d_k = w_k - w_{k-1} - (alpha_{k-1} + alpha_k) dt / 2,
+           alpha = J^-1 (tau_nom(valves) - w x J w),
+           whitened with the exact MA(1) covariance sigma_g^2 tridiag(-1, 2, -1)
+           of differenced white noise (banded Cholesky per segment).
+
+Under the nominal model both are N(0, 1) per row. Each candidate's effect
+on these rows is linear in its parameters (to first order), so its
+Jacobian is computed in closed form here (``jacobian``); candidates with no
+signature on this channel return None.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cholesky_banded, solve_banded
+
+from bench.gap.replay import LogData
+
+
+def _skew_rows(v: np.ndarray) -> np.ndarray:
+    """(N, 3) -> (N, 3, 3) cross-product matrices [v]x."""
+    z = np.zeros(v.shape[0])
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], 1), np.stack([v[:, 2], z, -v[:, 0]], 1),
+                     np.stack([-v[:, 1], v[:, 0], z], 1)], 1)
+
+
+@dataclass
+class DynChannel:
+    t: np.ndarray  # time of each row (2 N rows: accel block then gyro block; each row has 3 axes)
+    e0: np.ndarray  # (R, 3) whitened residual rows
+    kind: np.ndarray  # (R,) 0 accel, 1 gyro
+    # for Jacobians
+    sig_a: float
+    gyro_rows: np.ndarray  # IMU indices k of the gyro rows (difference k-1 -> k)
+    seg_bounds: list  # [(start, stop)] row ranges of each gyro segment (whitening)
+    chol: list  # banded Cholesky factor per segment
+    F: np.ndarray  # (N, 3) nominal force per IMU sample [N]
+    open_: np.ndarray  # (N, 8) valve open flags
+    alpha: np.ndarray  # (N, 3) nominal angular acceleration
+    w: np.ndarray  # (N, 3) gyro
+    vs: np.ndarray  # (N,) valve-seconds since the segment start (before the sample)
+    mass: float
+    dt: float
+    veh: object
+
+    @property
+    def rows(self) -> int:
+        return self.e0.shape[0]
+
+    def whiten_gyro(self, x: np.ndarray) -> np.ndarray:
+        """Whiten (n_gyro_rows, ...) differenced-gyro quantities already divided by sigma_g."""
+        out = np.empty_like(x)
+        for (a, b), L in zip(self.seg_bounds, self.chol):
+            out[a:b] = solve_banded((1, 0), L, x[a:b])
+        return out
+
+    def jacobian(self, name: str) -> np.ndarray | None:
+        """d(e)/d(theta) (R, 3, k): the change of the whitened rows per unit parameter."""
+        f = _JAC.get(name)
+        return None if f is None else f(self)
+
+
+def build(d: LogData) -> DynChannel | None:
+    """The channel for a log with a valve stream (None without one)."""
+    if d.valves is None:
+        return None
+    from bench.vehicle import ALL_VALVES, Vehicle
+
+    veh = Vehicle()
+    noise = d.config.get("noise", {}) if isinstance(d.config.get("noise"), dict) else {}
+    sig_a = float(noise.get("accel_sigma_mps2", d.config.get("accel_sigma_mps2", 0.25 * veh.thrust_n / veh.mass_kg)))
+    sig_g = float(noise.get("gyro_sigma_rps", d.config.get("gyro_sigma_rps", 0.005)))
+    cfg = np.asarray(d.valves, dtype=np.int64) & 0xFF
+    open_ = ALL_VALVES[cfg].astype(float)
+    Fi = veh.thruster_forces_b_n()  # (8, 3)
+    Ti = veh.thruster_torques_b_nm()
+    F = open_ @ Fi
+    tau = open_ @ Ti
+    J = np.asarray(veh.inertia_kgm2, float)
+    Jinv = np.linalg.inv(J)
+    w = d.gyro
+    alpha = (tau - np.cross(w, w @ J.T)) @ Jinv.T
+    e_a = (d.accel - F / veh.mass_kg) / sig_a
+    # Segments: breaks in the IMU stream (a new run) reset the gyro differences and the mass.
+    dtk = np.diff(d.imu_t)
+    brk = np.concatenate([[True], dtk > 1.5 * d.dt_s])
+    seg_id = np.cumsum(brk) - 1
+    n_open = open_.sum(axis=1) * d.dt_s
+    vs = np.zeros_like(n_open)
+    for s in np.unique(seg_id):
+        m = seg_id == s
+        c = np.cumsum(n_open[m])
+        vs[m] = c - n_open[m]
+    k = np.flatnonzero(~brk)  # difference k-1 -> k within a segment
+    dg = (w[k] - w[k - 1] - 0.5 * (alpha[k - 1] + alpha[k]) * d.dt_s) / sig_g
+    bounds, chols = [], []
+    start = 0
+    seg_of_row = seg_id[k]
+    for s in np.unique(seg_of_row):
+        n = int(np.sum(seg_of_row == s))
+        ab = np.zeros((2, n))
+        ab[0] = 2.0
+        ab[1, :-1] = -1.0
+        chols.append(cholesky_banded(ab, lower=True))
+        bounds.append((start, start + n))
+        start += n
+    ch = DynChannel(t=None, e0=None, kind=None, sig_a=sig_a, gyro_rows=k, seg_bounds=bounds, chol=chols, F=F,
+                    open_=open_, alpha=alpha, w=w, vs=vs, mass=veh.mass_kg, dt=d.dt_s, veh=veh)
+    ch.sig_g = sig_g
+    e_g = ch.whiten_gyro(dg)
+    ch.e0 = np.vstack([e_a, e_g])
+    ch.t = np.concatenate([d.imu_t, d.imu_t[k]])
+    ch.kind = np.concatenate([np.zeros(d.imu_t.size, int), np.ones(k.size, int)])
+    return ch
+
+
+# --- Jacobians: rows = -(change of the predicted measurement) / sigma ----------
+
+def _stack(ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None) -> np.ndarray:
+    """da: (N, 3, k) change of the predicted accelerometer; dalpha: (N, 3, k)
+    change of the predicted angular acceleration (gyro differences follow)."""
+    k = (da if da is not None else dalpha).shape[2]
+    n = ch.F.shape[0]
+    out = np.zeros((ch.rows, 3, k))
+    if da is not None:
+        out[:n] = -da / ch.sig_a
+    if dalpha is not None:
+        g = ch.gyro_rows
+        dd = 0.5 * (dalpha[g - 1] + dalpha[g]) * ch.dt / ch.sig_g
+        out[n:] = -ch.whiten_gyro(dd.reshape(g.size, -1)).reshape(g.size, 3, k)
+    return out
+
+
+def _jac_accel_bias(ch):
+    n = ch.F.shape[0]
+    return _stack(ch, np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), None)
+
+
+def _jac_thrust_loss(ch):
+    # a = sum_i (1 - loss_i) F_i open_i / m
+    Fi = ch.veh.thruster_forces_b_n()
+    Ti = ch.veh.thruster_torques_b_nm()
+    Jinv = np.linalg.inv(np.asarray(ch.veh.inertia_kgm2, float))
+    da = -(ch.open_[:, None, :] * Fi.T[None, :, :]) / ch.mass
+    dal = -(ch.open_[:, None, :] * (Ti @ Jinv.T).T[None, :, :])
+    return _stack(ch, da, dal)
+
+
+def _jac_misalign(ch):
+    # d_i -> d_i + phi_i x d_i: force change -T [d_i]x phi_i, torque r_i x that.
+    veh = ch.veh
+    T = veh.thrust_n * np.asarray(getattr(veh, "thrust_scale", np.ones(8)), float)
+    Jinv = np.linalg.inv(np.asarray(veh.inertia_kgm2, float))
+    n = ch.F.shape[0]
+    da = np.zeros((n, 3, 24))
+    dal = np.zeros((n, 3, 24))
+    for i in range(8):
+        d = veh.directions_b[i]
+        r = veh.positions_b_m[i]
+        Sd = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
+        Sr = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
+        dF = -T[i] * Sd  # d(force)/d(phi_i)
+        da[:, :, 3 * i:3 * i + 3] = ch.open_[:, i, None, None] * dF[None] / ch.mass
+        dal[:, :, 3 * i:3 * i + 3] = ch.open_[:, i, None, None] * (Jinv @ Sr @ dF)[None]
+    return _stack(ch, da, dal)
+
+
+def _jac_com(ch):
+    # Torques about the true centre of mass c: tau - c x F = tau + [F]x c;
+    # accelerometer at the body origin: a_cm - alpha x c - w x (w x c).
+    Jinv = np.linalg.inv(np.asarray(ch.veh.inertia_kgm2, float))
+    dal = Jinv[None] @ _skew_rows(ch.F)
+    Sw = _skew_rows(ch.w)
+    da = -_skew_rows(ch.alpha) - Sw @ Sw
+    return _stack(ch, da, dal)
+
+
+def _jac_mass(ch):
+    # a = F / (m - mdot V): d a / d mdot = F V / m^2 (V valve-seconds used so far)
+    da = (ch.F * ch.vs[:, None] / ch.mass**2)[:, :, None]
+    return _stack(ch, da, None)
+
+
+def _jac_gyro_scale(ch):
+    n = ch.F.shape[0]
+    dal = np.zeros((n, 3, 3))
+    dal[:, [0, 1, 2], [0, 1, 2]] = ch.alpha
+    return _stack(ch, None, dal)
+
+
+def _jac_imu_misalign(ch):
+    # The IMU reads C(phi)^T v ~ v + [v]x phi.
+    a_nom = ch.F / ch.mass
+    return _stack(ch, _skew_rows(a_nom), _skew_rows(ch.alpha))
+
+
+_JAC = {"accel_bias": _jac_accel_bias, "thrust_loss": _jac_thrust_loss, "thruster_misalignment": _jac_misalign,
+        "com_offset": _jac_com, "mass_depletion": _jac_mass, "gyro_scale": _jac_gyro_scale,
+        "imu_misalignment": _jac_imu_misalign}

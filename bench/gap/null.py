@@ -1,0 +1,98 @@
+"""Null calibration: detection thresholds from the diagnoser run on
+simulated-on-simulated logs (a seeded Monte Carlo), not from chi-square
+tables, stored with the false-alarm rate they give.
+
+Regenerate the committed cache (bench/gap/data/null_calibration.json):
+    python -m bench.gap.null --runs 60 --seed 1000 --workers 2
+
+Each statistic gets the threshold that leaves FA_EACH of the null runs above
+it (the empirical quantile, a little beyond the largest value when there are
+few runs); the stored ``false_alarm_rate`` is the fraction of the null runs
+that either statistic flags.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+DATA = Path(__file__).resolve().parent / "data" / "null_calibration.json"
+FA_EACH = 0.01
+
+
+def load(path=DATA) -> dict:
+    p = Path(path)
+    if not p.exists():
+        return {}
+    return json.loads(p.read_text())
+
+
+def null_log(seed: int, duration_s: float):
+    """One simulated-on-simulated log: bench.reality without effects when
+    available, else the bench's docking scenario."""
+    from bench.gap.simlogs import docking_log, reality_available
+
+    if reality_available():
+        from bench.reality import simulate_log_with_key
+
+        log, _ = simulate_log_with_key(seed, {}, duration_s=duration_s, with_truth=True)
+        return log
+    return docking_log(seed, t_max_s=duration_s)
+
+
+def _stats_one(args):
+    seed, duration_s = args
+    from bench.gap.diagnose import diagnose
+
+    r = diagnose(null_log(seed, duration_s), calibration={}, progress=False)
+    return {"seed": seed, "map_max_abs_z": r["statistics"]["map_max_abs_z"],
+            "screen_bic": r["statistics"]["screen_bic_max"]}
+
+
+def _threshold(values: np.ndarray, fa: float) -> float:
+    v = np.sort(np.asarray(values, float))
+    k = int(np.floor((1.0 - fa) * v.size))
+    if k >= v.size - 1:  # too few runs for that quantile: just beyond the largest
+        return float(v[-1] + 0.05 * (v[-1] - v[0] + 1e-9))
+    return float(0.5 * (v[k] + v[k + 1]))
+
+
+def calibrate(seeds, duration_s: float = 120.0, workers: int = 1, progress: bool = True) -> dict:
+    from bench.gap.validate import pool_map
+
+    t0 = time.time()
+    rows = pool_map(_stats_one, [(int(s), duration_s) for s in seeds], workers, progress, "null calibration")
+    z = np.array([r["map_max_abs_z"] for r in rows])
+    b = np.array([r["screen_bic"] for r in rows])
+    thr = {"map_max_abs_z": _threshold(z, FA_EACH), "screen_bic": _threshold(b, FA_EACH)}
+    fa = float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_bic"])))
+    return {"thresholds": thr, "false_alarm_rate": fa, "false_alarm_target_each": FA_EACH, "runs": len(rows),
+            "duration_s": duration_s, "seeds": [int(s) for s in seeds], "null_map_max_abs_z": z.tolist(),
+            "null_screen_bic": b.tolist(), "elapsed_s": time.time() - t0,
+            "command": None}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description="Null calibration of the gap diagnoser")
+    ap.add_argument("--runs", type=int, default=60)
+    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--duration", type=float, default=120.0)
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--out", default=str(DATA))
+    a = ap.parse_args(argv)
+    import os
+
+    workers = a.workers or os.cpu_count() or 1
+    seeds = np.random.default_rng(a.seed).integers(0, 2**31, a.runs)
+    cal = calibrate(seeds, a.duration, workers)
+    cal["command"] = (f"python -m bench.gap.null --runs {a.runs} --seed {a.seed} --duration {a.duration:g}")
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(cal, indent=1) + "\n")
+    print(f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,265 @@
+"""Blind validation of the diagnoser (``proxops validate-gap``).
+
+A seeded generator draws the campaign: null runs, in-library effects and
+out-of-library effects, each at 1x or 2x its minimum detectable size
+(bench/effects.py). Every run's key (simulation seed, effect, parameters) is
+hashed and the hashes are written to ``<OUT>.prereg.json`` before any
+diagnosis runs. Each worker simulates the log, strips it to what a user's
+log would hold (the streams, orbit and sensor settings; no key, no truth),
+and diagnoses it. Only then are the keys re-hashed, checked against the
+pre-registered hashes, and compared with the answers.
+
+Scores: confusion matrix (truth -> answer), detection and top-1 attribution
+by effect and size, false alarms on null runs, "unexplained" on
+out-of-library runs, held-out shrink with the true effect fitted and with a
+wrong one, and the coverage of the fitted parameters' 95 % intervals.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing as mp
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+FRACTIONS = {"null": 0.2, "in_library": 0.6, "out_of_library": 0.2}
+SCALES = (1.0, 2.0)
+USER_CONFIG_KEYS = ("orbit_radius_m", "dt_imu_s", "accel_sigma_mps2", "gyro_sigma_rps", "pose_period_s", "noise",
+                    "vehicle", "gate_chi2")
+# Effects whose simulated parameters are the diagnoser's parameters (same
+# definition and sign), so the fitted intervals can be scored.
+SAME_PARAMETERS = ("accel_bias", "gyro_bias", "gyro_scale", "imu_misalignment", "camera_latency",
+                   "camera_lever_arm", "com_offset", "thrust_loss", "mass_depletion")
+
+
+def pool_map(fn, items, workers: int, progress: bool, label: str):
+    """map over items with a process pool (fork) and a progress line; keeps order."""
+    items = list(items)
+    out = [None] * len(items)
+    t0 = time.time()
+
+    def show(done):
+        if progress:
+            el = time.time() - t0
+            eta = el / done * (len(items) - done) if done else 0.0
+            print(f"\r  {label}: {done}/{len(items)} runs, {el:6.0f} s elapsed, ~{eta:5.0f} s left",
+                  end="", flush=True, file=sys.stderr)
+
+    if workers <= 1 or len(items) <= 1:
+        for i, it in enumerate(items):
+            out[i] = fn(it)
+            show(i + 1)
+    else:
+        ctx = mp.get_context("fork")
+        with ctx.Pool(workers) as pool:
+            for done, (i, r) in enumerate(pool.imap_unordered(_indexed, [(fn, i, it) for i, it in enumerate(items)]), 1):
+                out[i] = r
+                show(done)
+    if progress:
+        print(file=sys.stderr)
+    return out
+
+
+def _indexed(arg):
+    fn, i, it = arg
+    return i, fn(it)
+
+
+def key_hash(key: dict) -> str:
+    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
+
+
+def draw_campaign(n_runs: int, seed: int) -> list:
+    """The drawn keys: [{"run", "seed", "category", "effect", "scale", "effects": {name: params}}]."""
+    from bench.effects import EFFECTS
+
+    rng = np.random.default_rng(seed)
+    inlib = sorted(n for n, s in EFFECTS.items() if s.in_library)
+    outlib = sorted(n for n, s in EFFECTS.items() if not s.in_library)
+    n_null = int(round(FRACTIONS["null"] * n_runs))
+    n_out = int(round(FRACTIONS["out_of_library"] * n_runs))
+    n_in = n_runs - n_null - n_out
+    plan = [("null", None, 0.0)] * n_null
+    plan += [("in_library", inlib[i % len(inlib)], SCALES[(i // len(inlib)) % 2]) for i in range(n_in)]
+    plan += [("out_of_library", outlib[i % len(outlib)], SCALES[(i // len(outlib)) % 2]) for i in range(n_out)]
+    order = rng.permutation(len(plan))
+    keys = []
+    for run, j in enumerate(order):
+        cat, eff, scale = plan[j]
+        effects = {} if eff is None else {eff: [float(x) for x in EFFECTS[eff].draw(rng, scale)]}
+        keys.append({"run": run, "seed": int(rng.integers(0, 2**31)), "category": cat, "effect": eff,
+                     "scale": scale, "effects": effects})
+    return keys
+
+
+def simulate(key: dict, duration_s: float):
+    from bench.gap.simlogs import docking_log, reality_available
+
+    if reality_available():
+        from bench.reality import simulate_log_with_key
+
+        log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False)
+        return log
+    # Fallback without bench.reality: the sensor-profile effects only.
+    from bench.sensors import NoiseProfile
+
+    prof = NoiseProfile.paper()
+    for name, p in key["effects"].items():
+        field = {"accel_bias": "accel_bias_mps2", "gyro_bias": "gyro_bias_rps", "gyro_scale": "gyro_scale"}.get(name)
+        if field is None:
+            raise ValueError(f"effect {name!r} needs bench.reality")
+        prof = prof.with_(**{field: tuple(p)})
+    return docking_log(key["seed"], prof, t_max_s=duration_s)
+
+
+def blind(log):
+    """What a user's log would hold: the streams and the sensor settings."""
+    log.streams.pop("truth", None)
+    log.config = {k: v for k, v in (log.config or {}).items() if k in USER_CONFIG_KEYS}
+    return log
+
+
+def forced_fit(internal: dict, name: str) -> dict:
+    """Fit one named candidate (whatever the ranking) and its held-out shrink."""
+    from bench.gap.attribute import confirm, screen
+
+    f = screen(internal["ctx"], names=[name])[0]
+    if not np.isfinite(f.screen_bic):
+        return {"theta": f.theta.tolist(), "sigma": f.sigma.tolist(), "shrink": float("nan"), "measurable": False}
+    confirm(internal["ctx"], f)
+    sh = internal["held_shrink"](f.after_nav, f.after_dyn)
+    return {"theta": f.theta.tolist(), "sigma": f.sigma.tolist(), "shrink": sh["fraction"],
+            "measurable": sh["measurable"]}
+
+
+def _run_one(arg):
+    key, duration_s, calibration = arg
+    from bench.gap.candidates import CANDIDATES
+    from bench.gap.diagnose import diagnose, public
+
+    t0 = time.time()
+    log = blind(simulate(key, duration_s))
+    t_sim = time.time() - t0
+    res = diagnose(log, calibration=calibration)
+    pub = public(res)
+    out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"],
+           "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
+           "ranking": [r["effect"] for r in pub["attribution"]],
+           "shrink_best": pub["shrink_heldout"]["fraction"] if pub["shrink_heldout"] else None,
+           "map_max_abs_z": pub["statistics"]["map_max_abs_z"], "screen_bic_max": pub["statistics"]["screen_bic_max"],
+           "screen_top": pub["screening"][0]["effect"] if pub["screening"] else None,
+           "t_sim_s": t_sim, "t_diagnose_s": pub["elapsed_s"]}
+    # Scoring fits (after the answer is frozen): the true effect and a wrong one.
+    it = res["_internal"]
+    eff = key["effect"]
+    if key["category"] == "in_library":
+        if eff in CANDIDATES:
+            out["true_fit"] = forced_fit(it, eff)
+        wrong = [n for n in CANDIDATES if n != eff]
+        w = wrong[np.random.default_rng(key["seed"]).integers(len(wrong))]
+        out["wrong_fit"] = {"effect": w, **forced_fit(it, w)}
+    return out
+
+
+def score(keys: list, answers: list) -> dict:
+    by = {a["run"]: a for a in answers}
+
+    def label_truth(k):
+        return "null" if k["category"] == "null" else (k["effect"] if k["category"] == "in_library" else f"out:{k['effect']}")
+
+    def label_answer(a):
+        if not a["gap_detected"]:
+            return "no_gap"
+        return "unexplained" if a["verdict"] == "unexplained" else a["top1"]
+
+    confusion = {}
+    for k in keys:
+        t, a = label_truth(k), label_answer(by[k["run"]])
+        confusion.setdefault(t, {}).setdefault(a, 0)
+        confusion[t][a] += 1
+    null = [by[k["run"]] for k in keys if k["category"] == "null"]
+    outl = [by[k["run"]] for k in keys if k["category"] == "out_of_library"]
+    inl = [(k, by[k["run"]]) for k in keys if k["category"] == "in_library"]
+    res = {"runs": len(keys), "confusion": confusion,
+           "false_alarm_rate": float(np.mean([a["gap_detected"] for a in null])) if null else None,
+           "n_null": len(null)}
+    if outl:
+        res["out_of_library"] = {
+            "n": len(outl),
+            "unexplained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "unexplained" for a in outl])),
+            "not_detected_rate": float(np.mean([not a["gap_detected"] for a in outl])),
+            "confident_misattribution_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "explained" for a in outl])),
+        }
+    by_scale = {}
+    for s in SCALES:
+        sel = [(k, a) for k, a in inl if k["scale"] == s]
+        if sel:
+            by_scale[f"{s:g}x"] = {
+                "n": len(sel),
+                "detection": float(np.mean([a["gap_detected"] for _, a in sel])),
+                "top1": float(np.mean([a["gap_detected"] and a["verdict"] != "unexplained" and a["top1"] == k["effect"]
+                                       for k, a in sel])),
+            }
+    res["in_library_by_scale"] = by_scale
+    per_effect = {}
+    for k, a in inl:
+        e = per_effect.setdefault(k["effect"], {})
+        c = e.setdefault(f"{k['scale']:g}x", {"n": 0, "detected": 0, "top1": 0})
+        c["n"] += 1
+        c["detected"] += int(a["gap_detected"])
+        c["top1"] += int(a["gap_detected"] and a["verdict"] != "unexplained" and a["top1"] == k["effect"])
+    res["in_library_by_effect"] = per_effect
+    # Shrink is scored where the held-out deficit stands out of its null spread.
+    true_sh = [a["true_fit"]["shrink"] for _, a in inl if "true_fit" in a and a["true_fit"].get("measurable")]
+    wrong_sh = [a["wrong_fit"]["shrink"] for _, a in inl if "wrong_fit" in a and a["wrong_fit"].get("measurable")]
+    res["shrink_heldout"] = {"true_effect_median": float(np.median(true_sh)) if true_sh else None, "n_true": len(true_sh),
+                             "wrong_effect_median": float(np.median(wrong_sh)) if wrong_sh else None, "n_wrong": len(wrong_sh),
+                             "n_in_library": len(inl)}
+    inside, total = 0, 0
+    for k, a in inl:
+        if k["effect"] in SAME_PARAMETERS and "true_fit" in a:
+            truth = np.asarray(k["effects"][k["effect"]], float)
+            th, sg = np.asarray(a["true_fit"]["theta"]), np.asarray(a["true_fit"]["sigma"])
+            if truth.size == th.size:
+                ok = np.abs(th - truth) <= 1.96 * sg
+                inside += int(ok.sum())
+                total += ok.size
+    res["interval_coverage_95"] = {"fraction": inside / total if total else None, "n_parameters": total,
+                                   "effects": list(SAME_PARAMETERS)}
+    res["timing_s"] = {"simulate_median": float(np.median([a["t_sim_s"] for a in answers])),
+                       "diagnose_median": float(np.median([a["t_diagnose_s"] for a in answers])),
+                       "diagnose_max": float(np.max([a["t_diagnose_s"] for a in answers]))}
+    return res
+
+
+def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration_s: float = 120.0,
+                 progress: bool = True) -> dict:
+    from bench.gap import null as nullmod
+
+    keys = draw_campaign(n_runs, seed)
+    hashes = [key_hash(k) for k in keys]
+    if out:
+        prereg = Path(str(out) + ".prereg.json")
+        prereg.parent.mkdir(parents=True, exist_ok=True)
+        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "key_sha256": hashes}, indent=1) + "\n")
+    cal = nullmod.load()
+    t0 = time.time()
+    answers = pool_map(_run_one, [(k, duration_s, cal) for k in keys], workers, progress, "validate-gap")
+    # Only now: the keys are re-hashed and compared with the answers.
+    if [key_hash(k) for k in keys] != hashes:
+        raise RuntimeError("drawn keys changed during the campaign")
+    res = score(keys, answers)
+    res.update({"seed": seed, "duration_s": duration_s, "workers": workers, "elapsed_s": time.time() - t0,
+                "calibration": {"runs": cal.get("runs"), "false_alarm_rate": cal.get("false_alarm_rate"),
+                                "thresholds": cal.get("thresholds")},
+                "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
+                "command": f"proxops validate-gap --runs {n_runs} --seed {seed} --duration {duration_s:g}"})
+    return res
+
+
+def default_workers() -> int:
+    return os.cpu_count() or 1
