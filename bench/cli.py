@@ -10,6 +10,13 @@ import sys
 COMMAND_MODULES = [
     "bench.commands.run",
     "bench.commands.cw_check",
+    "bench.commands.nav",
+    "bench.commands.hil",
+    "bench.commands.modal",
+    "bench.commands.thrusters",
+    "bench.commands.pose",
+    "bench.commands.diagnose",
+    "bench.commands.validate_gap",
 ]
 
 

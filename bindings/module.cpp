@@ -9,4 +9,12 @@ PYBIND11_MODULE(fsw_bindings, m) {
       "rotating body vectors into the Hill frame.";
   bind_so3(m);
   bind_cw(m);
+  bind_link(m);
+  bind_nav(m);
+  bind_flight_app(m);
+  bind_blr(m);
+  bind_modal(m);
+#ifdef PROXOPS_HAVE_VISION
+  bind_vision(m);
+#endif
 }

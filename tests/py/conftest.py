@@ -1,6 +1,22 @@
+import glob
+import importlib.util
 import os
+import sys
 
 # One BLAS thread: the machine has two cores and numpy with two threads stalls.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+# PROXOPS_BINDINGS_DIR=<cmake build>/python tests a freshly built module
+# instead of the installed one (the editable install's import hook would
+# otherwise win over PYTHONPATH).
+_bindings_dir = os.environ.get("PROXOPS_BINDINGS_DIR")
+if _bindings_dir:
+    _found = glob.glob(os.path.join(_bindings_dir, "fsw_bindings*.so"))
+    if not _found:
+        raise RuntimeError(f"PROXOPS_BINDINGS_DIR={_bindings_dir}: no fsw_bindings module there")
+    _spec = importlib.util.spec_from_file_location("fsw_bindings", _found[0])
+    _mod = importlib.util.module_from_spec(_spec)
+    _spec.loader.exec_module(_mod)
+    sys.modules["fsw_bindings"] = _mod

@@ -1,0 +1,270 @@
+// The flight application: bytes from the link in, telemetry frames out.
+//
+// One class used two ways (DESIGN.md): inside the flight executable behind a
+// serial port (fsw/platform/), and in-process through the bindings. Both feed
+// the same bytes to on_bytes() and read the same frames from take_tx(), so
+// the two paths give identical estimates by construction.
+//
+// Dispatch by APID, in arrival order, each step at its packet's time tag:
+//   cmd_reset (bit 0)   -> NavUkf rebuilt with the commanded settings, init,
+//                          then estimate telemetry
+//   cmd_reset (bit 3)   -> link counters cleared
+//   cmd_config          -> pose noise model (docs/LINK.md, parameter ids)
+//   imu_sample          -> NavUkf::predict to the packet time
+//   led_pose            -> NavUkf::update_pose at the capture time (may be late)
+//   thruster_valves     -> recorded (the learner consumes them)
+// Every imu_sample, led_pose and cmd_reset answers with tm_innovation (the
+// step record), tm_estimate and tm_covariance_diag, in that order; every
+// tenth imu_sample also with tm_link_counters and tm_housekeeping.
+//
+// Real-time core: fixed buffers, no heap, no exceptions, no I/O; a full
+// transmit buffer drops telemetry and counts it.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include "fsw/apid.hpp"
+#include "fsw/deframer.hpp"
+#include "fsw/framer.hpp"
+#include "fsw/nav_ukf.hpp"
+
+namespace fsw {
+
+// Parameter ids of cmd_config.
+enum class ConfigParam : std::uint32_t {
+  PosePosFraction = 1,   // pose position 1-sigma as a fraction of range (used when r_sigma_m = 0)
+  PoseAttSigmaRad = 2,   // pose attitude 1-sigma [rad] (used when att_sigma_rad = 0)
+  HousekeepingEvery = 3, // imu samples between link-counter / housekeeping telemetry
+  // Navigation filter settings (NavConfig), applied at the next cmd_reset:
+  NavAccelSigma = 4,     // accel_sigma_mps2
+  NavGyroSigma = 5,      // gyro_sigma_rps
+  NavGateChi2 = 6,       // gate_chi2 (<= 0 disables gating)
+  NavMaxDelay = 7,       // max_delay_s
+  NavOrbitRate = 8,      // n_radps
+  NavDtImu = 9,          // dt_imu_s
+};
+
+// What a step did, as reported in tm_innovation.step_kind.
+enum class StepKind : std::uint8_t { Predict = 0, PoseUpdate = 1, Reset = 2 };
+
+template <typename S>
+class FlightApp {
+ public:
+  using Nav = NavUkf<S, false>;
+  static constexpr std::size_t kTxCapacity = 16384;
+
+  struct Counters {
+    std::uint32_t imu_steps = 0;
+    std::uint32_t pose_updates = 0;
+    std::uint32_t pose_fused = 0;
+    std::uint32_t resets = 0;
+    std::uint32_t configs_rejected = 0;
+    std::uint32_t valves = 0;
+    std::uint32_t unhandled = 0;  // accepted packets this build does not consume (range images)
+    std::uint32_t tx_packets = 0;
+    std::uint32_t tx_dropped = 0;  // telemetry lost to a full transmit buffer
+  };
+
+  explicit FlightApp(const NavConfig<S>& nav_cfg = NavConfig<S>())
+      : nav_cfg_(nav_cfg), nav_(nav_cfg), deframer_(Direction::ToFlight), framer_(Direction::FromFlight) {}
+
+  // Consumes every byte; dispatches each accepted packet. Bounded by n.
+  void on_bytes(const std::uint8_t* data, std::size_t n) {
+    std::size_t used = 0;
+    while (used < n) {
+      DeframeResult res;
+      const std::size_t k = deframer_.feed(data + used, n - used, res);
+      used += k;
+      if (res.kind == DeframeResult::Kind::Packet) dispatch(res.packet);
+      if (k == 0) break;  // defensive: feed always consumes when bytes remain
+    }
+  }
+
+  // Moves up to cap bytes of pending telemetry frames into out.
+  std::size_t take_tx(std::uint8_t* out, std::size_t cap) {
+    const std::size_t n = tx_len_ < cap ? tx_len_ : cap;
+    for (std::size_t i = 0; i < n; ++i) out[i] = tx_[i];
+    for (std::size_t i = n; i < tx_len_; ++i) tx_[i - n] = tx_[i];
+    tx_len_ -= n;
+    return n;
+  }
+  std::size_t tx_pending() const { return tx_len_; }
+
+  // The platform reports how long the last on_bytes call took (housekeeping).
+  void note_step_cpu(double seconds) {
+    last_cpu_s_ = seconds;
+    if (seconds > max_cpu_s_) max_cpu_s_ = seconds;
+  }
+
+  const Nav& nav() const { return nav_; }
+  const LinkCounters& link() const { return deframer_.counters(); }
+  const Counters& counters() const { return counters_; }
+
+ private:
+  void dispatch(const PacketView& p) {
+    switch (static_cast<Apid>(p.header.apid)) {
+      case Apid::ImuSample: return on_imu(p);
+      case Apid::LedPose: return on_pose(p);
+      case Apid::CmdReset: return on_reset(p);
+      case Apid::CmdConfig: return on_config(p);
+      case Apid::ThrusterValves: ++counters_.valves; return;
+      default: ++counters_.unhandled; return;
+    }
+  }
+
+  void on_imu(const PacketView& p) {
+    ImuSampleMsg<S> m;
+    decode(p.payload, p.t_s, m);  // the deframer has checked finiteness
+    const typename Nav::Record rec = nav_.predict(p.t_s, m.accel_b_mps2, m.omega_bi_b_rps);
+    ++counters_.imu_steps;
+    report(StepKind::Predict, rec, p.t_s);
+    if (hk_every_ > 0 && counters_.imu_steps % hk_every_ == 0) housekeeping(p.t_s);
+  }
+
+  void on_pose(const PacketView& p) {
+    LedPoseMsg<S> m;
+    decode(p.payload, p.t_s, m);
+    const S r_sigma = m.r_sigma_m > S(0) ? m.r_sigma_m : pose_pos_fraction_ * m.r_hill_m.norm();
+    const S a_sigma = m.att_sigma_rad > S(0) ? m.att_sigma_rad : pose_att_sigma_;
+    typename Nav::MeasCov R = Nav::MeasCov::Zero();
+    R.diagonal().template head<3>().setConstant(r_sigma * r_sigma);
+    R.diagonal().template tail<3>().setConstant(a_sigma * a_sigma);
+    const typename Nav::Record rec = nav_.update_pose(p.t_s, m.r_hill_m, m.q_hb, R);
+    ++counters_.pose_updates;
+    if (rec.fused) ++counters_.pose_fused;
+    report(StepKind::PoseUpdate, rec, nav_.initialized() ? nav_.t_s() : p.t_s);
+  }
+
+  void on_reset(const PacketView& p) {
+    CmdResetMsg<S> m;
+    decode(p.payload, p.t_s, m);
+    ++counters_.resets;
+    if (m.target_mask & 0x8u) deframer_.reset_counters();
+    if (!(m.target_mask & 0x1u)) return;
+    nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
+    typename Nav::State x0;
+    x0.r_hill_m = m.r_hill_m;
+    x0.v_hill_mps = m.v_hill_mps;
+    x0.q_hb = m.q_hb;
+    typename Nav::Cov P0 = Nav::Cov::Zero();
+    P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
+    P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
+    P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
+    const typename Nav::Record rec = nav_.init(p.t_s, x0, P0);
+    report(StepKind::Reset, rec, p.t_s);
+  }
+
+  void on_config(const PacketView& p) {
+    CmdConfigMsg<S> m;
+    decode(p.payload, p.t_s, m);
+    switch (static_cast<ConfigParam>(m.param_id)) {
+      case ConfigParam::PosePosFraction:
+        if (m.value > S(0)) { pose_pos_fraction_ = m.value; return; }
+        break;
+      case ConfigParam::PoseAttSigmaRad:
+        if (m.value > S(0)) { pose_att_sigma_ = m.value; return; }
+        break;
+      case ConfigParam::HousekeepingEvery:
+        if (m.value >= S(0) && m.value <= S(100000)) { hk_every_ = static_cast<std::uint32_t>(m.value); return; }
+        break;
+      case ConfigParam::NavAccelSigma: return set_nav(nav_cfg_.accel_sigma_mps2, m.value);
+      case ConfigParam::NavGyroSigma: return set_nav(nav_cfg_.gyro_sigma_rps, m.value);
+      case ConfigParam::NavGateChi2: nav_cfg_.gate_chi2 = m.value; return;
+      case ConfigParam::NavMaxDelay: return set_nav(nav_cfg_.max_delay_s, m.value);
+      case ConfigParam::NavOrbitRate: return set_nav(nav_cfg_.n_radps, m.value);
+      case ConfigParam::NavDtImu: return set_nav(nav_cfg_.dt_imu_s, m.value);
+    }
+    ++counters_.configs_rejected;
+  }
+
+  // A setting that the filter would reject (checked again at reset) is
+  // refused here and counted.
+  template <typename T>
+  void set_nav(T& field, S value) {
+    const T old = field;
+    field = static_cast<T>(value);
+    if (nav_config_invalid_field(nav_cfg_, Nav::kN, Nav::kHistoryCapacity) != nullptr) {
+      field = old;
+      ++counters_.configs_rejected;
+    }
+  }
+
+  // tm_innovation (the step record), then the estimate and the covariance
+  // diagonal, all tagged with the filter time t_s (a late pose's capture
+  // time would make the telemetry time tags run backwards).
+  void report(StepKind kind, const typename Nav::Record& rec, double t_s) {
+    TmInnovationMsg<S> inn;
+    inn.step_kind = static_cast<std::uint8_t>(kind);
+    inn.status = static_cast<std::uint8_t>(rec.status);
+    inn.fused = rec.fused ? 1 : 0;
+    inn.meas_dim = kind == StepKind::PoseUpdate ? 6 : 0;
+    inn.step_index = ++step_index_;
+    inn.innovation = rec.innovation;
+    inn.nis = rec.nis;
+    inn.log_likelihood = rec.log_likelihood;
+    send(Apid::TmInnovation, inn, t_s);
+    if (!nav_.initialized()) return;
+    TmEstimateMsg<S> est;
+    est.r_hill_m = nav_.state().r_hill_m;
+    est.v_hill_mps = nav_.state().v_hill_mps;
+    est.q_hb = nav_.state().q_hb;
+    send(Apid::TmEstimate, est, t_s);
+    TmCovarianceDiagMsg<S> cov;
+    cov.n_valid = Nav::kN;
+    cov.p_diag.template head<Nav::kN>() = nav_.P().diagonal();
+    send(Apid::TmCovarianceDiag, cov, t_s);
+  }
+
+  void housekeeping(double t_s) {
+    const LinkCounters& c = deframer_.counters();
+    TmLinkCountersMsg lc;
+    lc.packets_accepted = c.packets_accepted;
+    lc.frames_total = c.frames_total;
+    lc.seq_gaps_total = c.gaps_total();
+    lc.duplicates_total = c.duplicates_total();
+    for (std::size_t i = 0; i < kRejectReasonCount; ++i) lc.rejected[i] = c.rejected[i];
+    send(Apid::TmLinkCounters, lc, t_s);
+    TmHousekeepingMsg<S> hk;
+    hk.uptime_s = S(t_s);
+    hk.last_step_cpu_s = S(last_cpu_s_);
+    hk.max_step_cpu_s = S(max_cpu_s_);
+    hk.cycle_count = counters_.imu_steps;
+    hk.mode = nav_.initialized() ? 1u : 0u;
+    hk.tx_packets = counters_.tx_packets;
+    send(Apid::TmHousekeeping, hk, t_s);
+  }
+
+  template <typename Msg>
+  void send(Apid apid, const Msg& msg, double t_s) {
+    if (kTxCapacity - tx_len_ < kMaxFrameBytes) {
+      ++counters_.tx_dropped;
+      return;
+    }
+    const std::size_t n = framer_.frame_message(apid, msg, t_s, tx_.data() + tx_len_, kTxCapacity - tx_len_);
+    if (n == 0) {
+      ++counters_.tx_dropped;
+      return;
+    }
+    tx_len_ += n;
+    ++counters_.tx_packets;
+  }
+
+  NavConfig<S> nav_cfg_;
+  Nav nav_;
+  Deframer deframer_;
+  Framer framer_;
+  Counters counters_;
+  std::array<std::uint8_t, kTxCapacity> tx_{};
+  std::size_t tx_len_ = 0;
+  std::uint32_t step_index_ = 0;
+  std::uint32_t hk_every_ = 10;
+  S pose_pos_fraction_ = S(0.05);
+  S pose_att_sigma_ = S(0.01);
+  double last_cpu_s_ = 0.0;
+  double max_cpu_s_ = 0.0;
+};
+
+}  // namespace fsw

@@ -1,0 +1,179 @@
+"""The serial link of the HIL loop: two pseudo-terminals joined by a relay.
+
+    fsw_node <-> /dev/pts/A (raw, termios) | master A <-relay-> master B | /dev/pts/B <-> pyserial (bench)
+
+Each end sees a real tty device, as with a cable between two UARTs. The
+relay in between is where link faults are injected (hil_sim/faults.py), in
+each direction separately. The relay is pumped by the bench's own loop (no
+threads), so a run with a seeded fault generator replays exactly.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import sysconfig
+import time
+import tty
+from pathlib import Path
+
+import numpy as np
+import serial
+
+from hil_sim.faults import FaultConfig, FaultInjector
+
+BAUD = 921600
+
+
+def find_fsw_node() -> str:
+    """Path of the flight executable: $PROXOPS_FSW_NODE, the environment's
+    scripts folder (pip install), or a CMake build folder."""
+    env = os.environ.get("PROXOPS_FSW_NODE")
+    if env:
+        if not os.access(env, os.X_OK):
+            raise FileNotFoundError(f"PROXOPS_FSW_NODE={env} is not an executable")
+        return env
+    candidates = [Path(sysconfig.get_path("scripts")) / "fsw_node", Path(sys.prefix) / "bin" / "fsw_node"]
+    root = Path(__file__).resolve().parent.parent
+    candidates += sorted(root.glob("build/*/fsw_node"))
+    for c in candidates:
+        if c.exists() and os.access(c, os.X_OK):
+            return str(c)
+    found = shutil.which("fsw_node")
+    if found:
+        return found
+    raise FileNotFoundError("fsw_node not found: run `make run` (it builds and installs it) "
+                            "or set PROXOPS_FSW_NODE")
+
+
+def _open_pty():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    return master, slave, os.ttyname(slave)
+
+
+class PtyLink:
+    """Starts fsw_node on one pty, opens the bench's end with pyserial, and
+    relays between them with fault injection."""
+
+    def __init__(self, faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(),
+                 seed: int = 0, node_path: str | None = None, baud: int = BAUD, start_timeout_s: float = 10.0):
+        rng = np.random.default_rng(seed)
+        self.up = FaultInjector(faults_up, np.random.default_rng(rng.integers(2**63)))      # bench -> flight
+        self.down = FaultInjector(faults_down, np.random.default_rng(rng.integers(2**63)))  # flight -> bench
+        self.node_path = node_path or find_fsw_node()
+        self._ma, self._sa, self.flight_device = _open_pty()
+        self._mb, self._sb, self.bench_device = _open_pty()
+        self.proc = subprocess.Popen([self.node_path, "--device", self.flight_device, "--baud", str(baud)],
+                                     stdin=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self._wait_ready(start_timeout_s)
+        self.port = serial.Serial(self.bench_device, baudrate=baud, timeout=0)
+        self.bytes_up = 0
+        self.bytes_down = 0
+        self._stalled_until = {"up": 0.0, "down": 0.0}
+        self._queued = {"up": b"", "down": b""}
+
+    def _wait_ready(self, timeout_s: float):
+        # fsw_node flushes its port when it opens it: nothing may be sent
+        # before it says it is running.
+        line = b""
+        deadline = time.monotonic() + timeout_s
+        while b"running" not in line:
+            r, _, _ = select.select([self.proc.stderr], [], [], max(0.0, deadline - time.monotonic()))
+            if not r:
+                self.proc.kill()
+                raise RuntimeError(f"fsw_node did not start within {timeout_s} s")
+            chunk = os.read(self.proc.stderr.fileno(), 4096)
+            if not chunk:
+                raise RuntimeError(f"fsw_node exited at start: {line.decode(errors='replace')}")
+            line += chunk
+
+    # -- bench side -------------------------------------------------------
+    def write(self, data: bytes):
+        # No flush(): on a tty it is tcdrain(), which waits for the far side.
+        self.port.write(data)
+
+    def read_available(self) -> bytes:
+        n = self.port.in_waiting
+        return self.port.read(n) if n else b""
+
+    # -- relay ------------------------------------------------------------
+    def _move(self, src: int, dst: int, faults: FaultInjector, key: str) -> int:
+        try:
+            data = os.read(src, 65536)
+        except BlockingIOError:
+            data = b""
+        except OSError as exc:
+            if exc.errno == errno.EIO:  # no process holds the other end yet
+                data = b""
+            else:
+                raise
+        moved = len(data)
+        if data:
+            stall = faults.stall_now()
+            if stall:
+                self._stalled_until[key] = time.monotonic() + stall
+            self._queued[key] += faults.apply(data)
+        if self._queued[key] and time.monotonic() >= self._stalled_until[key]:
+            out = self._queued[key]
+            self._queued[key] = b""
+            view = memoryview(out)
+            while view:
+                try:
+                    k = os.write(dst, view)
+                    view = view[k:]
+                except BlockingIOError:
+                    select.select([], [dst], [], 0.01)
+        return moved
+
+    def pump(self, timeout_s: float = 0.0) -> int:
+        """Relays whatever is waiting in both directions; waits up to
+        timeout_s for something to arrive. Returns the bytes moved."""
+        # The bench's own port is watched too: a tty hands bytes over
+        # asynchronously, so they may land there after the relay moved them.
+        r, _, _ = select.select([self._ma, self._mb, self.port.fileno()], [], [], timeout_s)
+        moved = 0
+        if self._mb in r or self._queued["up"]:
+            n = self._move(self._mb, self._ma, self.up, "up")
+            self.bytes_up += n
+            moved += n
+        if self._ma in r or self._queued["down"]:
+            n = self._move(self._ma, self._mb, self.down, "down")
+            self.bytes_down += n
+            moved += n
+        return moved
+
+    def node_alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def close(self, timeout_s: float = 5.0) -> dict:
+        """Stops fsw_node with SIGTERM; returns how it ended."""
+        result = {"exit_code": None, "stderr": ""}
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            _, err = self.proc.communicate(timeout=timeout_s)
+            result["stderr"] = err.decode(errors="replace") if err else ""
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.communicate()
+            result["stderr"] = "fsw_node did not stop on SIGTERM; killed"
+        result["exit_code"] = self.proc.returncode
+        self.port.close()
+        for fd in (self._ma, self._sa, self._mb, self._sb):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        return result
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,87 @@
+// Helpers for the flight-app tests: a bench-side framer and a telemetry
+// collector built from the same link code the bench cross-checks in Python.
+#pragma once
+
+#include <vector>
+
+#include "fsw/apid.hpp"
+#include "fsw/deframer.hpp"
+#include "fsw/flight_app.hpp"
+#include "fsw/framer.hpp"
+
+namespace flight_app_test {
+
+using namespace fsw;
+
+struct Uplink {
+  Framer framer{Direction::ToFlight};
+  std::vector<std::uint8_t> bytes;
+
+  template <typename Msg>
+  void add(Apid apid, const Msg& m, double t_s) {
+    std::uint8_t buf[kMaxFrameBytes];
+    const std::size_t n = framer.frame_message(apid, m, t_s, buf, sizeof(buf));
+    bytes.insert(bytes.end(), buf, buf + n);
+  }
+  void reset(double t, const Vec3<double>& r, const Vec3<double>& v, const Quat<double>& q) {
+    CmdResetMsg<double> m;
+    m.target_mask = 1;
+    m.r_hill_m = r;
+    m.v_hill_mps = v;
+    m.q_hb = q;
+    m.pos_sigma_m = 0.05;
+    m.vel_sigma_mps = 0.01;
+    m.att_sigma_rad = 0.05;
+    add(Apid::CmdReset, m, t);
+  }
+  void imu(double t, const Vec3<double>& a, const Vec3<double>& w) {
+    ImuSampleMsg<double> m;
+    m.accel_b_mps2 = a;
+    m.omega_bi_b_rps = w;
+    add(Apid::ImuSample, m, t);
+  }
+  void pose(double t_capture, const Vec3<double>& r, const Quat<double>& q, double r_sigma, double a_sigma) {
+    LedPoseMsg<double> m;
+    m.r_hill_m = r;
+    m.q_hb = q;
+    m.r_sigma_m = r_sigma;
+    m.att_sigma_rad = a_sigma;
+    add(Apid::LedPose, m, t_capture);
+  }
+};
+
+struct Telemetry {
+  Deframer deframer{Direction::FromFlight};
+  std::vector<TmEstimateMsg<double>> estimates;
+  std::vector<TmInnovationMsg<double>> innovations;
+  std::vector<TmCovarianceDiagMsg<double>> covariances;
+  int link_counters = 0;
+  int rejected = 0;
+
+  void feed(const std::uint8_t* data, std::size_t n) {
+    std::size_t used = 0;
+    while (used < n) {
+      DeframeResult r;
+      used += deframer.feed(data + used, n - used, r);
+      if (r.kind == DeframeResult::Kind::Rejected) ++rejected;
+      if (r.kind != DeframeResult::Kind::Packet) continue;
+      const PacketView& p = r.packet;
+      switch (static_cast<Apid>(p.header.apid)) {
+        case Apid::TmEstimate: { TmEstimateMsg<double> m; decode(p.payload, p.t_s, m); estimates.push_back(m); break; }
+        case Apid::TmInnovation: { TmInnovationMsg<double> m; decode(p.payload, p.t_s, m); innovations.push_back(m); break; }
+        case Apid::TmCovarianceDiag: { TmCovarianceDiagMsg<double> m; decode(p.payload, p.t_s, m); covariances.push_back(m); break; }
+        case Apid::TmLinkCounters: ++link_counters; break;
+        default: break;
+      }
+    }
+  }
+  void drain(FlightApp<double>& app) {
+    std::uint8_t buf[4096];
+    while (app.tx_pending() > 0) {
+      const std::size_t n = app.take_tx(buf, sizeof(buf));
+      feed(buf, n);
+    }
+  }
+};
+
+}  // namespace flight_app_test

@@ -1,0 +1,131 @@
+// The flight app: packets in, the same estimates as the filter driven
+// directly, telemetry out; bad bytes counted, never fatal.
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <random>
+
+#include "flight_app_util.hpp"
+
+using namespace fsw;
+using namespace flight_app_test;
+
+namespace {
+const Quat<double> kQ0 = fsw::exp(Vec3<double>(0.1, -0.2, 0.05));
+const Vec3<double> kR0(0.1, -0.7, 0.05);
+const Vec3<double> kV0(0.0, 0.01, 0.0);
+
+NavUkf<double>::Cov p0() {
+  NavUkf<double>::Cov P = NavUkf<double>::Cov::Zero();
+  P.diagonal() << 0.0025, 0.0025, 0.0025, 1e-4, 1e-4, 1e-4, 0.0025, 0.0025, 0.0025;
+  return P;
+}
+}  // namespace
+
+TEST(FlightAppTest, EstimatesEqualTheFilterDrivenDirectly) {
+  auto app = std::make_unique<FlightApp<double>>();
+  auto ref = std::make_unique<NavUkf<double>>(NavConfig<double>());
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  NavUkf<double>::State x0;
+  x0.r_hill_m = kR0;
+  x0.v_hill_mps = kV0;
+  x0.q_hb = kQ0;
+  ASSERT_TRUE(ref->init(0.0, x0, p0()).ok());
+  std::mt19937 rng(3);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int k = 1; k <= 50; ++k) {
+    const double t = 0.1 * k;
+    const Vec3<double> a(1e-3 * g(rng), 1e-3 * g(rng), 1e-3 * g(rng));
+    const Vec3<double> w(0.01 * g(rng), 0.01 * g(rng), 0.01 * g(rng));
+    up.imu(t, a, w);
+    ref->predict(t, a, w);
+    if (k % 10 == 0) {
+      const Vec3<double> r = ref->state().r_hill_m + Vec3<double>(0.01, -0.02, 0.01);
+      const Quat<double> q = boxplus(ref->state().q_hb, Vec3<double>(0.005, 0.0, -0.005));
+      // The pose captured 0.3 s earlier arrives now (a late measurement).
+      up.pose(t - 0.3, r, q, 0.04, 0.01);
+      NavUkf<double>::MeasCov R = NavUkf<double>::MeasCov::Zero();
+      R.diagonal() << 0.0016, 0.0016, 0.0016, 1e-4, 1e-4, 1e-4;
+      ASSERT_TRUE(ref->update_pose(t - 0.3, r, q, R).fused);
+    }
+  }
+  // Feed in awkward chunks (1 to 37 bytes) to exercise reassembly.
+  std::size_t i = 0, chunk = 1;
+  while (i < up.bytes.size()) {
+    const std::size_t n = std::min(chunk, up.bytes.size() - i);
+    app->on_bytes(up.bytes.data() + i, n);
+    tm.drain(*app);
+    i += n;
+    chunk = chunk % 37 + 1;
+  }
+  EXPECT_EQ(app->link().packets_accepted, 1u + 50u + 5u);
+  EXPECT_EQ(app->counters().pose_fused, 5u);
+  ASSERT_EQ(tm.estimates.size(), 1u + 50u + 5u);
+  const auto& last = tm.estimates.back();
+  EXPECT_EQ(last.r_hill_m, ref->state().r_hill_m);
+  EXPECT_EQ(last.v_hill_mps, ref->state().v_hill_mps);
+  EXPECT_EQ(last.q_hb.coeffs(), ref->state().q_hb.coeffs());
+  EXPECT_EQ(tm.covariances.back().p_diag.head<9>(), ref->P().diagonal());
+  EXPECT_EQ(tm.rejected, 0);
+  EXPECT_EQ(tm.link_counters, 5);  // every tenth IMU sample
+}
+
+TEST(FlightAppTest, EveryStepAnswersWithItsRecord) {
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  up.imu(0.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  up.pose(0.1, kR0 + Vec3<double>(1.0, 0.0, 0.0), kQ0, 0.04, 0.01);  // 1 m outlier: gated
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  ASSERT_EQ(tm.innovations.size(), 3u);
+  EXPECT_EQ(tm.innovations[0].step_kind, static_cast<std::uint8_t>(StepKind::Reset));
+  EXPECT_EQ(tm.innovations[1].step_kind, static_cast<std::uint8_t>(StepKind::Predict));
+  EXPECT_EQ(tm.innovations[2].step_kind, static_cast<std::uint8_t>(StepKind::PoseUpdate));
+  EXPECT_EQ(tm.innovations[2].status, static_cast<std::uint8_t>(StepStatus::Gated));
+  EXPECT_EQ(tm.innovations[2].fused, 0);
+  EXPECT_GT(tm.innovations[2].nis, 22.46);
+}
+
+TEST(FlightAppTest, ImuBeforeResetIsBadInputNotACrash) {
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.imu(0.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  ASSERT_EQ(tm.innovations.size(), 1u);
+  EXPECT_EQ(tm.innovations[0].status, static_cast<std::uint8_t>(StepStatus::BadInput));
+  EXPECT_TRUE(tm.estimates.empty());
+}
+
+TEST(FlightAppTest, GarbageBetweenPacketsIsCountedAndSkipped) {
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  const std::size_t first = up.bytes.size();
+  const std::uint8_t junk[] = {0x13, 0x37, 0x00, 0xFF, 0xFF, 0xFF, 0x00};
+  up.bytes.insert(up.bytes.end(), junk, junk + sizeof(junk));
+  up.imu(0.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_GT(first, 0u);
+  EXPECT_EQ(app->link().packets_accepted, 2u);
+  EXPECT_EQ(app->link().rejected_total(), 2u);
+  EXPECT_EQ(tm.estimates.size(), 2u);
+}
+
+TEST(FlightAppTest, ConfigWithUnknownParameterIsCountedAsRejected) {
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  CmdConfigMsg<double> m;
+  m.param_id = 999;
+  m.value = 1.0;
+  up.add(Apid::CmdConfig, m, 0.0);
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  EXPECT_EQ(app->counters().configs_rejected, 1u);
+}
