@@ -9,7 +9,7 @@ VENV       := .venv
 VPY        := $(VENV)/bin/python
 STAMPS     := build/.stamps
 CPP_BUILD  := build/cpp
-APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev libopencv-dev
+APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev libopencv-dev clang libclang-rt-14-dev
 SUDO       := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 NATIVE_SRC := $(shell find fsw bindings -type f \( -name '*.hpp' -o -name '*.cpp' \) 2>/dev/null) CMakeLists.txt pyproject.toml
 export OPENBLAS_NUM_THREADS ?= 1

@@ -48,6 +48,10 @@ def print_summary(s: dict) -> None:
          "[{:.3f}, {:.3f}]".format(*s["nees_post_update_band"]), ""),
         ("NEES mean every 10 s", s["nees_thinned_mean"], "[{:.3f}, {:.3f}]".format(*s["nees_thinned_band"]),
          ok(s["nees_thinned_band"][0] <= s["nees_thinned_mean"] <= s["nees_thinned_band"][1])),
+        ("NEES N-run average: epochs in band", s["nees_ensemble"]["in_band_fraction"], ">= 0.95 (1 Hz)",
+         ok(c["nees_ensemble_in_band_ge_0.95"])),
+        ("NIS N-run average: epochs in band", s["nis_ensemble"]["in_band_fraction"], ">= 0.95 (1 Hz)",
+         ok(c["nis_ensemble_in_band_ge_0.95"])),
     ]
     print(f"\n{s['runs']} runs, seed {s['seed']}, {s['dynamics']} truth, docked {s['docked']}/{s['runs']}")
     print(f"{'metric':34s} {'value':>10s}  {'required':>18s}  pass")
@@ -58,6 +62,12 @@ def print_summary(s: dict) -> None:
     nb, ib = s["nees_block_means"], s["nis_block_means"]
     print(f"NEES blocks (3 dof each): pos {nb['pos']:.3f} vel {nb['vel']:.3f} att {nb['att']:.3f}; "
           f"NIS blocks: pos {ib['pos']:.3f} att {ib['att']:.3f}")
+    for name in ("nees", "nis"):
+        e = s[f"{name}_ensemble"]
+        if e["epochs"]:
+            print(f"{name.upper()} N-run average over {e['epochs']} epochs ({e['runs_per_epoch_min']}-"
+                  f"{e['runs_per_epoch_max']} runs each): mean {e['mean_of_epoch_means']:.3f}, "
+                  f"{e['below_band']} below and {e['above_band']} above the band")
     print(f"gated {s['gated_count']}, statuses {s['status_counts']}")
 
 
@@ -104,6 +114,24 @@ def make_plots(runs, summary, folder) -> None:
            title=f"NIS per pose update; campaign mean {summary['nis_mean']:.2f}")
     fig.tight_layout()
     fig.savefig(out / "nav_nis.png", dpi=120)
+    plt.close(fig)
+    # N-run averages per 1 Hz epoch against their exact 95 % bands.
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    for ax, name, dof in ((axes[0], "nees", 9), (axes[1], "nis", 6)):
+        e = summary[f"{name}_ensemble"]
+        if not e["epochs"]:
+            continue
+        t = np.array(e["epoch_keys"], float) * (0.1 if name == "nees" else 1.0)
+        ax.plot(t, e["epoch_means"], ".-", ms=3, lw=0.6, label=f"{summary['runs']}-run average")
+        ax.plot(t, e["band_lo"], "k--", lw=0.6, label="95 % band")
+        ax.plot(t, e["band_hi"], "k--", lw=0.6)
+        ax.set_ylabel(f"{name.upper()} ({dof} dof)")
+        ax.set_title(f"{name.upper()}: {100 * e['in_band_fraction']:.1f} % of epochs in band (95 % expected)",
+                     fontsize=9)
+    axes[0].legend(loc="upper right", fontsize=7)
+    axes[-1].set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(out / "nav_consistency.png", dpi=120)
     plt.close(fig)
 
 
