@@ -30,6 +30,7 @@ py::dict app_counters(const App& app) {
   d["imu_steps"] = c.imu_steps;
   d["pose_updates"] = c.pose_updates;
   d["pose_fused"] = c.pose_fused;
+  d["poses_deferred"] = c.poses_deferred;
   d["resets"] = c.resets;
   d["configs_rejected"] = c.configs_rejected;
   d["valves"] = c.valves;

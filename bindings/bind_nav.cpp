@@ -33,7 +33,12 @@ void bind_nav(py::module_& m) {
       .def_readwrite("gate_chi2", &Cfg::gate_chi2, "NIS gate of the 6-dof pose update (22.46: p = 0.999); <= 0 disables.")
       .def_readwrite("max_delay_s", &Cfg::max_delay_s, "How late a pose may arrive [s] (0.5).")
       .def_readwrite("time_tol_s", &Cfg::time_tol_s, "A capture time within this of an IMU tick is on it [s].")
-      .def_readwrite("max_dt_s", &Cfg::max_dt_s, "Longest accepted predict step [s].")
+      .def_readwrite("max_dt_s", &Cfg::max_dt_s, "Longest accepted off-grid predict step [s].")
+      .def_readwrite("max_gap_s", &Cfg::max_gap_s, "Longest run of lost IMU ticks coasted through [s].")
+      .def_readwrite("gap_accel_sigma_mps2", &Cfg::gap_accel_sigma_mps2,
+                     "Specific-force uncertainty of a lost IMU tick bridged by the next sample [m/s^2].")
+      .def_readwrite("gap_gyro_sigma_rps", &Cfg::gap_gyro_sigma_rps,
+                     "Rate uncertainty of a lost IMU tick bridged by the next sample [rad/s].")
       .def_readwrite("alpha", &Cfg::alpha, "UKF sigma-point spread (1).")
       .def_readwrite("beta", &Cfg::beta, "UKF prior-distribution term (2).")
       .def_readwrite("kappa", &Cfg::kappa, "UKF secondary scaling (0).")

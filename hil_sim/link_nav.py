@@ -24,6 +24,7 @@ from hil_sim import packets as pk
 from hil_sim.pty_link import PtyLink
 
 STATUS_NAMES = ("ok", "gated", "not_pos_def", "bad_input")
+_KIND_POSE = 1  # StepKind::PoseUpdate (fsw/include/fsw/flight_app.hpp)
 _IMU = pk.APID_BY_NAME["imu_sample"].apid
 _POSE = pk.APID_BY_NAME["led_pose"].apid
 _RESET = pk.APID_BY_NAME["cmd_reset"].apid
@@ -72,11 +73,13 @@ class LinkNav:
         self.timeouts = 0
         self.packets_sent = 0
         self.step_latency_s: list = []
-        self.reset_attempts = 10
+        self.reset_attempts = 50
         self.time_offset_s = 0.0  # added to every outgoing time tag (chained runs)
         self.delivered_not_sent = 0  # telemetry packets delivered that the flight side never sent
         self.link_counters = None  # last tm_link_counters: accepted, frames, gaps, duplicates, rejected[...]
         self.housekeeping = None
+        self.deferred_pose_results: list = []  # (status, fused) of poses fused after a later predict
+        self._current_apid = None
 
     # -- interface of fsw_bindings.NavUkf --------------------------------
     def init(self, t_s, r_hill_m, v_hill_mps, q_hb, P0):
@@ -87,11 +90,23 @@ class LinkNav:
         payload = pk.pack_payload(_RESET, 0x1, 0, *np.asarray(r_hill_m, float), *np.asarray(v_hill_mps, float),
                                   *np.asarray(q_hb, float), *sig)
         # A telecommand whose answer is lost is sent again (re-initialising
-        # at the same time is harmless); the bench needs a first estimate.
+        # at the same time is harmless); the bench needs a first estimate and
+        # covariance from this reset, not ones left from an earlier run.
+        self._est[:] = np.nan
+        self._p_diag[:] = np.nan
         for _ in range(self.reset_attempts):
             rec = self._step(_RESET, t_s, payload)
-            if rec.received and not np.any(np.isnan(self._est)):
-                break
+            if rec.received or np.any(np.isfinite(self._est)) or np.any(np.isfinite(self._p_diag)):
+                break  # the flight side has the reset (part of its answer came back)
+        # Whatever of the answer was lost is what the reset set: the commanded
+        # state (quaternion normalised) and the diagonal of P0.
+        if rec.received or np.any(np.isfinite(self._est)) or np.any(np.isfinite(self._p_diag)):
+            if not np.all(np.isfinite(self._est)):
+                q = np.asarray(q_hb, float)
+                self._est = np.concatenate([np.asarray(r_hill_m, float), np.asarray(v_hill_mps, float),
+                                            q / np.linalg.norm(q)])
+            if not np.all(np.isfinite(self._p_diag)):
+                self._p_diag = np.diag(P0).copy()
         return rec
 
     def predict(self, t_s, accel_b_mps2, omega_bi_b_rps):
@@ -145,6 +160,7 @@ class LinkNav:
 
     def _step(self, apid, t_s, payload) -> LinkRecord:
         t0 = time.perf_counter()
+        self._current_apid = apid
         self._send(apid, t_s, payload)
         rec = LinkRecord()
         deadline = t0 + self.step_timeout_s
@@ -176,6 +192,11 @@ class LinkNav:
         v = p.values()
         if p.apid == _INN:
             kind, status, fused, meas_dim, step_index = v[0:5]
+            if kind == _KIND_POSE and self._current_apid != _POSE:
+                # A pose that arrived before its IMU tick, fused by the flight
+                # side after this step's predict: not this step's record.
+                self.deferred_pose_results.append((status, bool(fused)))
+                return False
             rec.status = STATUS_NAMES[status] if status < len(STATUS_NAMES) else "bad_input"
             rec.fused = bool(fused)
             rec.innovation = np.array(v[5:11])

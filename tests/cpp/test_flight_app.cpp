@@ -129,3 +129,45 @@ TEST(FlightAppTest, ConfigWithUnknownParameterIsCountedAsRejected) {
   app->on_bytes(up.bytes.data(), up.bytes.size());
   EXPECT_EQ(app->counters().configs_rejected, 1u);
 }
+
+TEST(FlightAppTest, PoseBeforeItsImuTickWaitsAndIsFusedAfterIt) {
+  // The IMU sample of t = 0.2 s is lost; the pose captured at 0.2 s arrives
+  // first (from_future), waits, and is fused right after the 0.3 s sample
+  // (which bridges the missed tick). The result equals the filter driven
+  // directly with the same samples and the pose 0.1 s late.
+  auto app = std::make_unique<FlightApp<double>>();
+  auto ref = std::make_unique<NavUkf<double>>(NavConfig<double>());
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  NavUkf<double>::State x0;
+  x0.r_hill_m = kR0;
+  x0.v_hill_mps = kV0;
+  x0.q_hb = kQ0;
+  ASSERT_TRUE(ref->init(0.0, x0, p0()).ok());
+  const Vec3<double> a(1e-3, -5e-4, 2e-4), w(0.01, 0.0, -0.01);
+  up.imu(0.1, a, w);
+  ref->predict(0.1, a, w);
+  const Vec3<double> r = kR0 + Vec3<double>(0.01, 0.0, -0.01);
+  up.pose(0.2, r, kQ0, 0.04, 0.01);  // before the IMU sample of its tick
+  up.imu(0.3, a, w);                 // the 0.2 s sample was lost
+  ASSERT_TRUE(ref->predict(0.3, a, w).ok());
+  NavUkf<double>::MeasCov R = NavUkf<double>::MeasCov::Zero();
+  R.diagonal() << 0.0016, 0.0016, 0.0016, 1e-4, 1e-4, 1e-4;
+  ASSERT_TRUE(ref->update_pose(0.2, r, kQ0, R).fused);
+
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(app->counters().poses_deferred, 1u);
+  EXPECT_EQ(app->counters().pose_fused, 1u);
+  // Reset, predict, pose (from_future, not fused), predict, pose (fused).
+  ASSERT_EQ(tm.innovations.size(), 5u);
+  EXPECT_EQ(tm.innovations[2].status, static_cast<std::uint8_t>(StepStatus::BadInput));
+  EXPECT_EQ(tm.innovations[2].fused, 0);
+  EXPECT_EQ(tm.innovations[4].step_kind, static_cast<std::uint8_t>(StepKind::PoseUpdate));
+  EXPECT_EQ(tm.innovations[4].fused, 1);
+  const auto& last = tm.estimates.back();
+  EXPECT_LT((last.r_hill_m - ref->state().r_hill_m).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((last.v_hill_mps - ref->state().v_hill_mps).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((last.q_hb.coeffs() - ref->state().q_hb.coeffs()).cwiseAbs().maxCoeff(), 1e-12);
+}

@@ -240,6 +240,75 @@ TYPED_TEST(NavUkfTest, OneMetreOutlierPoseIsGated) {
   EXPECT_EQ(g.update_pose(0.0, r_out, ref.state().q_hb, pose_R<S>()).status, StepStatus::Ok);
 }
 
+TYPED_TEST(NavUkfTest, LostImuTickIsBridgedAndAPoseCapturedAtItFuses) {
+  // The IMU sample of t = 0.5 s is lost: the sample of 0.6 s arrives with a
+  // 0.2 s step. The filter holds it over both ticks and stores both. With
+  // the gap noise off, that equals the sample given at 0.5 and 0.6; with it
+  // on (the default), the bridged tick adds covariance. A pose captured at
+  // 0.5 s (the missed tick) lands on a stored tick and is fused.
+  using S = TypeParam;
+  auto cfg_no_gap = test_config<S>();
+  cfg_no_gap.gap_accel_sigma_mps2 = S(0);
+  cfg_no_gap.gap_gyro_sigma_rps = S(0);
+  typename NavUkf<S>::State x;
+  x.r_hill_m = Vec3<S>(S(0.75), S(0), S(0));
+  x.q_hb = normalized(Quat<S>(S(0.9), S(0.1), S(-0.2), S(0.3)));
+  NavUkf<S> lost(cfg_no_gap), both(cfg_no_gap), gap(test_config<S>());
+  ASSERT_TRUE(lost.init(0.0, x, initial_cov<S, false>()).ok());
+  ASSERT_TRUE(both.init(0.0, x, initial_cov<S, false>()).ok());
+  ASSERT_TRUE(gap.init(0.0, x, initial_cov<S, false>()).ok());
+  const Vec3<S> a(S(1e-3), S(-2e-3), S(5e-4));
+  const Vec3<S> w(S(0.01), S(0.02), S(-0.01));
+  for (int k = 1; k <= 4; ++k) {
+    ASSERT_TRUE(lost.predict(0.1 * k, a, w).ok());
+    ASSERT_TRUE(both.predict(0.1 * k, a, w).ok());
+    ASSERT_TRUE(gap.predict(0.1 * k, a, w).ok());
+  }
+  ASSERT_TRUE(lost.predict(0.6, a, w).ok());
+  ASSERT_TRUE(gap.predict(0.6, a, w).ok());
+  ASSERT_TRUE(both.predict(0.5, a, w).ok());
+  ASSERT_TRUE(both.predict(0.6, a, w).ok());
+  const double tol = std::is_same<S, double>::value ? 1e-12 : 1e-6;
+  const Eigen::Matrix<double, 10, 1> d = (lost.state().stored() - both.state().stored()).template cast<double>();
+  EXPECT_LT(d.cwiseAbs().maxCoeff(), tol);
+  EXPECT_LT((lost.P() - both.P()).cwiseAbs().maxCoeff(), S(tol));
+  for (int i = 0; i < 9; ++i) EXPECT_GT(gap.P()(i, i), both.P()(i, i)) << i;
+
+  for (NavUkf<S>* f : {&lost, &gap}) {
+    const Vec3<S> r_meas = f->state().r_hill_m + Vec3<S>(S(0.02), S(0), S(0));
+    const auto rec = f->update_pose(0.5, r_meas, f->state().q_hb, pose_R<S>());
+    EXPECT_EQ(rec.status, StepStatus::Ok) << to_string(rec.detail);
+    EXPECT_TRUE(rec.fused);
+    EXPECT_DOUBLE_EQ(f->t_s(), 0.6);
+  }
+}
+
+TYPED_TEST(NavUkfTest, LongImuOutageIsCoastedThroughAndAPoseAfterItFuses) {
+  // 20 s without IMU samples (200 ticks, more than the history holds): the
+  // next sample carries the filter across, the covariance grows by the gap
+  // noise, and the filter takes the next pose (a filter that refused such
+  // a step would stay stuck until a reset).
+  using S = TypeParam;
+  auto f = make_filter<S>();
+  const Vec3<S> a(S(1e-3), S(0), S(0)), w(S(0), S(0), S(0.0011));
+  ASSERT_TRUE(f.predict(0.1, a, w).ok());
+  const S var_before = f.P()(3, 3);
+  const auto rec = f.predict(20.1, a, w);
+  ASSERT_EQ(rec.status, StepStatus::Ok) << to_string(rec.detail);
+  EXPECT_DOUBLE_EQ(f.t_s(), 20.1);
+  // At least the gap noise of the 199 bridged ticks: (sigma_gap dt)^2 each.
+  const S g = f.config().gap_accel_sigma_mps2 * S(0.1);
+  EXPECT_GT(f.P()(3, 3), var_before + S(199) * g * g);
+  EXPECT_TRUE(is_pos_def(f.P()));
+  const auto up = f.update_pose(20.1, f.state().r_hill_m, f.state().q_hb, pose_R<S>());
+  EXPECT_EQ(up.status, StepStatus::Ok) << to_string(up.detail);
+  EXPECT_TRUE(up.fused);
+  // A pose captured inside the outage, within the stored last ticks.
+  ASSERT_TRUE(f.predict(20.2, a, w).ok());
+  const auto late = f.update_pose(19.9, f.state().r_hill_m, f.state().q_hb, pose_R<S>());
+  EXPECT_EQ(late.detail, StepDetail::OutOfSequence);  // older than the pose just fused
+}
+
 TYPED_TEST(NavUkfTest, DelayedPoseEqualsOnTimePoseAndReplay) {
   using S = TypeParam;
   auto on_time = make_filter<S>();
@@ -345,7 +414,9 @@ TYPED_TEST(NavUkfTest, PredictTimeNotIncreasingIsRejected) {
   const auto ref = f;
   EXPECT_EQ(f.predict(0.1, Vec3<S>::Zero(), Vec3<S>::Zero()).detail, StepDetail::TimeNotIncreasing);
   EXPECT_EQ(f.predict(0.0, Vec3<S>::Zero(), Vec3<S>::Zero()).detail, StepDetail::TimeNotIncreasing);
-  EXPECT_EQ(f.predict(5.0, Vec3<S>::Zero(), Vec3<S>::Zero()).detail, StepDetail::StepTooLong);
+  // Off the IMU grid and longer than max_dt_s; on the grid but longer than max_gap_s.
+  EXPECT_EQ(f.predict(5.05, Vec3<S>::Zero(), Vec3<S>::Zero()).detail, StepDetail::StepTooLong);
+  EXPECT_EQ(f.predict(60.2, Vec3<S>::Zero(), Vec3<S>::Zero()).detail, StepDetail::StepTooLong);
   EXPECT_TRUE(same_bits(f, ref));
   NavUkf<S> g(test_config<S>());
   EXPECT_EQ(g.predict(0.1, Vec3<S>::Zero(), Vec3<S>::Zero()).detail, StepDetail::NotInitialized);

@@ -60,6 +60,7 @@ class FlightApp {
     std::uint32_t imu_steps = 0;
     std::uint32_t pose_updates = 0;
     std::uint32_t pose_fused = 0;
+    std::uint32_t poses_deferred = 0;  // arrived before their capture tick's IMU sample; fused after it
     std::uint32_t resets = 0;
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
@@ -121,6 +122,12 @@ class FlightApp {
     const typename Nav::Record rec = nav_.predict(p.t_s, m.accel_b_mps2, m.omega_bi_b_rps);
     ++counters_.imu_steps;
     report(StepKind::Predict, rec, p.t_s);
+    if (pending_.valid && nav_.initialized() && nav_.t_s() >= pending_.t_s - nav_cfg_.time_tol_s) {
+      pending_.valid = false;
+      const typename Nav::Record prec = nav_.update_pose(pending_.t_s, pending_.r_hill_m, pending_.q_hb, pending_.R);
+      if (prec.fused) ++counters_.pose_fused;
+      report(StepKind::PoseUpdate, prec, nav_.t_s());
+    }
     if (hk_every_ > 0 && counters_.imu_steps % hk_every_ == 0) housekeeping(p.t_s);
   }
 
@@ -134,6 +141,20 @@ class FlightApp {
     R.diagonal().template tail<3>().setConstant(a_sigma * a_sigma);
     const typename Nav::Record rec = nav_.update_pose(p.t_s, m.r_hill_m, m.q_hb, R);
     ++counters_.pose_updates;
+    // The pose and IMU streams are independent: a pose may arrive before the
+    // IMU sample of its capture tick (or that sample may be lost and bridged
+    // by the next one). Such a pose, up to max_dt_s ahead, waits in one slot
+    // (a newer one replaces it) and is fused after the predict that reaches
+    // its tick; this step answers with the from_future record.
+    if (rec.status == StepStatus::BadInput && rec.detail == StepDetail::FromFuture && nav_.initialized() &&
+        p.t_s - nav_.t_s() <= nav_cfg_.max_dt_s) {
+      pending_.valid = true;
+      pending_.t_s = p.t_s;
+      pending_.r_hill_m = m.r_hill_m;
+      pending_.q_hb = m.q_hb;
+      pending_.R = R;
+      ++counters_.poses_deferred;
+    }
     if (rec.fused) ++counters_.pose_fused;
     report(StepKind::PoseUpdate, rec, nav_.initialized() ? nav_.t_s() : p.t_s);
   }
@@ -145,6 +166,7 @@ class FlightApp {
     if (m.target_mask & 0x8u) deframer_.reset_counters();
     if (!(m.target_mask & 0x1u)) return;
     nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
+    pending_.valid = false;
     typename Nav::State x0;
     x0.r_hill_m = m.r_hill_m;
     x0.v_hill_mps = m.v_hill_mps;
@@ -252,8 +274,17 @@ class FlightApp {
     ++counters_.tx_packets;
   }
 
+  struct PendingPose {
+    bool valid = false;
+    double t_s = 0.0;
+    Vec3<S> r_hill_m = Vec3<S>::Zero();
+    Quat<S> q_hb = Quat<S>::Identity();
+    typename Nav::MeasCov R = Nav::MeasCov::Identity();
+  };
+
   NavConfig<S> nav_cfg_;
   Nav nav_;
+  PendingPose pending_;
   Deframer deframer_;
   Framer framer_;
   Counters counters_;

@@ -70,12 +70,18 @@ struct NavConfig {
   double dt_imu_s = 0.1;            // nominal IMU period [s]
   S accel_sigma_mps2 = S(1.7e-3);   // accelerometer white noise, 1-sigma per axis [m/s^2]
   S gyro_sigma_rps = S(0.005);      // gyro white noise, 1-sigma per axis [rad/s]
+  // A tick whose IMU sample was lost is bridged by holding the next sample;
+  // the specific force and rate during it are unknown to this extent
+  // (default: two 20 mN thrusters on 3 kg; their torque over one 0.1 s step).
+  S gap_accel_sigma_mps2 = S(1.3e-2);
+  S gap_gyro_sigma_rps = S(0.01);
   S gyro_bias_walk = S(1e-5);       // gyro bias random walk [rad/s/sqrt(s)] (15-state only)
   S accel_bias_walk = S(1e-5);      // accel bias random walk [m/s^2/sqrt(s)] (15-state only)
   S gate_chi2 = S(22.46);           // NIS gate (chi2 6 dof, p = 0.999); <= 0 disables gating
   double max_delay_s = 0.5;         // how late a pose may arrive [s]
   double time_tol_s = 1e-3;         // a capture time within this of a tick is on it [s]
-  double max_dt_s = 1.0;            // longest accepted predict step [s]
+  double max_dt_s = 1.0;            // longest accepted off-grid predict step [s]
+  double max_gap_s = 60.0;          // longest run of lost IMU ticks coasted through [s]
   S alpha = S(1);                   // sigma-point spread
   S beta = S(2);                    // prior-distribution term (2: Gaussian)
   S kappa = S(0);                   // secondary scaling
@@ -96,8 +102,11 @@ inline const char* nav_config_invalid_field(const NavConfig<S>& c, int n_err, in
   auto nonneg = [](double x) { return std::isfinite(x) && x >= 0.0; };
   if (!pos(double(c.n_radps))) return "n_radps";
   if (!pos(c.dt_imu_s)) return "dt_imu_s";
+  if (!pos(c.max_gap_s) || c.max_gap_s / c.dt_imu_s > 100000.0) return "max_gap_s";
   if (!nonneg(double(c.accel_sigma_mps2))) return "accel_sigma_mps2";
   if (!nonneg(double(c.gyro_sigma_rps))) return "gyro_sigma_rps";
+  if (!nonneg(double(c.gap_accel_sigma_mps2))) return "gap_accel_sigma_mps2";
+  if (!nonneg(double(c.gap_gyro_sigma_rps))) return "gap_gyro_sigma_rps";
   if (!nonneg(double(c.gyro_bias_walk))) return "gyro_bias_walk";
   if (!nonneg(double(c.accel_bias_walk))) return "accel_bias_walk";
   if (!std::isfinite(double(c.gate_chi2))) return "gate_chi2";
@@ -196,7 +205,8 @@ class NavUkf {
   }
 
   // IMU sample (specific force in body [m/s^2], omega_BI_B [rad/s]) held
-  // over (t_current, t_s]; moves the filter to t_s.
+  // over (t_current, t_s]; moves the filter to t_s. A step of m whole IMU
+  // periods (samples lost) is taken as m stored ticks.
   Record predict(double t_s, const Vec3<S>& accel_b_mps2, const Vec3<S>& omega_bi_b_rps) {
     Record rec;
     rec.t_s = t_s;
@@ -206,17 +216,38 @@ class NavUkf {
     const Entry& cur = hist_[head_];
     const double dt = t_s - cur.t_s;
     if (!(dt > cfg_.time_tol_s)) return reject(rec, StepStatus::BadInput, StepDetail::TimeNotIncreasing);
-    if (dt > cfg_.max_dt_s) return reject(rec, StepStatus::BadInput, StepDetail::StepTooLong);
-    Entry next;
-    next.t_s = t_s;
-    next.accel_b_mps2 = accel_b_mps2;
-    next.omega_bi_b_rps = omega_bi_b_rps;
-    next.dt_s = S(dt);
-    if (!propagate(cur.x, cur.P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.x, next.P))
-      return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-    head_ = (head_ + 1) % kHistory;
-    if (count_ < kHistory) ++count_;
-    hist_[head_] = next;
+    // Missed ticks (IMU samples lost on the way): when dt spans m >= 2 whole
+    // IMU periods, this sample is held over each of them (with the gap noise)
+    // and the last kHistory - 1 ticks are stored, so a pose captured at a
+    // missed tick still lands on a stored tick. Earlier ticks of a long gap
+    // are coasted through in two temporaries; the stored ones go to scratch_
+    // first: a failure leaves everything untouched. Bounded by max_gap_s.
+    const long m = std::lround(dt / cfg_.dt_imu_s);
+    const bool on_grid = m >= 2 && std::abs(dt - double(m) * cfg_.dt_imu_s) <= cfg_.time_tol_s;
+    if (on_grid ? dt > cfg_.max_gap_s : dt > cfg_.max_dt_s)
+      return reject(rec, StepStatus::BadInput, StepDetail::StepTooLong);
+    const int steps = on_grid ? int(m) : 1;
+    const int kept = steps < kHistory - 1 ? steps : kHistory - 1;
+    const int coast = steps - kept;
+    Entry coast_a, coast_b;
+    const Entry* prev = &cur;
+    for (int i = 0; i < steps; ++i) {  // bounded: max_gap_s / dt_imu_s
+      Entry& next = i < coast ? ((i % 2) ? coast_b : coast_a) : scratch_[i - coast];
+      next.t_s = (i + 1 == steps) ? t_s : cur.t_s + double(i + 1) * cfg_.dt_imu_s;
+      next.accel_b_mps2 = accel_b_mps2;
+      next.omega_bi_b_rps = omega_bi_b_rps;
+      next.dt_s = S(next.t_s - prev->t_s);
+      next.bridged = i + 1 < steps;
+      if (!propagate(prev->x, prev->P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.bridged, next.x,
+                     next.P))
+        return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+      prev = &next;
+    }
+    for (int i = 0; i < kept; ++i) {
+      head_ = (head_ + 1) % kHistory;
+      if (count_ < kHistory) ++count_;
+      hist_[head_] = scratch_[i];
+    }
     rec.status = StepStatus::Ok;
     return rec;
   }
@@ -265,8 +296,9 @@ class NavUkf {
       out[j].accel_b_mps2 = src.accel_b_mps2;
       out[j].omega_bi_b_rps = src.omega_bi_b_rps;
       out[j].dt_s = src.dt_s;
-      if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, out[j].x,
-                     out[j].P)) {
+      out[j].bridged = src.bridged;
+      if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, src.bridged,
+                     out[j].x, out[j].P)) {
         rec.fused = false;
         return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
       }
@@ -293,6 +325,7 @@ class NavUkf {
     Vec3<S> accel_b_mps2 = Vec3<S>::Zero();    // sample that led to this tick
     Vec3<S> omega_bi_b_rps = Vec3<S>::Zero();
     S dt_s = S(0);
+    bool bridged = false;  // a lost tick: the sample is the next one, held
   };
 
   // Per-step constants: CW transition and acceleration response, the Hill
@@ -367,8 +400,8 @@ class NavUkf {
   }
 
   // Pure predict: no member written. Returns false if P does not factor.
-  bool propagate(const State& x, const Cov& P, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, State& x_out,
-                 Cov& P_out) const {
+  bool propagate(const State& x, const Cov& P, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, bool bridged,
+                 State& x_out, Cov& P_out) const {
     Cov L;
     if (!cholesky_lower(P, L)) return false;
     const bool nominal = std::abs(dt - dt_nom_) <= S(1e-6) * dt_nom_;
@@ -383,6 +416,11 @@ class NavUkf {
     Cov Pn = wc0_ * D.col(0) * D.col(0).transpose();
     Pn.noalias() += wi_ * D.template rightCols<kSigma - 1>() * D.template rightCols<kSigma - 1>().transpose();
     Pn += m.Q;
+    if (bridged) {  // the held sample stands in for an unknown one
+      const S ga = cfg_.gap_accel_sigma_mps2, gg = cfg_.gap_gyro_sigma_rps * dt;
+      Pn.template block<6, 6>(0, 0).noalias() += (ga * ga) * (m.gamma * m.gamma.transpose());
+      Pn.template block<3, 3>(Layout::kDTheta.index, Layout::kDTheta.index) += (gg * gg) * Mat3<S>::Identity();
+    }
     if (!condition_covariance(Pn, var_min_, var_max_)) return false;
     if (!mean.all_finite() || !Pn.allFinite()) return false;
     x_out = mean;
