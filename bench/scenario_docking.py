@@ -86,6 +86,15 @@ class ScenarioConfig:
     controller: ControllerParams = field(default_factory=ControllerParams)
     truth_vehicle: Vehicle = field(default_factory=Vehicle)
     effects: dict | None = None  # EffectSet (bench/effects.py): physics the nominal model leaves out
+    # What the filter's predict takes as the specific force during firings:
+    # "imu" (the accelerometer) or "blr" (the flight BLR's prediction for the
+    # valve configuration, seed 002 section 3's conclusion). The learner
+    # (fsw_bindings.ThrusterBlr, window 30) learns online from the firing
+    # steps themselves: accelerometer x dt as the body dv, the gyro's change
+    # as dw; it stands in once it holds blr_min_samples samples, and each
+    # prediction is made before that step's sample is entered.
+    accel_source: str = "imu"
+    blr_min_samples: int = 30
 
 
 class _TruthNav:
@@ -252,6 +261,14 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         pending.append(pose.measure(0.0, *seen(0.0)))
         deliver(0.0)
     record("init")
+    if cfg.accel_source not in ("imu", "blr"):
+        raise ValueError(f"accel_source must be 'imu' or 'blr', not {cfg.accel_source!r}")
+    learner = None
+    if cfg.accel_source == "blr":
+        import fsw_bindings as fb
+
+        learner = fb.ThrusterBlr(prior_precision=1e-3)
+    learner_count, blr_used, gyro_prev = 0, 0, gyro_last
     k = 0
     contact = False
     while plant.state.t_s < cfg.t_max_s - 1e-9:
@@ -269,8 +286,17 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         if on_step is not None:
             on_step(t)
         status = "ok"
+        accel_nav = sample.accel_b_mps2
+        if learner is not None and dec.config != 0:
+            if learner_count >= cfg.blr_min_samples:
+                accel_nav = learner.predict_mask(int(dec.config))[0][0:3] / cfg.dt_s
+                blr_used += 1
+            dw = np.asarray(sample.omega_bi_b_rps, float) - np.asarray(gyro_prev, float)
+            learner.add_mask(int(dec.config), np.concatenate([np.asarray(sample.accel_b_mps2, float) * cfg.dt_s, dw]))
+            learner_count += 1
+        gyro_prev = sample.omega_bi_b_rps
         if cfg.nav == "ukf":
-            status = nav.predict(t_imu, sample.accel_b_mps2, sample.omega_bi_b_rps).status
+            status = nav.predict(t_imu, accel_nav, sample.omega_bi_b_rps).status
         if k % n_steps_pose == 0:
             m = pose.measure(t, *seen(t))
             if clock_rate != 1.0:
@@ -305,6 +331,8 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         "attitude_miss_rad": float(np.linalg.norm(boxminus(s.q_hb, ctrl.q_des_hb))),
         "first_update_t_s": first_update_t,
         "valve_seconds": float(np.sum([bin(c).count("1") for c in h["config"]]) * cfg.dt_s),
+        "firing_steps": int(np.count_nonzero(h["config"])),
+        "blr_steps": int(blr_used),  # firing steps whose predict took the BLR's specific force
     }
     return out
 

@@ -24,6 +24,8 @@ def register(sub):
     p.add_argument("--pose-r-from", choices=("estimate", "measurement"), default="estimate",
                    help="range the pose covariance handed to the filter is built from")
     p.add_argument("--init", choices=("pose", "truth_draw"), default="pose", help="filter initialisation")
+    p.add_argument("--accel-source", choices=("imu", "blr"), default="imu",
+                   help="specific force for predict during firings: accelerometer, or the online BLR's prediction")
     p.set_defaults(func=main)
 
 
@@ -144,7 +146,8 @@ def main(args):
         raise ValueError(f"{fsw_bindings.__file__} has no NavUkf: rebuild the bindings with bind_nav")
     profile = NoiseProfile.paper() if args.profile == "paper" else NoiseProfile.biased()
     profile = profile.with_(pose_latency_s=args.pose_latency_s)
-    cfg = ScenarioConfig(profile=profile, dynamics=args.dynamics, pose_R_from=args.pose_r_from, init=args.init)
+    cfg = ScenarioConfig(profile=profile, dynamics=args.dynamics, pose_R_from=args.pose_r_from, init=args.init,
+                         accel_source=args.accel_source)
     keep = min(args.runs, 5) if args.plots else 0
     summary, runs = run_campaign(args.runs, args.seed, cfg, progress=_progress, keep_runs=keep)
     print_summary(summary)

@@ -90,7 +90,10 @@ def test_effects_integrator_with_zero_effects_matches_rigid_plant():
         valves = np.array([(k >> i) & 1 for i in range(8)], float)
         ra, rb = a.step(valves, 0.1), b.step(valves, 0.1)
         assert np.allclose(ra.specific_force_b_mps2, rb.specific_force_b_mps2, rtol=0, atol=1e-15)
-        assert np.allclose(ra.omega_mean_bi_b_rps, rb.omega_mean_bi_b_rps, rtol=0, atol=1e-15)
+        # The rigid plant integrates on Python floats, the effects integrator
+        # with numpy: the attitudes agree to about an ulp (1e-16) and the interval
+        # rate is 2 Log(dq) / dt, which scales that by 20.
+        assert np.allclose(ra.omega_mean_bi_b_rps, rb.omega_mean_bi_b_rps, rtol=0, atol=20 * 2.3e-16)
     assert np.allclose(a.state.r_hill_m, b.state.r_hill_m, rtol=0, atol=1e-13)
     assert np.allclose(a.state.omega_bi_b_rps, b.state.omega_bi_b_rps, rtol=0, atol=1e-15)
 
