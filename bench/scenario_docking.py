@@ -91,7 +91,8 @@ class ScenarioConfig:
     # valve configuration, seed 002 section 3's conclusion). The learner
     # (fsw_bindings.ThrusterBlr, window 30) learns online from the firing
     # steps themselves: accelerometer x dt as the body dv, the gyro's change
-    # as dw; it stands in once it holds blr_min_samples samples, and each
+    # as dw; it stands in once it holds blr_min_samples samples and where the
+    # sigma of its mean is below the filter's accelerometer sigma, and each
     # prediction is made before that step's sample is entered.
     accel_source: str = "imu"
     blr_min_samples: int = 30
@@ -268,6 +269,7 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         import fsw_bindings as fb
 
         learner = fb.ThrusterBlr(prior_precision=1e-3)
+    accel_sigma_nav = cfg.profile.accel_sigma_mps2 if cfg.nav_accel_sigma_mps2 is None else cfg.nav_accel_sigma_mps2
     learner_count, blr_used, gyro_prev = 0, 0, gyro_last
     k = 0
     contact = False
@@ -289,8 +291,13 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         accel_nav = sample.accel_b_mps2
         if learner is not None and dec.config != 0:
             if learner_count >= cfg.blr_min_samples:
-                accel_nav = learner.predict_mask(int(dec.config))[0][0:3] / cfg.dt_s
-                blr_used += 1
+                mean, var_mean = learner.mean_and_its_variance_mask(int(dec.config))
+                # Only where the learner knows this configuration's effect
+                # better than the accelerometer measures it (the filter's
+                # noise model); a rarely seen configuration stays on the IMU.
+                if np.sqrt(np.max(var_mean[0:3])) / cfg.dt_s < accel_sigma_nav:
+                    accel_nav = mean[0:3] / cfg.dt_s
+                    blr_used += 1
             dw = np.asarray(sample.omega_bi_b_rps, float) - np.asarray(gyro_prev, float)
             learner.add_mask(int(dec.config), np.concatenate([np.asarray(sample.accel_b_mps2, float) * cfg.dt_s, dw]))
             learner_count += 1

@@ -70,6 +70,16 @@ void bind_one(py::module_& m, const char* name, const char* doc) {
       .def(
           "predict_mask", [pred_tuple, mask_of](Blr& b, int mask) { return pred_tuple(b.predict(mask_of(mask))); },
           py::arg("mask"), "predict() at valve configuration mask.")
+      .def(
+          "mean_and_its_variance_mask",
+          [mask_of](Blr& b, int mask) {
+            const auto p = b.predict(mask_of(mask));
+            if (p.status == fsw::StepStatus::BadInput) throw py::value_error("x: not finite");
+            return py::make_tuple(to_numpy(p.mean), to_numpy(typename Blr::VecY(p.noise_var * p.leverage)));
+          },
+          py::arg("mask"),
+          "(posterior mean (6,), its variance s_k^2 x^T A^-1 x (6,)) at valve configuration mask: how well the "
+          "learner knows this configuration's effect, without the noise of a new measurement.")
       .def_property_readonly("theta",
                              [](Blr& b) {
                                b.refresh_posterior();

@@ -86,3 +86,19 @@ def test_remove_from_empty_window_reports_bad_input():
 def test_pairs_features_have_37_inputs():
     x = fb.ThrusterBlrPairs.features(0b11)
     assert x.shape == (37,) and x[8] == 1.0 and x[9] == 1.0 and x[10:].sum() == 0.0
+
+
+def test_variance_of_the_mean_excludes_measurement_noise_and_shrinks_with_data():
+    import fsw_bindings as fb
+
+    rng = np.random.default_rng(4)
+    b = fb.ThrusterBlr()
+    for i in range(30):
+        b.add_mask(int(rng.integers(1, 256)), 1e-3 * rng.standard_normal(6))
+    mean, var_mean = b.mean_and_its_variance_mask(3)
+    mean_p, var_pred, _ = b.predict_mask(3)
+    assert np.array_equal(mean, mean_p)
+    assert np.all(var_mean > 0) and np.all(var_mean < var_pred)
+    for _ in range(29):  # the window fills with configuration 3
+        b.add_mask(3, 1e-3 * rng.standard_normal(6))
+    assert np.all(b.mean_and_its_variance_mask(3)[1] < var_mean)

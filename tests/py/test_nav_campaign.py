@@ -79,3 +79,29 @@ def test_half_second_pose_latency_run_docks_within_bounds():
     assert m.docked and m.statuses.get("bad_input", 0) == 0
     assert m.max_pos_err_m <= 0.10 and m.max_vel_err_mps <= 0.03
     assert len(m.nis) >= 0.95 * m.t_end_s  # nearly every pose fused despite the delay
+
+
+def test_ensemble_consistency_counts_epochs_against_exact_bands():
+    # Two runs with NEES exactly at the mean at every epoch are inside the
+    # band everywhere; a run far above puts its epochs above it.
+    from bench.nav_campaign import ensemble_consistency
+
+    keys = [np.arange(10), np.arange(10)]
+    ok = ensemble_consistency([np.full(10, 9.0), np.full(10, 9.0)], keys, 9, min_runs=2)
+    assert ok["epochs"] == 10 and ok["in_band_fraction"] == 1.0
+    bad = ensemble_consistency([np.full(10, 9.0), np.full(10, 60.0)], keys, 9, min_runs=2)
+    assert bad["above_band"] == 10 and bad["in_band_fraction"] == 0.0
+    lo, hi = chi2.ppf([0.025, 0.975], 18) / 2
+    assert np.allclose(ok["band_at_max_runs"], [lo, hi])
+
+
+def test_blr_accel_source_learns_in_flight_and_stands_in_during_firings():
+    from bench.scenario_docking import run_docking
+
+    run = run_docking(1000, ScenarioConfig(accel_source="blr", t_max_s=60.0))
+    s = run["summary"]
+    assert s["firing_steps"] > 30
+    assert 0 < s["blr_steps"] <= s["firing_steps"] - 30  # only after the window has filled
+    assert np.all(np.isfinite(run["est"]))
+    with pytest.raises(ValueError, match="accel_source"):
+        run_docking(1000, ScenarioConfig(accel_source="magic", t_max_s=1.0))
