@@ -276,6 +276,8 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
     while plant.state.t_s < cfg.t_max_s - 1e-9:
         est = np.asarray(nav.state(), float)
         dec = ctrl.step(est[0:3], est[3:6], est[6:10], gyro_last)
+        if hasattr(nav, "note_valves"):  # the flight app's thruster learner hears the command
+            nav.note_valves(k * cfg.dt_s, cfg.dt_s, int(dec.config))
         step = plant.step(dec.valves, cfg.dt_s)
         k += 1
         t = k * cfg.dt_s

@@ -31,6 +31,7 @@ py::dict app_counters(const App& app) {
   d["pose_updates"] = c.pose_updates;
   d["pose_fused"] = c.pose_fused;
   d["poses_deferred"] = c.poses_deferred;
+  d["learner_samples"] = c.learner_samples;
   d["resets"] = c.resets;
   d["configs_rejected"] = c.configs_rejected;
   d["valves"] = c.valves;

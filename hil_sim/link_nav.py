@@ -34,6 +34,8 @@ _COV = pk.APID_BY_NAME["tm_covariance_diag"].apid
 _INN = pk.APID_BY_NAME["tm_innovation"].apid
 _LINKC = pk.APID_BY_NAME["tm_link_counters"].apid
 _HK = pk.APID_BY_NAME["tm_housekeeping"].apid
+_VALVES = pk.APID_BY_NAME["thruster_valves"].apid
+_LEARNER = pk.APID_BY_NAME["tm_learner"].apid
 
 
 @dataclass
@@ -78,8 +80,10 @@ class LinkNav:
         self.delivered_not_sent = 0  # telemetry packets delivered that the flight side never sent
         self.link_counters = None  # last tm_link_counters: accepted, frames, gaps, duplicates, rejected[...]
         self.housekeeping = None
+        self.learner_outputs: list = []  # (t_s, tm_learner values): the flight learner's prediction per firing
         self.deferred_pose_results: list = []  # (status, fused) of poses fused after a later predict
         self._current_apid = None
+        self._tx = b""  # framed packets held for the next write
 
     # -- interface of fsw_bindings.NavUkf --------------------------------
     def init(self, t_s, r_hill_m, v_hill_mps, q_hb, P0):
@@ -120,6 +124,12 @@ class LinkNav:
         payload = pk.pack_payload(_POSE, *np.asarray(r_hill_m, float), *np.asarray(q_hb, float), r_sigma, a_sigma)
         return self._step(_POSE, t_capture_s, payload)
 
+    def note_valves(self, t_s: float, interval_s: float, mask: int):
+        """thruster_valves for the firing interval starting at t_s (no answer
+        expected; the IMU sample that ends the interval brings tm_learner)."""
+        if mask:
+            self._send(_VALVES, t_s, pk.pack_payload(_VALVES, float(interval_s), int(mask)), hold=True)
+
     def configure(self, param_id: int, value: float, t_s: float = 0.0):
         """cmd_config (no answer expected)."""
         self._send(_CONFIG, t_s, pk.pack_payload(_CONFIG, param_id, 0, value))
@@ -154,9 +164,14 @@ class LinkNav:
         return self._est[6:10].copy()
 
     # -- link -------------------------------------------------------------
-    def _send(self, apid, t_s, payload):
-        self.link.write(self.sender.frame(apid, float(t_s) + self.time_offset_s, payload))
+    def _send(self, apid, t_s, payload, hold: bool = False):
+        """Frames and writes one packet; hold=True keeps it to go out in the
+        same write as the next packet (one pass through the link, not two)."""
+        self._tx += self.sender.frame(apid, float(t_s) + self.time_offset_s, payload)
         self.packets_sent += 1
+        if not hold:
+            self.link.write(self._tx)
+            self._tx = b""
 
     def _step(self, apid, t_s, payload) -> LinkRecord:
         t0 = time.perf_counter()
@@ -218,6 +233,9 @@ class LinkNav:
             return False
         if p.apid == _HK:
             self.housekeeping = v
+            return False
+        if p.apid == _LEARNER:
+            self.learner_outputs.append((p.t_s - self.time_offset_s, v))
             return False
         return False
 

@@ -97,6 +97,7 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
         "flight_rejected_by_reason": nav.rejected_by_reason(),
         "bench_rejected_by_reason": dict(nav.deframer.rejected),
         "bench_packets_accepted": nav.deframer.accepted,
+        "learner_outputs": nav.learner_outputs,
         "faults_up": link.up.counts.__dict__,
         "faults_down": link.down.counts.__dict__,
         "realtime_overruns": sum(p.overruns for p in pacers),

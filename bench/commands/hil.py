@@ -57,6 +57,11 @@ def hil_summary(res: dict, args) -> dict:
         "telemetry_rejected_by_reason": res["bench_rejected_by_reason"],
         "telemetry_packets_accepted": res["bench_packets_accepted"],
         "bad_crc_delivered": res["bad_crc_delivered"],
+        "learner_telemetry_packets": len(res["learner_outputs"]),
+        "learner_last": (None if not res["learner_outputs"] else
+                         {"t_s": res["learner_outputs"][-1][0], "n_samples": res["learner_outputs"][-1][1][0],
+                          "dv_b_mps": list(res["learner_outputs"][-1][1][2:5]),
+                          "dw_b_rps": list(res["learner_outputs"][-1][1][5:8])}),
         "faults_injected_up": res["faults_up"],
         "faults_injected_down": res["faults_down"],
         "max_pos_err_m": errs["max_pos_err_m"],

@@ -40,6 +40,13 @@ struct Uplink {
     m.omega_bi_b_rps = w;
     add(Apid::ImuSample, m, t);
   }
+  void valves(double t, double interval_s, std::uint8_t mask) {
+    ThrusterValvesMsg<double> m;
+    m.t_s = t;
+    m.interval_s = interval_s;
+    m.valve_mask = mask;
+    add(Apid::ThrusterValves, m, t);
+  }
   void pose(double t_capture, const Vec3<double>& r, const Quat<double>& q, double r_sigma, double a_sigma) {
     LedPoseMsg<double> m;
     m.r_hill_m = r;
@@ -55,6 +62,7 @@ struct Telemetry {
   std::vector<TmEstimateMsg<double>> estimates;
   std::vector<TmInnovationMsg<double>> innovations;
   std::vector<TmCovarianceDiagMsg<double>> covariances;
+  std::vector<TmLearnerMsg<double>> learner;
   int link_counters = 0;
   int rejected = 0;
 
@@ -70,6 +78,7 @@ struct Telemetry {
         case Apid::TmEstimate: { TmEstimateMsg<double> m; decode(p.payload, p.t_s, m); estimates.push_back(m); break; }
         case Apid::TmInnovation: { TmInnovationMsg<double> m; decode(p.payload, p.t_s, m); innovations.push_back(m); break; }
         case Apid::TmCovarianceDiag: { TmCovarianceDiagMsg<double> m; decode(p.payload, p.t_s, m); covariances.push_back(m); break; }
+        case Apid::TmLearner: { TmLearnerMsg<double> m; decode(p.payload, p.t_s, m); learner.push_back(m); break; }
         case Apid::TmLinkCounters: ++link_counters; break;
         default: break;
       }

@@ -171,3 +171,48 @@ TEST(FlightAppTest, PoseBeforeItsImuTickWaitsAndIsFusedAfterIt) {
   EXPECT_LT((last.v_hill_mps - ref->state().v_hill_mps).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_LT((last.q_hb.coeffs() - ref->state().q_hb.coeffs()).cwiseAbs().maxCoeff(), 1e-12);
 }
+
+TEST(FlightAppTest, ValveCommandsTeachTheThrusterLearnerAndItsOutputIsTelemetry) {
+  // Each firing interval [t, t + 0.1) is announced by thruster_valves at t;
+  // the IMU sample at t + 0.1 enters the learner (accelerometer x dt, gyro
+  // change) and the app answers with tm_learner. Same samples into a
+  // ThrusterBlr driven directly give the same prediction.
+  auto app = std::make_unique<FlightApp<double>>();
+  auto ref = std::make_unique<ThrusterBlr<double, 30>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Vec3<double> w_prev = Vec3<double>::Zero();
+  up.imu(0.1, Vec3<double>::Zero(), w_prev);  // the first sample only sets the gyro reference
+  int fed = 0;
+  std::uint8_t mask = 0;
+  for (int k = 1; k <= 60; ++k) {
+    const double t = 0.1 * k;
+    mask = static_cast<std::uint8_t>(1 + (k * 37) % 255);
+    up.valves(t, 0.1, mask);
+    const Vec3<double> a(1e-3 * g(rng), 1e-3 * g(rng), 1e-3 * g(rng));
+    const Vec3<double> w(0.01 * g(rng), 0.01 * g(rng), 0.01 * g(rng));
+    up.imu(t + 0.1, a, w);
+    ThrusterBlr<double, 30>::VecY y;
+    y << a * 0.1, w - w_prev;
+    ASSERT_EQ(ref->add(ValveFeatures<double>::from_mask(mask), y).status, StepStatus::Ok);
+    ++fed;
+    w_prev = w;
+  }
+  for (std::size_t i = 0; i < up.bytes.size(); i += 256) {  // drain as a serial port would
+    app->on_bytes(up.bytes.data() + i, std::min<std::size_t>(256, up.bytes.size() - i));
+    tm.drain(*app);
+  }
+  EXPECT_EQ(app->counters().tx_dropped, 0u);
+  EXPECT_EQ(app->counters().valves, 60u);
+  EXPECT_EQ(app->counters().learner_samples, static_cast<std::uint32_t>(fed));
+  ASSERT_EQ(tm.learner.size(), 60u);
+  const auto pred = ref->predict(ValveFeatures<double>::from_mask(mask));
+  EXPECT_EQ(tm.learner.back().n_samples, 30u);  // the window is full
+  EXPECT_LT((tm.learner.back().dv_b_mps - pred.mean.head<3>()).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LT((tm.learner.back().dw_b_rps - pred.mean.tail<3>()).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_LT((tm.learner.back().variance - pred.variance).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_EQ(tm.rejected, 0);
+}

@@ -16,6 +16,7 @@ TEST(NoHeapTest, FlightAppByteToTelemetryPath) {
   up.reset(0.0, Vec3<double>(0.1, -0.7, 0.0), Vec3<double>::Zero(), Quat<double>::Identity());
   for (int k = 1; k <= 30; ++k) {
     up.imu(0.1 * k, Vec3<double>(1e-3, 0, 0), Vec3<double>(0, 0, 0.01));
+    up.valves(0.1 * k, 0.1, static_cast<std::uint8_t>(k));  // the next sample teaches the learner
     if (k % 10 == 0) up.pose(0.1 * k - 0.2, Vec3<double>(0.1, -0.7, 0.0), Quat<double>::Identity(), 0.04, 0.01);
   }
   const std::uint8_t junk[] = {0x01, 0x02, 0x00, 0x05, 0xFF, 0x00};
@@ -34,4 +35,5 @@ TEST(NoHeapTest, FlightAppByteToTelemetryPath) {
   EXPECT_EQ(allocations, 0);
   EXPECT_EQ(app->counters().imu_steps, 30u);
   EXPECT_EQ(app->counters().pose_fused, 3u);
+  EXPECT_EQ(app->counters().learner_samples, 29u);  // intervals ending at 0.2 .. 3.0 s
 }

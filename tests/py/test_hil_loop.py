@@ -74,3 +74,14 @@ def test_fsw_node_stops_cleanly_on_sigterm():
     ended = link.close()
     assert ended["exit_code"] == 0
     assert "stopped" in ended["stderr"]
+
+
+def test_flight_learner_hears_the_valve_commands_and_reports_over_the_link():
+    res = run_hil(HilConfig(duration_s=30.0, seed=5))
+    outs = res["learner_outputs"]
+    assert len(outs) > 30  # one tm_learner per firing interval
+    n_samples = [v[0] for _, v in outs]
+    assert n_samples[-1] == 30  # the window (30) has filled
+    assert all(np.all(np.isfinite(v[2:])) for _, v in outs)
+    times = [t for t, _ in outs]
+    assert all(b > a for a, b in zip(times, times[1:]))

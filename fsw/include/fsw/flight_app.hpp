@@ -8,14 +8,20 @@
 // Dispatch by APID, in arrival order, each step at its packet's time tag:
 //   cmd_reset (bit 0)   -> NavUkf rebuilt with the commanded settings, init,
 //                          then estimate telemetry
+//   cmd_reset (bit 1)   -> thruster learner emptied
 //   cmd_reset (bit 3)   -> link counters cleared
 //   cmd_config          -> pose noise model (docs/LINK.md, parameter ids)
 //   imu_sample          -> NavUkf::predict to the packet time
 //   led_pose            -> NavUkf::update_pose at the capture time (may be late)
-//   thruster_valves     -> recorded (the learner consumes them)
+//   thruster_valves     -> held until the IMU sample that ends its interval:
+//                          that sample (accelerometer x dt as the body dv, the
+//                          gyro's change as dw) enters the thruster learner
+//                          (ThrusterBlr, window 30) for that valve mask
 // Every imu_sample, led_pose and cmd_reset answers with tm_innovation (the
-// step record), tm_estimate and tm_covariance_diag, in that order; every
-// tenth imu_sample also with tm_link_counters and tm_housekeeping.
+// step record), tm_estimate and tm_covariance_diag, in that order; an
+// imu_sample that fed the learner also with tm_learner (its prediction for
+// that mask after the sample); every tenth imu_sample also with
+// tm_link_counters and tm_housekeeping.
 //
 // Real-time core: fixed buffers, no heap, no exceptions, no I/O; a full
 // transmit buffer drops telemetry and counts it.
@@ -27,6 +33,7 @@
 #include <cstdint>
 
 #include "fsw/apid.hpp"
+#include "fsw/blr.hpp"
 #include "fsw/deframer.hpp"
 #include "fsw/framer.hpp"
 #include "fsw/nav_ukf.hpp"
@@ -64,6 +71,7 @@ class FlightApp {
     std::uint32_t resets = 0;
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
+    std::uint32_t learner_samples = 0;  // firing intervals entered into the learner
     std::uint32_t unhandled = 0;  // accepted packets this build does not consume (range images)
     std::uint32_t tx_packets = 0;
     std::uint32_t tx_dropped = 0;  // telemetry lost to a full transmit buffer
@@ -101,6 +109,7 @@ class FlightApp {
   }
 
   const Nav& nav() const { return nav_; }
+  const ThrusterBlr<S, 30>& learner() const { return learner_; }
   const LinkCounters& link() const { return deframer_.counters(); }
   const Counters& counters() const { return counters_; }
 
@@ -111,7 +120,7 @@ class FlightApp {
       case Apid::LedPose: return on_pose(p);
       case Apid::CmdReset: return on_reset(p);
       case Apid::CmdConfig: return on_config(p);
-      case Apid::ThrusterValves: ++counters_.valves; return;
+      case Apid::ThrusterValves: return on_valves(p);
       default: ++counters_.unhandled; return;
     }
   }
@@ -122,6 +131,7 @@ class FlightApp {
     const typename Nav::Record rec = nav_.predict(p.t_s, m.accel_b_mps2, m.omega_bi_b_rps);
     ++counters_.imu_steps;
     report(StepKind::Predict, rec, p.t_s);
+    learn(p.t_s, m);
     if (pending_.valid && nav_.initialized() && nav_.t_s() >= pending_.t_s - nav_cfg_.time_tol_s) {
       pending_.valid = false;
       const typename Nav::Record prec = nav_.update_pose(pending_.t_s, pending_.r_hill_m, pending_.q_hb, pending_.R);
@@ -129,6 +139,44 @@ class FlightApp {
       report(StepKind::PoseUpdate, prec, nav_.t_s());
     }
     if (hk_every_ > 0 && counters_.imu_steps % hk_every_ == 0) housekeeping(p.t_s);
+  }
+
+  void on_valves(const PacketView& p) {
+    ThrusterValvesMsg<S> m;
+    decode(p.payload, p.t_s, m);
+    ++counters_.valves;
+    valves_ = m;
+    valves_t_s_ = p.t_s;  // the double time tag (a float t_s loses the tick after hours)
+    valves_pending_ = true;
+  }
+
+  // The IMU sample whose interval is the held firing interval teaches the
+  // learner that valve mask's effect; the gyro's change across the interval
+  // is the dw (the previous sample is kept for it).
+  void learn(double t_s, const ImuSampleMsg<S>& m) {
+    const bool covers = valves_pending_ && valves_.valve_mask != 0 &&
+                        std::abs(t_s - valves_t_s_ - double(valves_.interval_s)) <= nav_cfg_.time_tol_s;
+    if (covers && have_prev_gyro_) {
+      valves_pending_ = false;
+      typename Learner::VecY y;
+      y.template head<3>() = m.accel_b_mps2 * valves_.interval_s;
+      y.template tail<3>() = m.omega_bi_b_rps - prev_gyro_;
+      const auto x = ValveFeatures<S>::from_mask(valves_.valve_mask);
+      const auto add = learner_.add(x, y);
+      if (add.status == StepStatus::Ok) ++counters_.learner_samples;
+      const auto pred = learner_.predict(x);
+      TmLearnerMsg<S> tm;
+      tm.n_samples = static_cast<std::uint32_t>(pred.count);
+      tm.status = static_cast<std::uint32_t>(pred.status);
+      tm.dv_b_mps = pred.mean.template head<3>();
+      tm.dw_b_rps = pred.mean.template tail<3>();
+      tm.variance = pred.variance;
+      send(Apid::TmLearner, tm, t_s);
+    } else if (valves_pending_ && t_s > valves_t_s_ + double(valves_.interval_s) + nav_cfg_.time_tol_s) {
+      valves_pending_ = false;  // its interval's IMU sample never came
+    }
+    prev_gyro_ = m.omega_bi_b_rps;
+    have_prev_gyro_ = true;
   }
 
   void on_pose(const PacketView& p) {
@@ -164,6 +212,11 @@ class FlightApp {
     decode(p.payload, p.t_s, m);
     ++counters_.resets;
     if (m.target_mask & 0x8u) deframer_.reset_counters();
+    if (m.target_mask & 0x2u) {
+      learner_.reset();
+      valves_pending_ = false;
+      have_prev_gyro_ = false;
+    }
     if (!(m.target_mask & 0x1u)) return;
     nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
     pending_.valid = false;
@@ -282,9 +335,17 @@ class FlightApp {
     typename Nav::MeasCov R = Nav::MeasCov::Identity();
   };
 
+  using Learner = ThrusterBlr<S, 30>;
+
   NavConfig<S> nav_cfg_;
   Nav nav_;
   PendingPose pending_;
+  Learner learner_;
+  ThrusterValvesMsg<S> valves_;
+  double valves_t_s_ = 0.0;
+  bool valves_pending_ = false;
+  Vec3<S> prev_gyro_ = Vec3<S>::Zero();
+  bool have_prev_gyro_ = false;
   Deframer deframer_;
   Framer framer_;
   Counters counters_;
