@@ -54,12 +54,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--learner", action="store_true", help="valve commands and tm_learner on the link too")
     args = ap.parse_args(argv)
 
     rows = []
     for i in range(args.repeat):
         rtf_in = in_process_rtf(args.duration, args.seed)
-        res = run_hil(HilConfig(duration_s=args.duration, seed=args.seed))
+        res = run_hil(HilConfig(duration_s=args.duration, seed=args.seed, learner=args.learner))
         rows.append({"in_process_rtf": rtf_in, "link_rtf": res["real_time_factor"],
                      "p50_ms": res["step_latency_p50_ms"], "p99_ms": res["step_latency_p99_ms"],
                      "steps": res["steps"], "timeouts": res["step_timeouts"]})
@@ -75,6 +76,7 @@ def main(argv=None) -> dict:
         "duration_s": args.duration,
         "repeat": args.repeat,
         "seed": args.seed,
+        "learner": bool(args.learner),
         "in_process_rtf_median": med("in_process_rtf"),
         "link_rtf_median": med("link_rtf"),
         "link_rtf_min": float(min(r["link_rtf"] for r in rows)),

@@ -62,8 +62,9 @@ def _isotropic_sigma(block: np.ndarray, name: str) -> float:
 
 
 class LinkNav:
-    def __init__(self, link: PtyLink, step_timeout_s: float = 0.05):
+    def __init__(self, link: PtyLink, step_timeout_s: float = 0.05, send_valves: bool = False):
         self.link = link
+        self.send_valves = send_valves
         self.step_timeout_s = step_timeout_s
         self.sender = pk.Sender()
         self.deframer = pk.Deframer(pk.FROM_FLIGHT)
@@ -127,7 +128,7 @@ class LinkNav:
     def note_valves(self, t_s: float, interval_s: float, mask: int):
         """thruster_valves for the firing interval starting at t_s (no answer
         expected; the IMU sample that ends the interval brings tm_learner)."""
-        if mask:
+        if mask and self.send_valves:
             self._send(_VALVES, t_s, pk.pack_payload(_VALVES, float(interval_s), int(mask)), hold=True)
 
     def configure(self, param_id: int, value: float, t_s: float = 0.0):

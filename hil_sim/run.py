@@ -29,6 +29,9 @@ class HilConfig:
     faults: FaultConfig = field(default_factory=FaultConfig)
     step_timeout_s: float = 0.05
     scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    # Send each firing interval's valve command so the flight app's thruster
+    # learner learns (one more packet up, tm_learner down, per firing step).
+    learner: bool = False
 
 
 class _Pacer:
@@ -55,7 +58,7 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
     """Runs docking scenarios over the link until cfg.duration_s of
     simulated time have passed. Returns the runs, link statistics and timing."""
     link = PtyLink(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed)
-    nav = LinkNav(link, step_timeout_s=cfg.step_timeout_s)
+    nav = LinkNav(link, step_timeout_s=cfg.step_timeout_s, send_valves=cfg.learner)
     runs = []
     wall0 = time.perf_counter()
     t_done = 0.0

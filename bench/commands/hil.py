@@ -22,6 +22,8 @@ def register(sub):
     p.add_argument("--reorder-rate", type=float, default=0.0)
     p.add_argument("--stall-rate", type=float, default=0.0, help="probability of a stall per chunk")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--learner", action="store_true",
+                   help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)")
     p.add_argument("--json", default=None, help="write the summary JSON here")
     p.add_argument("--report", default=None, help="report folder: plots, JSON, flight log")
     p.set_defaults(func=main)
@@ -103,7 +105,7 @@ def main(args):
               file=sys.stderr, flush=True)
 
     cfg = HilConfig(duration_s=args.duration, realtime=args.realtime, seed=args.seed, faults=faults,
-                    step_timeout_s=timeout)
+                    step_timeout_s=timeout, learner=getattr(args, "learner", False))
     res = run_hil(cfg, progress=progress)
     s = hil_summary(res, args)
     print_summary(s)

@@ -21,5 +21,5 @@ def main(args):
           f"{args.duration:.0f} s simulated, seed {args.seed}")
     hil_args = argparse.Namespace(scenario="docking", duration=args.duration, realtime=False, ber=0.0,
                                   drop_rate=0.0, burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0,
-                                  stall_rate=0.0, seed=args.seed, json=None, report=args.report)
+                                  stall_rate=0.0, seed=args.seed, json=None, report=args.report, learner=True)
     return hil.main(hil_args)

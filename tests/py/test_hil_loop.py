@@ -77,7 +77,7 @@ def test_fsw_node_stops_cleanly_on_sigterm():
 
 
 def test_flight_learner_hears_the_valve_commands_and_reports_over_the_link():
-    res = run_hil(HilConfig(duration_s=30.0, seed=5))
+    res = run_hil(HilConfig(duration_s=30.0, seed=5, learner=True))
     outs = res["learner_outputs"]
     assert len(outs) > 30  # one tm_learner per firing interval
     n_samples = [v[0] for _, v in outs]
