@@ -216,3 +216,24 @@ TEST(FlightAppTest, ValveCommandsTeachTheThrusterLearnerAndItsOutputIsTelemetry)
   EXPECT_LT((tm.learner.back().variance - pred.variance).cwiseAbs().maxCoeff(), 1e-15);
   EXPECT_EQ(tm.rejected, 0);
 }
+
+TEST(FlightAppTest, LearnerSkipsAnIntervalWhoseOpeningImuSampleWasLost) {
+  // Valves for [0.2, 0.3) but the 0.2 s sample never arrived: the gyro change
+  // from 0.1 to 0.3 spans two intervals, so the sample must not be learned.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  up.imu(0.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  up.valves(0.1, 0.1, 3);
+  up.imu(0.2, Vec3<double>(1e-3, 0, 0), Vec3<double>(0, 0, 0.01));  // ends [0.1, 0.2): learned
+  up.valves(0.2, 0.1, 5);
+  // the 0.3 s sample (end of [0.2, 0.3)) is lost; valves for [0.3, 0.4) follow
+  up.valves(0.3, 0.1, 6);
+  up.imu(0.4, Vec3<double>(1e-3, 0, 0), Vec3<double>(0, 0, 0.02));  // its opening sample (0.3 s) lost: skipped
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(app->counters().valves, 3u);
+  EXPECT_EQ(app->counters().learner_samples, 1u);
+  EXPECT_EQ(tm.learner.size(), 1u);
+}

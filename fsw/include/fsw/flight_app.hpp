@@ -152,11 +152,13 @@ class FlightApp {
 
   // The IMU sample whose interval is the held firing interval teaches the
   // learner that valve mask's effect; the gyro's change across the interval
-  // is the dw (the previous sample is kept for it).
+  // is the dw (the previous sample is kept for it, and must be the one that
+  // opened the interval: after a lost sample the dw would span two).
   void learn(double t_s, const ImuSampleMsg<S>& m) {
     const bool covers = valves_pending_ && valves_.valve_mask != 0 &&
                         std::abs(t_s - valves_t_s_ - double(valves_.interval_s)) <= nav_cfg_.time_tol_s;
-    if (covers && have_prev_gyro_) {
+    const bool prev_opens = have_prev_gyro_ && std::abs(prev_gyro_t_s_ - valves_t_s_) <= nav_cfg_.time_tol_s;
+    if (covers && prev_opens) {
       valves_pending_ = false;
       typename Learner::VecY y;
       y.template head<3>() = m.accel_b_mps2 * valves_.interval_s;
@@ -176,6 +178,7 @@ class FlightApp {
       valves_pending_ = false;  // its interval's IMU sample never came
     }
     prev_gyro_ = m.omega_bi_b_rps;
+    prev_gyro_t_s_ = t_s;
     have_prev_gyro_ = true;
   }
 
@@ -345,6 +348,7 @@ class FlightApp {
   double valves_t_s_ = 0.0;
   bool valves_pending_ = false;
   Vec3<S> prev_gyro_ = Vec3<S>::Zero();
+  double prev_gyro_t_s_ = 0.0;
   bool have_prev_gyro_ = false;
   Deframer deframer_;
   Framer framer_;
