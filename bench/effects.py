@@ -86,6 +86,16 @@ class EffectSpec:
         """The effect's magnitude (the quantity ``typical`` and ``min_detectable`` measure)."""
         return self.size_fn(canonical(self.name, params))
 
+    def at(self, unit_params, size: float) -> np.ndarray:
+        """``unit_params`` (a draw at size 1) taken to ``size``: the size
+        parameters scale, the others (a frequency, a phase, a fraction) stay."""
+        p = np.asarray(unit_params, float).ravel().copy()
+        keep = _FIXED_PARAMS.get(self.name, ())
+        scale = np.ones(p.size, bool)
+        scale[list(keep)] = False
+        p[scale] *= size
+        return p
+
     def draw(self, rng: np.random.Generator, scale: float) -> np.ndarray:
         """A parameter vector of size ``scale * min_detectable``, random
         direction and sign where the effect has them."""
@@ -105,6 +115,9 @@ def _pos_draw(rng, size):
 def _signed_draw(rng, size):
     return np.array([size * rng.choice([-1.0, 1.0])])
 
+
+# Parameters that do not scale with an effect's size (EffectSpec.at).
+_FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": (1,)}
 
 # min_detectable: measured with `python -m bench.reality detect` (docs/EFFECTS.md).
 EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
@@ -145,7 +158,8 @@ EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
     EffectSpec("differential_drag", "dynamics", True, 1, "m^2/kg",
                "ballistic coefficient C_d A / m of the inspector minus the host's (rho = 5e-13 kg/m^3)",
                0.015, 18.7, ("dB",), _first, _signed_draw),
-    EffectSpec("flex_mode", "dynamics", True, 2, "Hz, rad",
+    # No diagnoser candidate models a flexible mode: out of its library.
+    EffectSpec("flex_mode", "dynamics", False, 2, "Hz, rad",
                "flexible appendage mode about body z: coupled frequency and body-angle amplitude (size: amplitude)",
                0.005, 4.1e-3, ("freq_hz", "amplitude_rad"), lambda p: float(abs(p[1])),
                lambda rng, size: np.array([np.exp(rng.uniform(np.log(0.1), np.log(1.0))), size])),

@@ -34,16 +34,32 @@ def main(args):
     out = public(res)
     if args.json:
         write_json(args.json, out)
-    w = (out["location"]["where"] or {})
-    print(f"gap detected: {'yes' if out['gap_detected'] else 'no'}")
-    if out["gap_detected"]:
-        print(f"  where:   {w.get('stream')} {w.get('axis')} ({w.get('stat')}, peak while {w.get('regime_peak')}); "
-              f"{out['location']['dynamics_or_sensor']} gap")
-        best = out["attribution"][0]["effect"] if out["attribution"] else None
-        print(f"  which:   {best if out['verdict'] != 'unexplained' else 'unexplained'} ({out['verdict']})")
-        if out["shrink_heldout"]:
-            s = out["shrink_heldout"]
-            print(f"  how far: held-out deficit shrinks {100 * s['fraction']:.0f} % "
-                  f"[{100 * s['ci95'][0]:.0f}, {100 * s['ci95'][1]:.0f}] with {s['effect']}")
+    print_answers(out)
     print(f"diagnosed in {out['elapsed_s']:.1f} s")
     return 0
+
+
+def print_answers(out: dict, indent: str = "") -> None:
+    """The three answers: where, which, how far."""
+    w = (out["location"]["where"] or {})
+    print(f"{indent}gap detected: {'yes' if out['gap_detected'] else 'no'}")
+    if out["gap_detected"]:
+        acts = out["location"].get("effect_acts_while")
+        # While which regime: from the fitted effect's signature when one explains
+        # the gap, else from the gap map's strongest regime cell.
+        regime = (f"acting while {acts['peak']}" if acts and acts["peak"]
+                  else f"strongest while {w.get('regime_peak')}")
+        print(f"{indent}  where:   {w.get('stream')} {w.get('axis')} ({w.get('stat')}), {regime}; "
+              f"a {out['location']['dynamics_or_sensor']} gap")
+        best = out["attribution"][0] if out["attribution"] else None
+        which = best["effect"] if best is not None and out["verdict"] != "unexplained" else "unexplained"
+        print(f"{indent}  which:   {which} ({out['verdict']})")
+        if best is not None and out["verdict"] != "unexplained":
+            pars = ", ".join(f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in best["parameters"].items()
+                             if abs(v["value"]) > 2 * v["sigma"])
+            if pars:
+                print(f"{indent}           fitted (beyond 2 sigma): {pars}")
+        if out["shrink_heldout"]:
+            s = out["shrink_heldout"]
+            print(f"{indent}  how far: held-out deficit shrinks {100 * s['fraction']:.0f} % "
+                  f"[{100 * s['ci95'][0]:.0f}, {100 * s['ci95'][1]:.0f}] with {s['effect']}")

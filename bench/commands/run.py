@@ -1,9 +1,12 @@
 """`proxops run`: the main job behind `make run`: the docking scenario with
 the flight executable behind the pseudo-terminal link, a printed summary
-and a report folder (plots, JSON, the flight log)."""
+and a report folder (plots, JSON, the flight log); then the sim-to-real gap
+diagnosis of the bundled reality run (bench/gap/bundled.py), whose effect
+the diagnoser is not told, with its three answers: where, which, how far."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def register(sub):
@@ -22,4 +25,29 @@ def main(args):
     hil_args = argparse.Namespace(scenario="docking", duration=args.duration, realtime=False, ber=0.0,
                                   drop_rate=0.0, burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0,
                                   stall_rate=0.0, seed=args.seed, json=None, report=args.report, learner=True)
-    return hil.main(hil_args)
+    rc = hil.main(hil_args)
+    if rc:
+        return rc
+    return diagnose_bundled(Path(args.report) / "gap")
+
+
+def diagnose_bundled(report_dir: Path) -> int:
+    """Diagnose the bundled reality run, blind, then open its sealed key."""
+    from bench.commands.diagnose import print_answers
+    from bench.flight_log import read_flight_log
+    from bench.gap import bundled
+    from bench.gap.diagnose import diagnose, public
+    from bench.gap.report import write_report
+    from bench.report import write_json
+
+    print(f"\nproxops run: sim-to-real gap diagnosis of the bundled reality run ({bundled.LOG.name}, "
+          f"effect sealed in {bundled.KEY.name})")
+    res = diagnose(read_flight_log(bundled.LOG), progress=False)
+    page = write_report(res, report_dir, bundled.LOG.name)
+    out = public(res)
+    write_json(report_dir / "diagnosis.json", out)
+    print_answers(out, indent="  ")
+    print(f"  diagnosed in {out['elapsed_s']:.1f} s; report {page}")
+    key = bundled.sealed_key()
+    print(f"  sealed key, opened after the answer: {key['effects']}")
+    return 0

@@ -29,6 +29,9 @@ def main(args):
         o = res["out_of_library"]
         print(f"out-of-library: unexplained {o['unexplained_rate']:.2f}, not detected {o['not_detected_rate']:.2f}, "
               f"confident misattribution {o['confident_misattribution_rate']:.2f} (n = {o['n']})")
+    b = res["beyond_detection_limit"]
+    print(f"beyond the detection limit of their run (scored apart): {b['n']} runs, "
+          + ", ".join(f"{e} {v['detected']}/{v['n']} detected" for e, v in b["by_effect"].items()))
     sh = res["shrink_heldout"]
     print(f"held-out shrink median: true effect {sh['true_effect_median']}, wrong effect {sh['wrong_effect_median']}")
     print(f"95 % interval coverage: {res['interval_coverage_95']['fraction']}")

@@ -10,7 +10,8 @@ and the dynamics channel, IMU against the valve model (bench/gap/dyn.py).
    linearised generalised likelihood ratio on the training rows,
        theta_hat = argmin |e0 + J theta|^2 (inside the plausible bounds),
        2 dLL = |e0|^2 - |e0 + J theta_hat|^2,
-   ranked by BIC evidence 2 dLL - rank(J) ln(n).
+   ranked by BIC evidence 2 dLL - rank(J) ln(n). The detection statistic is
+   the smallest p-value of 2 dLL against chi2(rank) over the candidates.
 2. Confirm (the top few): refit with the full filter (scipy least_squares,
    every residual evaluation a full replay), then the exact training
    log-likelihood gain and its BIC.
@@ -72,6 +73,7 @@ class Fit:
     screen_2dll: float
     screen_bic: float
     rank: int = 0
+    screen_logp: float = 0.0  # -log10 P(chi2_rank > screen_2dll): the detection statistic
     dll_train: float = float("nan")
     bic: float = float("nan")
     confirmed: bool = False
@@ -85,31 +87,60 @@ def _dyn_jac(ctx: Context, name: str):
     return ctx.ch.jacobian(name)
 
 
-def screen(ctx: Context, names=None, progress=None) -> list:
-    d, nominal = ctx.d, ctx.nominal
-    e_nav = nominal.white[ctx.train_nav]
+def training_residuals(ctx: Context, nav: Pass | None = None):
+    """The training rows of both channels, whitened, as one vector; and the
+    mask of complete navigation rows among the training ones."""
+    p = nav if nav is not None else ctx.nominal
+    e_nav = p.white[ctx.train_nav]
     rows_ok = np.all(np.isfinite(e_nav), axis=1)
-    e_nav = e_nav[rows_ok].ravel()
     e_dyn = ctx.ch.e0[ctx.train_dyn].ravel() if ctx.ch is not None else np.zeros(0)
-    e0 = np.concatenate([e_nav, e_dyn])
+    return np.concatenate([e_nav[rows_ok].ravel(), e_dyn]), rows_ok
+
+
+def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
+    """Candidate ``name``'s Jacobian on the training rows of both channels
+    (finite differences through the filter, closed form on the dynamics
+    channel), and the dynamics Jacobian on every row (None without one)."""
+    d = ctx.d
+    c = CANDIDATES[name]
+    e_nav = ctx.nominal.white[ctx.train_nav][rows_ok].ravel()
+    n_dyn = int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0
+    Jn = np.zeros((e_nav.size, c.n_params))
+    if c.nav:
+        for i in range(c.n_params):
+            th = np.zeros(c.n_params)
+            th[i] = c.scale
+            w = run_pass(d, c.corrections(th, d)).white[ctx.train_nav][rows_ok].ravel()
+            Jn[:, i] = (np.nan_to_num(w, nan=0.0) - e_nav) / c.scale
+            if progress:
+                progress()
+    Jd_full = _dyn_jac(ctx, name)
+    Jd = (Jd_full[ctx.train_dyn].reshape(-1, c.n_params) if Jd_full is not None
+          else np.zeros((n_dyn, c.n_params)))
+    return np.vstack([Jn, Jd]), Jd_full
+
+
+def screen_logp(two_dll: float, rank: int) -> float:
+    """-log10 of the GLR's p-value against chi2(rank): comparable across
+    candidates of different sizes, unlike BIC (whose ln n per parameter makes
+    a 16-parameter candidate need 16 ln n before it counts)."""
+    from scipy.stats import chi2
+
+    return float(-chi2.logsf(max(two_dll, 0.0), rank) / np.log(10.0))
+
+
+def numerical_rank(J: np.ndarray) -> int:
+    return int(np.linalg.matrix_rank(J / (np.linalg.norm(J, axis=0) + 1e-300)))
+
+
+def screen(ctx: Context, names=None, progress=None) -> list:
+    e0, rows_ok = training_residuals(ctx)
     n_obs = e0.size
     fits = []
     for name in names or CANDIDATES:
         c = CANDIDATES[name]
-        Jn = np.zeros((e_nav.size, c.n_params))
-        if c.nav:
-            for i in range(c.n_params):
-                th = np.zeros(c.n_params)
-                th[i] = c.scale
-                w = run_pass(d, c.corrections(th, d)).white[ctx.train_nav][rows_ok].ravel()
-                Jn[:, i] = (np.nan_to_num(w, nan=0.0) - e_nav) / c.scale
-                if progress:
-                    progress()
-        Jd_full = _dyn_jac(ctx, name)
-        Jd = (Jd_full[ctx.train_dyn].reshape(-1, c.n_params) if Jd_full is not None
-              else np.zeros((e_dyn.size, c.n_params)))
-        J = np.vstack([Jn, Jd])
-        rank = int(np.linalg.matrix_rank(J / (np.linalg.norm(J, axis=0) + 1e-300)))
+        J, Jd_full = signature(ctx, name, rows_ok, progress)
+        rank = numerical_rank(J)
         if rank == 0:
             fits.append(Fit(name, c.kind, np.zeros(c.n_params), np.full(c.n_params, np.nan), 0.0, -np.inf, 0))
             continue
@@ -121,7 +152,7 @@ def screen(ctx: Context, names=None, progress=None) -> list:
         r1 = e0 + J @ u
         two_dll = float(e0 @ e0 - r1 @ r1)
         sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0, None))
-        f = Fit(name, c.kind, u, sig, two_dll, two_dll - rank * np.log(n_obs), rank)
+        f = Fit(name, c.kind, u, sig, two_dll, two_dll - rank * np.log(n_obs), rank, screen_logp(two_dll, rank))
         f.Jd_full = Jd_full
         fits.append(f)
     fits.sort(key=lambda f: -f.screen_bic)

@@ -2,7 +2,7 @@
 
 Detection uses two statistics, each with a threshold from the null
 calibration (bench/gap/null.py): the largest |z| of the gap map, and the
-best screening evidence (BIC of the linearised GLR) over the candidates.
+smallest p-value of the screening GLR over the candidates (as -log10 p).
 
 Verdict when a gap is detected (the best confirmed candidate by BIC):
   explained    it wins the held-out data: held-out log-likelihood gain
@@ -71,6 +71,18 @@ def _map_of(d: LogData, p: Pass):
     return localise.gap_map(d, res, white=p.white[ok])
 
 
+def context(d: LogData) -> Context:
+    """The nominal pass over a prepared log, its dynamics channel, and the
+    training / held-out split of both channels (even / odd time blocks)."""
+    nominal = _pass_from(reference(d), d)
+    ch = dyn.build(d)
+    edges = quantify.block_edges(d.imu_t[0], d.imu_t[-1])
+    train, held = quantify.split_blocks(d.pose_tc, edges=edges)
+    ok = np.isfinite(nominal.nis)
+    train_dyn, held_dyn = quantify.split_blocks(ch.t, edges=edges) if ch is not None else (None, None)
+    return Context(d, nominal, ch, train & ok, held & ok, train_dyn, held_dyn)
+
+
 def diagnose(log, calibration: dict | None = None, progress: bool = False, n_confirm: int = N_CONFIRM,
              confirm_always: bool = False) -> dict:
     """Diagnose one log. Returns a JSON-ready dict; ``result["_internal"]``
@@ -80,23 +92,15 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     d = prepare(log)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
     prog = _Progress(1 + n_screen, progress)
-    ref = reference(d)
+    ctx = context(d)
     prog()
-    nominal = _pass_from(ref, d)
-    ch = dyn.build(d)
-    edges = quantify.block_edges(d.imu_t[0], d.imu_t[-1])
-    train, held = quantify.split_blocks(d.pose_tc, edges=edges)
-    ok = np.isfinite(nominal.nis)
-    train &= ok
-    held &= ok
-    train_dyn, held_dyn = quantify.split_blocks(ch.t, edges=edges) if ch is not None else (None, None)
-    ctx = Context(d, nominal, ch, train, held, train_dyn, held_dyn)
+    nominal, ch, train, held, held_dyn = ctx.nominal, ctx.ch, ctx.train_nav, ctx.held_nav, ctx.held_dyn
     cells = _map_of(d, nominal) + localise.dyn_cells(d, ch)
     t_map = localise.map_statistic(cells)
     fits = screen(ctx, progress=prog)
-    t_glr = max(f.screen_bic for f in fits)
+    t_glr = max(f.screen_logp for f in fits)
     thr = cal.get("thresholds", {})
-    thr_map, thr_glr = float(thr.get("map_max_abs_z", np.inf)), float(thr.get("screen_bic", np.inf))
+    thr_map, thr_glr = float(thr.get("map_max_abs_z", np.inf)), float(thr.get("screen_logp", np.inf))
     detected = bool(t_map > thr_map or t_glr > thr_glr)
 
     def held_shrink(after_nav: Pass, after_dyn):
@@ -171,15 +175,21 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             dyn_or_sensor = "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques") and where["regime_peak"] == "firing") \
                 or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
     best = ranking[0] if ranking else None
+    acts = None
+    if verdict in ("explained", "ambiguous"):
+        f = next(f for f in fits if f.name == best["effect"])
+        acts = localise.signature_regimes(d, ch, nominal.white, f.after_nav.white, nominal.res, f.after_dyn)
     shrink_best = best["shrink_heldout"] if best else None
-    screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "screen_bic": f.screen_bic}
+    screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "rank": f.rank,
+                     "screen_logp": f.screen_logp, "screen_bic": f.screen_bic}
                     for f in fits]
     out = {
         "gap_detected": detected,
-        "statistics": {"map_max_abs_z": t_map, "map_threshold": thr_map, "screen_bic_max": t_glr,
-                       "screen_bic_threshold": thr_glr, "false_alarm_rate": cal.get("false_alarm_rate"),
+        "statistics": {"map_max_abs_z": t_map, "map_threshold": thr_map, "screen_logp_max": t_glr,
+                       "screen_logp_threshold": thr_glr, "screen_bic_max": max(f.screen_bic for f in fits), "false_alarm_rate": cal.get("false_alarm_rate"),
                        "calibration_runs": cal.get("runs")},
-        "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"]},
+        "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"],
+                     "effect_acts_while": acts},
         "attribution": ranking,
         "screening": screen_table,
         "verdict": verdict,

@@ -61,6 +61,22 @@ class DynChannel:
             out[a:b] = solve_banded((1, 0), L, x[a:b])
         return out
 
+    def unwhiten_gyro(self, w: np.ndarray) -> np.ndarray:
+        """The raw differences (over sigma_g) behind whitened gyro rows: L w."""
+        out = np.empty_like(w)
+        for (a, b), L in zip(self.seg_bounds, self.chol):
+            x = L[0][:, None] * w[a:b]
+            x[1:] += L[1][:-1, None] * w[a:b - 1]
+            out[a:b] = x
+        return out
+
+    def adjacent_gyro_rows(self) -> np.ndarray:
+        """(n_gyro_rows,) True where row i and row i + 1 share a segment (their differences correlate, -1/2)."""
+        adj = np.zeros(self.gyro_rows.size, bool)
+        for a, b in self.seg_bounds:
+            adj[a:b - 1] = True
+        return adj
+
     def jacobian(self, name: str) -> np.ndarray | None:
         """d(e)/d(theta) (R, 3, k): the change of the whitened rows per unit parameter."""
         f = _JAC.get(name)

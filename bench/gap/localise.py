@@ -154,17 +154,33 @@ def dyn_cells(d: LogData, ch, rows: np.ndarray | None = None) -> list:
         return []
     e_all = ch.e0 if rows is None else rows
     masks = dyn_regimes(d, ch)
+    gyro = ch.kind == 1
+    # Regime cells of the gyro stream use the raw differences: a whitened row
+    # carries every earlier row's error (the inverse Cholesky factor is dense),
+    # so a torque error made while firing would show in the coasting rows after.
+    raw_g = ch.unwhiten_gyro(e_all[gyro])
+    adj = ch.adjacent_gyro_rows()
     cells = []
     for stream, kind in DYN_STREAMS:
         sel = ch.kind == kind
         for a in range(3):
             for regime in REGIMES:
                 m = sel & masks[regime]
-                e = e_all[m, a]
-                n = e.size
+                n = int(m.sum())
                 if n < MIN_CELL:
                     continue
                 base = {"stream": stream, "axis": "xyz"[a], "frame": "body", "regime": regime, "n": n}
+                if kind == 1 and regime != "all":
+                    mg = m[gyro]
+                    x = raw_g[mg, a]
+                    # Differences of white noise: variance 2, lag-1 covariance -1.
+                    p = int(np.sum(mg[:-1] & mg[1:] & adj[:-1]))
+                    cells.append({**base, "stat": "mean", "z": float(x.sum() / np.sqrt(2 * n - 2 * p)),
+                                  "value": float(x.mean())})
+                    cells.append({**base, "stat": "variance", "z": float((x @ x - 2 * n) / np.sqrt(8 * n + 4 * p)),
+                                  "value": float(x @ x / (2 * n))})
+                    continue
+                e = e_all[m, a]
                 cells.append({**base, "stat": "mean", "z": float(e.mean() * np.sqrt(n)), "value": float(e.mean())})
                 cells.append({**base, "stat": "variance", "z": float((e @ e - n) / np.sqrt(2 * n)),
                               "value": float(e @ e / n)})
@@ -174,3 +190,30 @@ def dyn_cells(d: LogData, ch, rows: np.ndarray | None = None) -> list:
                     z, fpk = _lowfreq_z(e, d.dt_s)
                     cells.append({**base, "stat": "lowfreq", "z": z, "value": fpk})
     return cells
+
+
+def signature_regimes(d: LogData, ch, nominal_white: np.ndarray, after_white: np.ndarray, res: ReplayResult | None,
+                      after_dyn: np.ndarray | None) -> dict:
+    """Where a fitted effect acts: its signature's energy per row (the change
+    it makes to the residuals, gyro rows as raw differences) in each regime.
+    Returns {regime: mean energy per row} and the regime where it peaks."""
+    energy = {r: [0.0, 0] for r in REGIMES[1:]}
+    if res is not None and res.index.size:
+        dn = np.nan_to_num(after_white[res.index] - nominal_white[res.index])
+        m = regimes(d, res)
+        en = np.sum(dn**2, axis=1)
+        for r in REGIMES[1:]:
+            energy[r][0] += float(en[m[r]].sum())
+            energy[r][1] += int(m[r].sum())
+    if ch is not None and after_dyn is not None:
+        delta = after_dyn - ch.e0
+        g = ch.kind == 1
+        delta[g] = ch.unwhiten_gyro(delta[g]) / np.sqrt(2.0)
+        en = np.sum(delta**2, axis=1)
+        m = dyn_regimes(d, ch)
+        for r in REGIMES[1:]:
+            energy[r][0] += float(en[m[r]].sum())
+            energy[r][1] += int(m[r].sum())
+    per_row = {r: (e / n if n else 0.0) for r, (e, n) in energy.items()}
+    peak = max(per_row, key=per_row.get) if any(per_row.values()) else None
+    return {"energy_per_row": per_row, "peak": peak}

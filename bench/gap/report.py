@@ -104,6 +104,10 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     else:
         lines.append(f"- **Where**: {w.get('stream')} axis {w.get('axis')} ({w.get('frame')}), statistic "
                      f"`{w.get('stat')}`, strongest while {w.get('regime_peak')}; a **{loc['dynamics_or_sensor']}** gap.")
+        acts = loc.get("effect_acts_while")
+        if acts and acts["peak"]:
+            lines.append(f"- The fitted effect acts mostly while **{acts['peak']}** (its signature's energy per row: "
+                         + ", ".join(f"{r} {v:.3g}" for r, v in acts["energy_per_row"].items()) + ").")
         if result["verdict"] == "unexplained":
             lines.append("- **Which**: **unexplained**: no effect in the library accounts for the gap on held-out data.")
         else:
@@ -115,7 +119,7 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
             lines.append(f"- **How far**: adding {best['effect']} shrinks the held-out deficit by "
                          f"{100 * sh['fraction']:.0f} % (95 % CI {100 * sh['ci95'][0]:.0f} to {100 * sh['ci95'][1]:.0f} %).")
     lines += ["", f"Detection: gap-map max |z| = {st['map_max_abs_z']:.2f} (threshold {st['map_threshold']:.2f}); "
-              f"best screening BIC = {st['screen_bic_max']:.1f} (threshold {st['screen_bic_threshold']:.1f}); "
+              f"best screening -log10 p = {st['screen_logp_max']:.2f} (threshold {st['screen_logp_threshold']:.2f}); "
               f"thresholds from {st['calibration_runs']} null runs, false-alarm rate {st['false_alarm_rate']}.", ""]
     if result["ambiguous_with"]:
         lines += ["### Not told apart", ""]

@@ -74,7 +74,8 @@ def key_hash(key: dict) -> str:
 
 
 def draw_campaign(n_runs: int, seed: int) -> list:
-    """The drawn keys: [{"run", "seed", "category", "effect", "scale", "effects": {name: params}}]."""
+    """The drawn plan: [{"run", "seed", "category", "effect", "scale", "unit"}];
+    ``unit`` is the effect's direction (a draw at size 1; sign, spread, phase)."""
     from bench.effects import EFFECTS
 
     rng = np.random.default_rng(seed)
@@ -90,10 +91,31 @@ def draw_campaign(n_runs: int, seed: int) -> list:
     keys = []
     for run, j in enumerate(order):
         cat, eff, scale = plan[j]
-        effects = {} if eff is None else {eff: [float(x) for x in EFFECTS[eff].draw(rng, scale)]}
+        unit = None if eff is None else [float(x) for x in EFFECTS[eff].draw_fn(rng, 1.0)]
         keys.append({"run": run, "seed": int(rng.integers(0, 2**31)), "category": cat, "effect": eff,
-                     "scale": scale, "effects": effects})
+                     "scale": scale, "unit": unit, "effects": {}})
     return keys
+
+
+def _size_one(arg):
+    """The drawn run's minimum detectable size, and its effect at scale x that."""
+    key, duration_s, calibration = arg
+    from bench.effects import EFFECTS
+    from bench.gap.detectable import min_detectable_size
+
+    key = dict(key)
+    if key["effect"] is None:
+        return key
+    spec = EFFECTS[key["effect"]]
+    md = min_detectable_size(key["seed"], key["effect"], key["unit"], duration_s, calibration)
+    key["min_detectable"] = md["size"]
+    key["detectable"] = md["detectable"]
+    # Beyond the effect's largest sensible size in this run: simulated at that
+    # size and scored apart (the run's manoeuvres cannot show it).
+    size = key["scale"] * md["size"] if md["detectable"] else spec.max_size
+    key["effects"] = {key["effect"]: [float(x) for x in spec.at(key["unit"], min(size, spec.max_size))]}
+    key["size"] = float(min(size, spec.max_size))
+    return key
 
 
 def simulate(key: dict, duration_s: float):
@@ -150,7 +172,7 @@ def _run_one(arg):
            "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
            "ranking": [r["effect"] for r in pub["attribution"]],
            "shrink_best": pub["shrink_heldout"]["fraction"] if pub["shrink_heldout"] else None,
-           "map_max_abs_z": pub["statistics"]["map_max_abs_z"], "screen_bic_max": pub["statistics"]["screen_bic_max"],
+           "map_max_abs_z": pub["statistics"]["map_max_abs_z"], "screen_logp_max": pub["statistics"]["screen_logp_max"],
            "screen_top": pub["screening"][0]["effect"] if pub["screening"] else None,
            "t_sim_s": t_sim, "t_diagnose_s": pub["elapsed_s"]}
     # Scoring fits (after the answer is frozen): the true effect and a wrong one.
@@ -169,7 +191,10 @@ def score(keys: list, answers: list) -> dict:
     by = {a["run"]: a for a in answers}
 
     def label_truth(k):
-        return "null" if k["category"] == "null" else (k["effect"] if k["category"] == "in_library" else f"out:{k['effect']}")
+        if k["category"] == "null":
+            return "null"
+        lab = k["effect"] if k["category"] == "in_library" else f"out:{k['effect']}"
+        return lab if k.get("detectable", True) else f"{lab} (beyond limit)"
 
     def label_answer(a):
         if not a["gap_detected"]:
@@ -182,11 +207,22 @@ def score(keys: list, answers: list) -> dict:
         confusion.setdefault(t, {}).setdefault(a, 0)
         confusion[t][a] += 1
     null = [by[k["run"]] for k in keys if k["category"] == "null"]
-    outl = [by[k["run"]] for k in keys if k["category"] == "out_of_library"]
-    inl = [(k, by[k["run"]]) for k in keys if k["category"] == "in_library"]
+    # Runs whose effect no size up to its largest sensible one makes detectable
+    # in that run's manoeuvres are scored apart: there is no 1x or 2x to test.
+    beyond = [(k, by[k["run"]]) for k in keys if k["effect"] is not None and not k.get("detectable", True)]
+    outl = [by[k["run"]] for k in keys if k["category"] == "out_of_library" and k.get("detectable", True)]
+    inl = [(k, by[k["run"]]) for k in keys if k["category"] == "in_library" and k.get("detectable", True)]
     res = {"runs": len(keys), "confusion": confusion,
            "false_alarm_rate": float(np.mean([a["gap_detected"] for a in null])) if null else None,
            "n_null": len(null)}
+    by_eff = {}
+    for k, a in beyond:
+        e = by_eff.setdefault(k["effect"], {"n": 0, "detected": 0, "answers": {}})
+        e["n"] += 1
+        e["detected"] += int(a["gap_detected"])
+        lab = label_answer(a)
+        e["answers"][lab] = e["answers"].get(lab, 0) + 1
+    res["beyond_detection_limit"] = {"n": len(beyond), "by_effect": by_eff}
     if outl:
         res["out_of_library"] = {
             "n": len(outl),
@@ -240,14 +276,15 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration
                  progress: bool = True) -> dict:
     from bench.gap import null as nullmod
 
-    keys = draw_campaign(n_runs, seed)
+    cal = nullmod.load()
+    t0 = time.time()
+    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_campaign(n_runs, seed)], workers, progress,
+                    "minimum detectable sizes")
     hashes = [key_hash(k) for k in keys]
     if out:
         prereg = Path(str(out) + ".prereg.json")
         prereg.parent.mkdir(parents=True, exist_ok=True)
         prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "key_sha256": hashes}, indent=1) + "\n")
-    cal = nullmod.load()
-    t0 = time.time()
     answers = pool_map(_run_one, [(k, duration_s, cal) for k in keys], workers, progress, "validate-gap")
     # Only now: the keys are re-hashed and compared with the answers.
     if [key_hash(k) for k in keys] != hashes:

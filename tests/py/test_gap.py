@@ -81,3 +81,79 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path):
     assert res["runs"] == 4 and len(res["answers"]) == 4
     assert sum(sum(v.values()) for v in res["confusion"].values()) == 4
     assert all(a["verdict"] in ("no_gap", "explained", "ambiguous", "unexplained") for a in res["answers"])
+    drawn = [k for k in res["keys"] if k["effect"] is not None]
+    for k in drawn:  # each effect drawn at scale x its run's minimum detectable size, or scored apart
+        if k["detectable"]:
+            from bench.effects import EFFECTS
+
+            spec = EFFECTS[k["effect"]]
+            assert spec.size(k["effects"][k["effect"]]) == pytest.approx(k["scale"] * k["min_detectable"], rel=1e-9)
+
+
+def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
+    from scipy.stats import chi2
+
+    from bench.gap.detectable import required_noncentrality
+
+    rng = np.random.default_rng(5)
+    for k in (1, 3, 16):
+        c = float(chi2.isf(1e-4, k))
+        lam = required_noncentrality(k, c, 0.95)
+        # A noncentral chi-square(k, lam): |z + m|^2 with |m|^2 = lam.
+        z = rng.standard_normal((40000, k))
+        z[:, 0] += np.sqrt(lam)
+        frac = np.mean(np.sum(z**2, axis=1) > c)
+        assert abs(frac - 0.95) < 4 * np.sqrt(0.95 * 0.05 / 40000), (k, frac)
+
+
+def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(calibration):
+    from bench.effects import EFFECTS
+    from bench.gap.detectable import min_detectable_size
+
+    spec = EFFECTS["accel_bias"]
+    unit = spec.draw_fn(np.random.default_rng(2), 1.0)
+    md = min_detectable_size(31, "accel_bias", unit, 60.0, calibration)
+    assert md["detectable"] and md["k"] == 3
+    # A linear effect: the last probe sits at the answer and its lambda at the target.
+    last = md["probes"][-1]
+    assert last["size"] == pytest.approx(md["size"], rel=0.05)
+    assert last["lambda"] == pytest.approx(md["lambda_required"], rel=0.10)
+    # Twice the size, four times the noncentrality (lambda ~ size^2).
+    first = md["probes"][0]
+    assert first["lambda"] / last["lambda"] == pytest.approx((first["size"] / last["size"]) ** 2, rel=0.25)
+
+
+def test_an_effect_no_sensible_size_shows_is_reported_not_detectable(calibration):
+    from bench.effects import EFFECTS
+    from bench.gap.detectable import min_detectable_size
+
+    # A 0.75 m docking at mm/s holds range nearly still: host eccentricity up to
+    # 0.05 moves the relative orbit by far less than the pose noise in 60 s.
+    spec = EFFECTS["host_eccentricity"]
+    md = min_detectable_size(31, "host_eccentricity", spec.draw_fn(np.random.default_rng(2), 1.0), 60.0, calibration)
+    assert not md["detectable"] and np.isnan(md["size"])
+
+
+def test_gyro_unwhitening_inverts_the_whitening():
+    from bench.gap import dyn
+
+    d = prepare(_log(12, {}))
+    ch = dyn.build(d)
+    g = ch.kind == 1
+    w = np.random.default_rng(0).standard_normal((int(g.sum()), 3))
+    assert np.allclose(ch.whiten_gyro(ch.unwhiten_gyro(w)), w, atol=1e-12)
+
+
+def test_bundled_reality_run_is_diagnosed_blind(calibration):
+    from bench.flight_log import read_flight_log
+    from bench.gap import bundled
+
+    log = read_flight_log(bundled.LOG)
+    assert "truth" not in log.streams and "effects" not in (log.config or {})
+    r = public(diagnose(log, calibration=calibration))
+    key = bundled.sealed_key()
+    (truth,) = key["effects"]
+    assert r["gap_detected"] and r["verdict"] == "explained"
+    assert r["attribution"][0]["effect"] == truth
+    assert r["location"]["effect_acts_while"]["peak"] == "firing"
+    assert r["shrink_heldout"]["fraction"] >= 0.8

@@ -1,0 +1,55 @@
+"""The bundled reality run that `make run` diagnoses.
+
+A 120 s docking log from the bench's truth plant with one physical effect
+switched on. The log (bench/gap/data/reality_run.h5) holds only what a user's
+log holds: no truth, no effect. The effect is sealed apart in
+reality_run.key.json with its sha256; `proxops run` opens it only after the
+diagnosis has printed its answers, to compare.
+
+Regenerate both (seeded, so the files reproduce):
+    python -m bench.gap.bundled
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+DATA = Path(__file__).resolve().parent / "data"
+LOG = DATA / "reality_run.h5"
+KEY = DATA / "reality_run.key.json"
+
+SEED = 20261123
+DURATION_S = 120.0
+# Thruster 3 has lost 6 % of its thrust and thruster 6 4 %: a partly blocked
+# nozzle, the commonest cold-gas fault.
+EFFECTS = {"thrust_loss": [0.0, 0.0, 0.0, 0.06, 0.0, 0.0, 0.04, 0.0]}
+
+
+def generate(log_path=LOG, key_path=KEY) -> dict:
+    from bench.flight_log import write_flight_log
+    from bench.gap.validate import blind
+    from bench.reality import simulate_log_with_key
+
+    log, key = simulate_log_with_key(SEED, EFFECTS, duration_s=DURATION_S, with_truth=False)
+    write_flight_log(log_path, blind(log))
+    key = {**key, "command": "python -m bench.gap.bundled"}
+    Path(key_path).write_text(json.dumps(key, indent=1) + "\n")
+    return key
+
+
+def sealed_key(key_path=KEY) -> dict:
+    return json.loads(Path(key_path).read_text())
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description="regenerate the bundled reality run")
+    ap.add_argument("--log", default=str(LOG))
+    ap.add_argument("--key", default=str(KEY))
+    a = ap.parse_args(argv)
+    key = generate(a.log, a.key)
+    print(f"wrote {a.log} and {a.key} (sha256 {key['sha256'][:12]})")
+
+
+if __name__ == "__main__":
+    main()
