@@ -46,12 +46,18 @@ def _effects_at(effects: EffectSet, t_s: float) -> EffectSet:
 
 
 def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
-                  scenario: ScenarioConfig | None = None) -> list:
-    """Docking runs (run_docking results) chained to fill duration_s."""
+                  scenario: ScenarioConfig | None = None, scripts: list | None = None) -> list:
+    """Docking runs (run_docking results) chained to fill duration_s. With
+    ``scripts`` (each run's valve configurations, from an earlier call) the
+    runs replay those valves open loop, so the chain splits where it did."""
     eff = EffectSet(effects or {})
     runs, t_done, k = [], 0.0, 0
     while t_done < duration_s - 1e-9:
         cfg = _scenario(scenario, _effects_at(eff, t_done) if eff else None, duration_s - t_done)
+        if scripts is not None:
+            if k >= len(scripts):
+                break
+            cfg = ScenarioConfig(**{**cfg.__dict__, "valve_script": tuple(int(c) for c in scripts[k])})
         run = run_docking(int(seed) + k, cfg)
         runs.append(run)
         t_done += float(run["summary"]["t_end_s"]) + cfg.dt_s
@@ -108,11 +114,13 @@ def effect_key(seed: int, effects: dict | None, duration_s: float) -> dict:
 
 
 def simulate_log_with_key(seed: int, effects: dict | None, duration_s: float = 120.0, with_truth: bool = True,
-                          config_extra: dict | None = None, scenario: ScenarioConfig | None = None):
+                          config_extra: dict | None = None, scenario: ScenarioConfig | None = None,
+                          scripts: list | None = None):
     """(FlightLog, key): the log carries no trace of the effects; the key
-    names them with their parameters (and a sha256 of itself)."""
+    names them with their parameters (and a sha256 of itself). ``scripts``:
+    see simulate_runs."""
     eff = EffectSet(effects or {})
-    runs = simulate_runs(seed, eff, duration_s, scenario)
+    runs = simulate_runs(seed, eff, duration_s, scenario, scripts)
     cfg = log_config(seed, duration_s, scenario)
     cfg.update(config_extra or {})
     log = runs_to_log(runs, cfg, _clock_rate(eff), with_truth)

@@ -45,10 +45,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.controller import APPROACH_AXIS_HILL, ControllerParams, DockingController, DOCK_HILL_M
+from bench.controller import APPROACH_AXIS_HILL, ControlDecision, ControllerParams, DockingController, DOCK_HILL_M
 from bench.plant import N_RADPS, Plant, PlantState, boxminus, boxplus, qexp, qnormalize, rotmat
 from bench.sensors import Imu, NoiseProfile, PoseSensor
-from bench.vehicle import Vehicle
+from bench.vehicle import ALL_VALVES, Vehicle
 
 P0_SIGMAS = np.array([0.05] * 3 + [0.01] * 3 + [0.05] * 3)  # [m, m/s, rad]
 NAV_DOF = 9
@@ -96,6 +96,11 @@ class ScenarioConfig:
     # prediction is made before that step's sample is entered.
     accel_source: str = "imu"
     blr_min_samples: int = 30
+    # Open loop: fire this valve-configuration sequence (one per step) instead
+    # of the controller's choices, for exactly its length (no contact stop).
+    # Replaying a closed-loop run's valves with an effect switched on gives
+    # that effect's signature without the controller's feedback.
+    valve_script: tuple | None = None
 
 
 class _TruthNav:
@@ -275,7 +280,13 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
     contact = False
     while plant.state.t_s < cfg.t_max_s - 1e-9:
         est = np.asarray(nav.state(), float)
-        dec = ctrl.step(est[0:3], est[3:6], est[6:10], gyro_last)
+        if cfg.valve_script is not None:
+            if k >= len(cfg.valve_script):
+                break
+            c = int(cfg.valve_script[k])
+            dec = ControlDecision(c, ALL_VALVES[c].copy(), np.zeros(3), np.zeros(3), "script")
+        else:
+            dec = ctrl.step(est[0:3], est[3:6], est[6:10], gyro_last)
         if hasattr(nav, "note_valves"):  # the flight app's thruster learner hears the command
             nav.note_valves(k * cfg.dt_s, cfg.dt_s, int(dec.config))
         step = plant.step(dec.valves, cfg.dt_s)
@@ -315,7 +326,7 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         record(status)
         h["config"].append(dec.config)
         d_axial = float((DOCK_HILL_M - plant.state.r_hill_m) @ APPROACH_AXIS_HILL)
-        if d_axial <= 0.0:
+        if d_axial <= 0.0 and cfg.valve_script is None:
             contact = True
             break
 

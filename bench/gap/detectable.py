@@ -14,7 +14,10 @@ detectable size is the size at which that happens with probability POWER:
 
 The signature comes from simulation with common random numbers: the run's
 seed with the effect at a probe size, minus the same seed without it, both
-whitened by the nominal model (the same replay the diagnoser runs). lambda
+whitened by the nominal model (the same replay the diagnoser runs). The
+probes replay the effect-free run's valve commands open loop: closed loop,
+a tiny effect flips a firing decision and the runs part ways, and that
+divergence, not the effect, would fill the difference. lambda
 grows as size^2 for a small effect; two more probes, each placed by the
 power law through the two probes nearest the target, absorb the
 nonlinearity. An effect without a candidate (out of the
@@ -32,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 POWER = 0.95
-N_PROBES = 3
+N_PROBES = 4
 MAX_SHRINKS = 4
 
 
@@ -70,6 +73,15 @@ def _residuals(log, ctx_ref=None):
     return ctx, parts[0], e_dyn
 
 
+def _cells(ctx) -> dict:
+    """The gap map of the nominal pass over ctx's log: {(stream, axis, regime, stat): z}."""
+    from bench.gap import localise
+    from bench.gap.diagnose import _map_of
+
+    cells = _map_of(ctx.d, ctx.nominal) + localise.dyn_cells(ctx.d, ctx.ch)
+    return {(c["stream"], c["axis"], c["regime"], c["stat"]): c["z"] for c in cells}
+
+
 def _next_size(probes: list, lam_req: float) -> float:
     """The size where lambda reaches lam_req: lambda ~ size^2 from one probe;
     from two, the power law through the two probes nearest lam_req (a
@@ -95,10 +107,19 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
     from bench.gap.candidates import CANDIDATES
 
     if simulate is None:
-        from bench.reality import simulate_log_with_key
+        from bench.effects import EffectSet
+        from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
+
+        scripts = []
 
         def simulate(eff):
-            return simulate_log_with_key(seed, eff, duration_s=duration_s, with_truth=False)[0]
+            # The effect-free run closed loop; each probe replays its valves open
+            # loop, so the difference is the effect's physics and nothing the
+            # controller did about it.
+            runs = simulate_runs(seed, eff, duration_s, scripts=scripts if eff else None)
+            if not eff:
+                scripts[:] = [r["config"] for r in runs]
+            return runs_to_log(runs, log_config(seed, duration_s), _clock_rate(EffectSet(eff)), with_truth=False)
 
     spec = EFFECTS[name]
     thr = float(calibration.get("thresholds", {}).get("screen_logp", np.nan))
@@ -114,16 +135,26 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
         U, sv, _ = np.linalg.svd(J, full_matrices=False)
         U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
         P = U
-    from scipy.stats import chi2
+    from scipy.stats import chi2, norm
 
-    c = float(chi2.isf(10.0 ** -thr, k))
-    lam_req = required_noncentrality(k, c, power)
+    by_map = P is None
+    if by_map:
+        # No candidate: the gap map is the test. A cell's z moves by dz with the
+        # effect (about N(dz, 1)): detected with `power` when the largest |dz|
+        # reaches the map threshold plus the normal quantile of the power.
+        thr_map = float(calibration["thresholds"]["map_max_abs_z"])
+        z0 = _cells(ctx0)
+        c = thr_map
+        lam_req = float((thr_map + norm.isf(1.0 - power)) ** 2)
+    else:
+        c = float(chi2.isf(10.0 ** -thr, k))
+        lam_req = required_noncentrality(k, c, power)
     size = float(spec.min_detectable)
     probes = []
     shrinks = 0
     while len(probes) < N_PROBES + shrinks:
         try:
-            _, w, e_dyn = _residuals(simulate({name: spec.at(unit_params, size).tolist()}), ctx0)
+            ctx1, w, e_dyn = _residuals(simulate({name: spec.at(unit_params, size).tolist()}), ctx0)
         except ValueError:
             # The effect changed the run's length (the chained approaches split at
             # other times): no common rows to compare. Probe smaller.
@@ -136,7 +167,11 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
             continue
         e1 = np.concatenate([w[rows_ok].ravel(), e_dyn])
         s = e1 - e0
-        lam = float(np.sum((P.T @ s) ** 2)) if P is not None else float(s @ s)
+        if by_map:
+            z1 = _cells(ctx1)
+            lam = float(max((abs(z1[key] - z0[key]) for key in z0.keys() & z1.keys()), default=0.0) ** 2)
+        else:
+            lam = float(np.sum((P.T @ s) ** 2))
         probes.append({"size": size, "lambda": lam})
         if not lam > 0.0:
             size = float(spec.max_size)
@@ -146,5 +181,5 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
             break
     detectable = bool(size <= spec.max_size)
     return {"effect": name, "size": size if detectable else float("nan"), "detectable": detectable,
-            "k": int(k), "threshold_2dll": float(c), "lambda_required": lam_req, "n_obs": int(n),
+            "test": "gap map" if by_map else "screen", "k": int(k), "threshold_2dll": float(c), "lambda_required": lam_req, "n_obs": int(n),
             "power": power, "probes": probes}

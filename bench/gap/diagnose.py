@@ -4,14 +4,16 @@ Detection uses two statistics, each with a threshold from the null
 calibration (bench/gap/null.py): the largest |z| of the gap map, and the
 smallest p-value of the screening GLR over the candidates (as -log10 p).
 
-Verdict when a gap is detected (the best confirmed candidate by BIC):
+Verdict when a gap is detected (the best confirmed candidate by Bayes factor):
   explained    it wins the held-out data: held-out log-likelihood gain
-               > HELDOUT_DLL_MIN, shrink >= SHRINK_MIN (when the held-out
-               deficit stands out of its null spread), and the gap map
+               > HELDOUT_DLL_MIN, shrink >= SHRINK_MIN or a remaining
+               deficit within twice its null spread (when the held-out
+               deficit stands out of that spread at all), and the gap map
                after the fix is below the null threshold (or below
                MAP_REMAINDER of its value before, for a large gap);
   ambiguous    it does, but a second confirmed candidate is within
-               BF_AMBIGUOUS of its BIC and also explains the held-out data;
+               BF_AMBIGUOUS of its ln Bayes factor (a factor below 20) and
+               also explains the held-out data;
   unexplained  otherwise (nothing in the library accounts for the gap).
 Without a detected gap the verdict is "no_gap".
 """
@@ -29,7 +31,7 @@ from bench.gap.replay import LogData, prepare, reference
 HELDOUT_DLL_MIN = 3.0
 SHRINK_MIN = 0.5
 MAP_REMAINDER = 0.1
-N_CONFIRM = 3
+N_CONFIRM = 4
 
 
 class _Progress:
@@ -133,19 +135,22 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             # What is left must look like the null, or be a small remainder of a
             # large gap (a first-order candidate model of a large effect).
             # A shrink is required only where the held-out deficit stands out of its noise.
-            shrink_ok = (np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
+            # What is left may also simply be the null's own noise: a deficit
+            # within twice its null spread.
+            shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
+                         or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"])
             explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok
                             and map_after <= max(thr_map, MAP_REMAINDER * t_map))
             c = CANDIDATES[f.name]
             ranking.append({
-                "effect": f.name, "kind": f.kind, "evidence": {"bic": f.bic, "dll_train": f.dll_train,
+                "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
                                                               "screen_bic": f.screen_bic, "dll_heldout": dll_held},
                 "parameters": {p: {"value": float(v), "sigma": float(s)} for p, v, s in zip(c.params, f.theta, f.sigma)},
                 "shrink_heldout": sh, "map_max_abs_z_after": map_after, "explains_heldout": explains,
                 "separate_by": c.separate_by,
                 "replay_rms_heldout_after": quantify.channel_rms(f.after_nav.innovation[held]),
             })
-        ranking.sort(key=lambda r: -r["evidence"]["bic"])
+        ranking.sort(key=lambda r: -r["evidence"]["ln_bf"])
     prog.close()
 
     verdict = "no_gap"
@@ -156,8 +161,8 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             verdict = "explained"
             best = ranking[0]
             for r in ranking[1:]:
-                if best["evidence"]["bic"] - r["evidence"]["bic"] < BF_AMBIGUOUS and r["explains_heldout"]:
-                    ambiguous_with.append({"effect": r["effect"], "bic_difference": best["evidence"]["bic"] - r["evidence"]["bic"],
+                if best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"] < BF_AMBIGUOUS and r["explains_heldout"]:
+                    ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"],
                                            "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
             if ambiguous_with:
                 verdict = "ambiguous"
@@ -181,7 +186,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
         acts = localise.signature_regimes(d, ch, nominal.white, f.after_nav.white, nominal.res, f.after_dyn)
     shrink_best = best["shrink_heldout"] if best else None
     screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "rank": f.rank,
-                     "screen_logp": f.screen_logp, "screen_bic": f.screen_bic}
+                     "screen_logp": f.screen_logp, "screen_ln_bf": f.screen_ln_bf, "screen_bic": f.screen_bic}
                     for f in fits]
     out = {
         "gap_detected": detected,

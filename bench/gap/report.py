@@ -124,20 +124,20 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     if result["ambiguous_with"]:
         lines += ["### Not told apart", ""]
         for a in result["ambiguous_with"]:
-            lines.append(f"- {best['effect']} vs {a['effect']} (BIC difference {a['bic_difference']:.1f}): "
+            lines.append(f"- {best['effect']} vs {a['effect']} (ln Bayes factor difference {a['ln_bf_difference']:.1f}): "
                          f"separate with: {a['separate_by']}")
         lines.append("")
     lines += ["## Ranking (confirmed by full-filter refit on training blocks)", "",
-              "| effect | kind | BIC | dLL train | dLL held-out | shrink held-out [95 % CI] | explains | parameters |",
-              "|---|---|---|---|---|---|---|---|"]
+              "| effect | kind | ln Bayes factor | BIC | dLL train | dLL held-out | shrink held-out [95 % CI] | explains | parameters |",
+              "|---|---|---|---|---|---|---|---|---|"]
     for r in result["attribution"]:
         sh = r["shrink_heldout"]
         pars = "; ".join(f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in r["parameters"].items())
-        lines.append(f"| {r['effect']} | {r['kind']} | {r['evidence']['bic']:.1f} | {r['evidence']['dll_train']:.1f} | "
+        lines.append(f"| {r['effect']} | {r['kind']} | {r['evidence']['ln_bf']:.1f} | {r['evidence']['bic']:.1f} | {r['evidence']['dll_train']:.1f} | "
                      f"{r['evidence']['dll_heldout']:.1f} | {sh['fraction']:.2f} [{sh['ci95'][0]:.2f}, {sh['ci95'][1]:.2f}] | "
                      f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |")
-    lines += ["", "Screening (linearised GLR, every candidate): " + ", ".join(
-        f"{s['effect']} {s['screen_bic']:.1f}" for s in result["screening"]), ""]
+    lines += ["", "Screening (linearised GLR, every candidate, -log10 p against chi-square(rank)): " + ", ".join(
+        f"{s['effect']} {s['screen_logp']:.1f}" for s in result["screening"]), ""]
     lines += ["## Gap map", "", "![gap map](gap_map.png)", "",
               "Top cells (family-wise p-values against the null's largest |z|):", ""]
     for c in loc["top_cells"]:

@@ -1,10 +1,14 @@
 """Blind validation of the diagnoser (``proxops validate-gap``).
 
 A seeded generator draws the campaign: null runs, in-library effects and
-out-of-library effects, each at 1x or 2x its minimum detectable size
-(bench/effects.py). Every run's key (simulation seed, effect, parameters) is
-hashed and the hashes are written to ``<OUT>.prereg.json`` before any
-diagnosis runs. Each worker simulates the log, strips it to what a user's
+out-of-library effects, each with a random direction and a scale of 1x or
+2x. The size is then scale x the effect's minimum detectable size for that
+run's manoeuvres (bench/gap/detectable.py: the size the diagnoser's screen
+detects with probability 0.95 in that run, from the run's own signature);
+an effect that no sensible size makes detectable in its run is simulated at
+its largest sensible size and scored apart. Every run's key (simulation
+seed, effect, parameters) is hashed and the hashes are written to
+``<OUT>.prereg.json`` before any diagnosis runs. Each worker simulates the log, strips it to what a user's
 log would hold (the streams, orbit and sensor settings; no key, no truth),
 and diagnoses it. Only then are the keys re-hashed, checked against the
 pre-registered hashes, and compared with the answers.
