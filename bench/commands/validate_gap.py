@@ -20,7 +20,12 @@ def main(args):
     workers = args.workers or default_workers()
     res = run_campaign(args.runs, args.seed, args.json, workers, args.duration)
     if args.json:
+        from pathlib import Path
+
+        from bench.gap.validate import runs_table
+
         write_json(args.json, res)
+        Path(str(args.json) + ".runs.csv").write_text(runs_table(res))
     print(f"runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {workers} workers)")
     print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")
     for s, v in res["in_library_by_scale"].items():

@@ -304,3 +304,19 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration
 
 def default_workers() -> int:
     return os.cpu_count() or 1
+
+
+def runs_table(res: dict) -> str:
+    """One CSV line per run: the drawn key (after scoring) beside the answer."""
+    by = {a["run"]: a for a in res["answers"]}
+    lines = ["run,seed,category,effect,scale,min_detectable,size,detectable,gap_detected,verdict,top1,"
+             "map_max_abs_z,screen_logp_max,true_fit_shrink,wrong_fit_effect,wrong_fit_shrink"]
+    for k in res["keys"]:
+        a = by[k["run"]]
+        tf, wf = a.get("true_fit", {}), a.get("wrong_fit", {})
+        vals = [k["run"], k["seed"], k["category"], k["effect"] or "", k["scale"], k.get("min_detectable", ""),
+                k.get("size", ""), k.get("detectable", ""), a["gap_detected"], a["verdict"], a["top1"] or "",
+                f"{a['map_max_abs_z']:.4g}", f"{a['screen_logp_max']:.4g}", tf.get("shrink", ""),
+                wf.get("effect", ""), wf.get("shrink", "")]
+        lines.append(",".join(str(v) for v in vals))
+    return "\n".join(lines) + "\n"

@@ -43,6 +43,15 @@ def test_each_runs_max_errors_within_paper_bounds(campaign):
 def test_nis_mean_inside_its_chi_square_band(campaign):
     lo, hi = campaign["nis_band"]
     assert lo <= campaign["nis_mean"] <= hi
+    # NIS samples are white: the band for independent samples holds too.
+    lo, hi = campaign["nis_band_per_sample"]
+    assert lo <= campaign["nis_mean"] <= hi
+
+
+def test_nees_mean_inside_the_n_run_band(campaign):
+    lo, hi = campaign["nees_band"]
+    assert (lo, hi) == tuple(chi2_mean_band(9, campaign["runs"]))
+    assert lo <= campaign["nees_mean"] <= hi
 
 
 def test_nearly_independent_nees_mean_inside_its_chi_square_band(campaign):
