@@ -63,3 +63,7 @@ def print_answers(out: dict, indent: str = "") -> None:
             s = out["shrink_heldout"]
             print(f"{indent}  how far: held-out deficit shrinks {100 * s['fraction']:.0f} % "
                   f"[{100 * s['ci95'][0]:.0f}, {100 * s['ci95'][1]:.0f}] with {s['effect']}")
+        r = out.get("shrink_heldout_runs")
+        if r and r.get("fraction") is not None:
+            print(f"{indent}           on held-out runs ({r['heldout_runs']} of {r['runs']}, fitted on the others): "
+                  f"{100 * r['fraction']:.0f} % [{100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}]")

@@ -157,3 +157,23 @@ def test_bundled_reality_run_is_diagnosed_blind(calibration):
     assert r["attribution"][0]["effect"] == truth
     assert r["location"]["effect_acts_while"]["peak"] == "firing"
     assert r["shrink_heldout"]["fraction"] >= 0.8
+
+
+def test_a_chained_log_reports_the_shrink_on_held_out_runs(calibration):
+    log, _ = reality.simulate_log_with_key(5, {"thrust_loss": [0.02, 0.02, 0.02, 0, 0, 0, 0, 0]}, duration_s=400.0,
+                                           with_truth=False)
+    r = public(diagnose(blind(log), calibration=calibration))
+    runs = r["shrink_heldout_runs"]
+    assert runs["runs"] >= 2 and runs["heldout_runs"] >= 1
+    assert r["attribution"][0]["effect"] == "thrust_loss"
+    # Fitted on the even runs only, the effect closes the gap on the odd ones.
+    assert runs["measurable"] and runs["fraction"] >= 0.8 and runs["ci95"][0] > 0.5
+    # Losses on the three faulty valves, none on the others (2 mm/s^2 of 6.7 is 0.02 +- 0.01).
+    loss = np.array(list(runs["parameters"].values()))
+    assert np.all(np.abs(loss[:3] - 0.02) < 0.012) and np.all(np.abs(loss[3:]) < 0.012)
+
+
+def test_a_single_run_log_says_why_there_is_no_held_out_run_shrink(calibration):
+    r = public(diagnose(_log(77, {"accel_bias": [4e-4, -3e-4, 2e-4]}), calibration=calibration))
+    assert r["gap_detected"]
+    assert r["shrink_heldout_runs"]["fraction"] is None and "one run" in r["shrink_heldout_runs"]["reason"]
