@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 
 def register(sub):
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a flight log (where, which, how far)")
@@ -64,6 +66,6 @@ def print_answers(out: dict, indent: str = "") -> None:
             print(f"{indent}  how far: held-out deficit shrinks {100 * s['fraction']:.0f} % "
                   f"[{100 * s['ci95'][0]:.0f}, {100 * s['ci95'][1]:.0f}] with {s['effect']}")
         r = out.get("shrink_heldout_runs")
-        if r and r.get("fraction") is not None:
+        if r and r.get("fraction") is not None and np.isfinite(r["fraction"]):
             print(f"{indent}           on held-out runs ({r['heldout_runs']} of {r['runs']}, fitted on the others): "
                   f"{100 * r['fraction']:.0f} % [{100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}]")

@@ -119,12 +119,13 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
             lines.append(f"- **How far**: adding {best['effect']} shrinks the held-out deficit by "
                          f"{100 * sh['fraction']:.0f} % (95 % CI {100 * sh['ci95'][0]:.0f} to {100 * sh['ci95'][1]:.0f} %).")
             rr = result.get("shrink_heldout_runs")
-            if rr and rr.get("fraction") is not None:
+            if rr and rr.get("fraction") is not None and np.isfinite(rr["fraction"]):
                 lines.append(f"  On held-out runs ({rr['heldout_runs']} of the log's {rr['runs']} chained runs, the "
                              f"effect fitted on the others): {100 * rr['fraction']:.0f} % (95 % CI "
                              f"{100 * rr['ci95'][0]:.0f} to {100 * rr['ci95'][1]:.0f} %).")
             elif rr:
-                lines.append(f"  Held-out runs: not measured ({rr['reason']}).")
+                why = rr.get("reason", "no deficit left on the held-out runs to shrink")
+                lines.append(f"  Held-out runs: not measured ({why}).")
     lines += ["", f"Detection: gap-map max |z| = {st['map_max_abs_z']:.2f} (threshold {st['map_threshold']:.2f}); "
               f"best screening -log10 p = {st['screen_logp_max']:.2f} (threshold {st['screen_logp_threshold']:.2f}); "
               f"thresholds from {st['calibration_runs']} null runs, false-alarm rate {st['false_alarm_rate']}.", ""]

@@ -174,6 +174,19 @@ def test_a_chained_log_reports_the_shrink_on_held_out_runs(calibration):
 
 
 def test_a_single_run_log_says_why_there_is_no_held_out_run_shrink(calibration):
-    r = public(diagnose(_log(77, {"accel_bias": [4e-4, -3e-4, 2e-4]}), calibration=calibration))
+    log = _log(5, {"accel_bias": [4e-4, -3e-4, 2e-4]})
+    assert np.all(np.diff(log["imu"]["t_s"]) < 0.15)  # one approach, 120 s long
+    r = public(diagnose(log, calibration=calibration))
     assert r["gap_detected"]
     assert r["shrink_heldout_runs"]["fraction"] is None and "one run" in r["shrink_heldout_runs"]["reason"]
+
+
+def test_proxops_run_ends_with_the_three_answers_then_the_sealed_key(tmp_path, capsys):
+    from bench.commands.run import diagnose_bundled
+
+    assert diagnose_bundled(tmp_path / "gap") == 0
+    out = capsys.readouterr().out
+    where, which, how_far, key = (out.index(s) for s in ("where:", "which:", "how far:", "sealed key"))
+    assert where < which < how_far < key  # the key is opened only after the answers
+    assert "thrust_loss (explained)" in out
+    assert (tmp_path / "gap" / "README.md").exists() and (tmp_path / "gap" / "diagnosis.json").exists()
