@@ -20,6 +20,9 @@ Metrics, every sample from the run's first pose update on:
     the 1 Hz posterior NEES, the NEES every 10 s (nearly independent
     samples), and the standard error of nees_mean from the per-run means.
   * gated_count: pose updates the filter rejected by its chi-square gate.
+  * vision_status_counts (pose_source "images" only): the flight vision
+    pipeline's status for every rendered frame of every run, by reason; a
+    frame that is not Ok delivers no pose.
 """
 from __future__ import annotations
 
@@ -164,6 +167,15 @@ def summarise(metrics: list[RunMetrics], cfg: ScenarioConfig, seed: int) -> dict
             statuses[k] = statuses.get(k, 0) + v
     pos = _dist([m.max_pos_err_m for m in metrics])
     vel = _dist([m.max_vel_err_mps for m in metrics])
+    vision = {}
+    if cfg.pose_source == "images":
+        vision["vision_status_counts"] = {}
+        for m in metrics:
+            for k, v in m.summary.get("vision_status_counts", {}).items():
+                vision["vision_status_counts"][k] = vision["vision_status_counts"].get(k, 0) + int(v)
+        vision["vision_frames"] = int(sum(vision["vision_status_counts"].values()))
+        vision["fused_pose_count"] = int(sum(m.nis.size for m in metrics))
+        vision["runs_started_late"] = int(sum((m.summary.get("t_nav_init_s") or 0.0) > 0.0 for m in metrics))
     return {
         "runs": len(metrics),
         "seed": int(seed),
@@ -172,6 +184,8 @@ def summarise(metrics: list[RunMetrics], cfg: ScenarioConfig, seed: int) -> dict
         "init": cfg.init,
         "pose_R_from": cfg.pose_R_from,
         "accel_source": cfg.accel_source,
+        "pose_source": cfg.pose_source,
+        **vision,
         "blr_steps": int(sum(m.summary.get("blr_steps", 0) for m in metrics)),
         "firing_steps": int(sum(m.summary.get("firing_steps", 0) for m in metrics)),
         "profile": {k: (list(v) if isinstance(v, tuple) else v) for k, v in cfg.profile.__dict__.items()},

@@ -27,7 +27,8 @@ STATUSES = ["Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "Dege
 GROSS_NEES = float(chi2.ppf(0.9999, 6))  # beyond this an "Ok" pose is a gross error
 
 
-def make_estimator(cam: cm.Camera | None = None, model_distortion: bool = True, pixel_sigma_px: float | None = None):
+def make_estimator(cam: cm.Camera | None = None, model_distortion: bool = True, pixel_sigma_px: float | None = None,
+                   face_offset_m: float = cm.FACE_OFFSET_M):
     """The flight pipeline configured with the bench camera (one source of truth: bench/camera.py)."""
     import fsw_bindings as fb
 
@@ -38,7 +39,7 @@ def make_estimator(cam: cm.Camera | None = None, model_distortion: bool = True, 
     cfg.dist = np.asarray(cam.dist, float) if model_distortion else np.zeros(5)
     cfg.R_bc = cam.R_bc
     cfg.p_cam_b_m = cam.p_cam_b_m
-    cfg.set_pattern(cm.HALF_SIDE_M, cm.FACE_OFFSET_M)
+    cfg.set_pattern(cm.HALF_SIDE_M, face_offset_m)
     if pixel_sigma_px is not None:
         cfg.pixel_sigma_px = pixel_sigma_px
     return fb.LedPoseEstimator(cfg)

@@ -30,6 +30,18 @@ Filter initialisation (``init``):
     P0 = diag(0.05 m, 0.01 m/s, 0.05 rad)^2 (per axis), and the pose captured
     at t = 0 fused at once.
 
+Pose source (``pose_source``):
+  * "synthetic" (default): bench/sensors.py PoseSensor, the truth plus 5 % of
+    range per axis and 0.01 rad, with the covariance of ``pose_R_from``.
+  * "images": bench/image_pose.py ImagePoseSensor. Each 1 Hz frame is
+    rendered from the true state and run through the flight vision pipeline
+    (fsw_bindings.LedPoseEstimator); the filter gets that pose with the
+    covariance the pipeline reports (``pose_R_from`` does not apply). A frame
+    whose status is not Ok delivers nothing and is counted by status
+    (``summary["vision_status_counts"]``). If the frame at t = 0 gives no
+    pose, the inspector holds its valves closed and the filter is started
+    from the first frame that does (``summary["t_nav_init_s"]``).
+
 Physical effects (``effects``: an EffectSet, bench/effects.py and
 docs/EFFECTS.md) change the truth plant, the truth vehicle and the sensors;
 the controller and the filter keep their nominal models. Camera latency
@@ -101,6 +113,9 @@ class ScenarioConfig:
     # Replaying a closed-loop run's valves with an effect switched on gives
     # that effect's signature without the controller's feedback.
     valve_script: tuple | None = None
+    # "synthetic": PoseSensor (bench/sensors.py); "images": rendered images of
+    # the host's LED pattern through the flight vision pipeline (bench/image_pose.py).
+    pose_source: str = "synthetic"
 
 
 class _TruthNav:
@@ -158,6 +173,9 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
     cfg = cfg or ScenarioConfig()
     rng = np.random.default_rng(seed)
     rng_imu, rng_pose, rng_init, rng_p0 = (np.random.default_rng(s) for s in rng.integers(0, 2**63, 4))
+    if cfg.pose_source not in ("synthetic", "images"):
+        raise ValueError(f"pose_source must be 'synthetic' or 'images', not {cfg.pose_source!r}")
+    images = cfg.pose_source == "images"
     if cfg.effects:
         from bench.effects import realise
 
@@ -165,6 +183,8 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         plant = Plant(initial_truth(rng_init, cfg), vehicle=fx.vehicle, dynamics=cfg.dynamics,
                       substep_s=cfg.substep_s, effects=fx.plant)
         imu = Imu(fx.profile, rng_imu, c_imu_b=fx.c_imu_b)
+        if images and (fx.lever_arm_b_m is not None or fx.occlusion is not None):
+            raise ValueError("pose_source 'images' does not model the camera lever arm or LED occlusion effects")
         pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=fx.lever_arm_b_m, occlusion=fx.occlusion)
         latency_s, clock_rate = fx.camera_latency_s, fx.imu_clock_rate
     else:
@@ -173,6 +193,10 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         imu = Imu(cfg.profile, rng_imu)
         pose = PoseSensor(cfg.profile, rng_pose)
         latency_s, clock_rate = 0.0, 1.0
+    if images:
+        from bench.image_pose import ImagePoseSensor
+
+        pose = ImagePoseSensor(cfg.profile, rng_pose)
     ctrl = DockingController(params=cfg.controller)
 
     def seen(t_tag):
@@ -190,17 +214,25 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         f = (tc - ts[j]) / (ts[j + 1] - ts[j])
         return rs[j] + f * (rs[j + 1] - rs[j]), boxplus(qs[j], f * boxminus(qs[j + 1], qs[j]))
 
+    def init_from_pose(t_s, m0):
+        P0 = np.zeros((9, 9))
+        P0[0:3, 0:3], P0[6:9, 6:9] = m0.R[0:3, 0:3], m0.R[3:6, 3:6]
+        P0[3:6, 3:6] = cfg.v0_sigma_mps**2 * np.eye(3)
+        nav.init(t_s, m0.r_hill_m, np.zeros(3), m0.q_hb, P0)
+
     s0 = plant.state
+    nav_ready = True  # False only while image poses have not yet given a first fix
+    t_nav_init = 0.0
     if cfg.nav == "ukf":
         # ``nav``: any object with NavUkf's interface (the HIL link's LinkNav);
         # None builds the in-process filter.
         nav = make_nav_ukf(cfg) if nav is None else nav
         if cfg.init == "pose":
             m0 = pose.measure(0.0, *seen(0.0))
-            P0 = np.zeros((9, 9))
-            P0[0:3, 0:3], P0[6:9, 6:9] = m0.R[0:3, 0:3], m0.R[3:6, 3:6]
-            P0[3:6, 3:6] = cfg.v0_sigma_mps**2 * np.eye(3)
-            nav.init(0.0, m0.r_hill_m, np.zeros(3), m0.q_hb, P0)
+            if m0 is None:  # images: no pose in the first frame
+                nav_ready, t_nav_init = False, None
+            else:
+                init_from_pose(0.0, m0)
         elif cfg.init == "truth_draw":
             d0 = P0_SIGMAS * rng_p0.standard_normal(NAV_DOF)
             P0 = np.diag(P0_SIGMAS**2)
@@ -228,7 +260,10 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
             m = pending.pop(0)
             if cfg.nav != "ukf":
                 continue
-            R = m.R if cfg.pose_R_from == "measurement" else pose.covariance(np.asarray(nav.r_hill_m, float))
+            if images or cfg.pose_R_from == "measurement":
+                R = m.R
+            else:
+                R = pose.covariance(np.asarray(nav.r_hill_m, float))
             rec = nav.update_pose(m.t_capture_s, m.r_hill_m, m.q_hb, R)
             upd["t_capture"].append(m.t_capture_s)
             upd["t_fused"].append(t_now if clock_rate == 1.0 else t_now * clock_rate)
@@ -247,14 +282,14 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
 
     def record(status):
         s = plant.state
-        est = np.asarray(nav.state(), float)
+        est = np.asarray(nav.state(), float) if nav_ready else np.full(10, np.nan)
         h["t"].append(s.t_s)
         h["r_true"].append(s.r_hill_m.copy())
         h["v_true"].append(s.v_hill_mps.copy())
         h["q_true"].append(s.q_hb.copy())
         h["w_true"].append(s.omega_bi_b_rps.copy())
         h["est"].append(est)
-        P = None if nav.P is None else np.asarray(nav.P, float)
+        P = None if (nav.P is None or not nav_ready) else np.asarray(nav.P, float)
         h["P"].append(np.full((9, 9), np.nan) if P is None else P)
         if P is None:
             h["nees"].append(np.nan)
@@ -264,7 +299,9 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         h["predict_status"].append(status)
 
     if not (cfg.nav == "ukf" and cfg.init == "pose"):
-        pending.append(pose.measure(0.0, *seen(0.0)))
+        m0 = pose.measure(0.0, *seen(0.0))
+        if m0 is not None:
+            pending.append(m0)
         deliver(0.0)
     record("init")
     if cfg.accel_source not in ("imu", "blr"):
@@ -279,8 +316,10 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
     k = 0
     contact = False
     while plant.state.t_s < cfg.t_max_s - 1e-9:
-        est = np.asarray(nav.state(), float)
-        if cfg.valve_script is not None:
+        est = np.asarray(nav.state(), float) if nav_ready else None
+        if not nav_ready:  # waiting for the first image pose: valves closed
+            dec = ControlDecision(0, ALL_VALVES[0].copy(), np.zeros(3), np.zeros(3), "wait")
+        elif cfg.valve_script is not None:
             if k >= len(cfg.valve_script):
                 break
             c = int(cfg.valve_script[k])
@@ -315,13 +354,19 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
             learner.add_mask(int(dec.config), np.concatenate([np.asarray(sample.accel_b_mps2, float) * cfg.dt_s, dw]))
             learner_count += 1
         gyro_prev = sample.omega_bi_b_rps
-        if cfg.nav == "ukf":
+        if cfg.nav == "ukf" and nav_ready:
             status = nav.predict(t_imu, accel_nav, sample.omega_bi_b_rps).status
+        elif not nav_ready:
+            status = "waiting_for_pose"
         if k % n_steps_pose == 0:
             m = pose.measure(t, *seen(t))
-            if clock_rate != 1.0:
+            if m is not None and clock_rate != 1.0:
                 m.t_capture_s = t_imu  # the flight clock (the IMU's) tags the frame with its tick
-            pending.append(m)
+            if m is not None and not nav_ready:
+                init_from_pose(m.t_capture_s, m)
+                nav_ready, t_nav_init = True, m.t_capture_s
+            elif m is not None:
+                pending.append(m)
         deliver(t)
         record(status)
         h["config"].append(dec.config)
@@ -354,6 +399,10 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         "firing_steps": int(np.count_nonzero(h["config"])),
         "blr_steps": int(blr_used),  # firing steps whose predict took the BLR's specific force
     }
+    if images:
+        out["summary"]["pose_source"] = "images"
+        out["summary"]["vision_status_counts"] = dict(pose.status_counts)
+        out["summary"]["t_nav_init_s"] = t_nav_init
     return out
 
 

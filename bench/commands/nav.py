@@ -26,6 +26,8 @@ def register(sub):
     p.add_argument("--init", choices=("pose", "truth_draw"), default="pose", help="filter initialisation")
     p.add_argument("--accel-source", choices=("imu", "blr"), default="imu",
                    help="specific force for predict during firings: accelerometer, or the online BLR's prediction")
+    p.add_argument("--pose-source", choices=("synthetic", "images"), default="synthetic",
+                   help="1 Hz pose: synthetic (5 %% of range) or rendered images through the flight vision pipeline")
     p.set_defaults(func=main)
 
 
@@ -76,6 +78,9 @@ def print_summary(s: dict) -> None:
                   f"{e['runs_per_epoch_max']} runs each): mean {e['mean_of_epoch_means']:.3f}, "
                   f"{e['below_band']} below and {e['above_band']} above the band")
     print(f"gated {s['gated_count']}, statuses {s['status_counts']}")
+    if "vision_status_counts" in s:
+        print(f"vision: {s['vision_frames']} frames, statuses {s['vision_status_counts']}, "
+              f"{s['fused_pose_count']} poses fused, {s['runs_started_late']} runs started after t = 0")
 
 
 def make_plots(runs, summary, folder) -> None:
@@ -152,7 +157,7 @@ def main(args):
     profile = NoiseProfile.paper() if args.profile == "paper" else NoiseProfile.biased()
     profile = profile.with_(pose_latency_s=args.pose_latency_s)
     cfg = ScenarioConfig(profile=profile, dynamics=args.dynamics, pose_R_from=args.pose_r_from, init=args.init,
-                         accel_source=args.accel_source)
+                         accel_source=args.accel_source, pose_source=args.pose_source)
     keep = min(args.runs, 5) if args.plots else 0
     summary, runs = run_campaign(args.runs, args.seed, cfg, progress=_progress, keep_runs=keep)
     print_summary(summary)
