@@ -76,6 +76,27 @@ void BM_Decomposition(benchmark::State& state) {
   state.counters["points"] = n;
 }
 
+// The decomposition with a chosen chunk K (points per symmetric rank-K update
+// of M_Y). K = 1 is the per-point reference: one rank-one update per point.
+template <int M, int K>
+void BM_DecompositionChunk(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const Image<M> img(n);
+  ModalDecompositionConfig<double> dc;
+  dc.sigma_e_m = 0.01;
+  auto d = std::make_unique<ModalDecomposition<double, M, K>>(dc);
+  auto rec = std::make_unique<ModalDecompositionRecord<double, M>>();
+  for (auto _ : state) {
+    d->reset();
+    d->add_points(img.phi.data(), img.z.data(), nullptr, n);
+    benchmark::DoNotOptimize(d->solve(*rec));
+  }
+  if (rec->status != ModalStatus::Ok) state.SkipWithError("decomposition not Ok");
+  state.counters["modes"] = M;
+  state.counters["points"] = n;
+  state.counters["chunk"] = K;
+}
+
 template <typename Filter, int M>
 void run_filter(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
@@ -122,8 +143,20 @@ void grid(benchmark::internal::Benchmark* b) {
   b->Unit(benchmark::kMicrosecond);
 }
 
+void targets(benchmark::internal::Benchmark* b) {
+  b->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond);
+}
+
 }  // namespace
 
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 10, 1)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 10, 32)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 10, 64)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 10, 128)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 50, 1)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 50, 32)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 50, 64)->Apply(targets);
+BENCHMARK_TEMPLATE(BM_DecompositionChunk, 50, 128)->Apply(targets);
 BENCHMARK_TEMPLATE(BM_Decomposition, 10)->Apply(grid);
 BENCHMARK_TEMPLATE(BM_Decomposition, 20)->Apply(grid);
 BENCHMARK_TEMPLATE(BM_Decomposition, 30)->Apply(grid);
