@@ -121,14 +121,17 @@ class ModalDecomposition {
   // Returns true if the point was used.
   bool add_point(const S* phi, S z, S var = S(-1)) {
     if (!std::isfinite(z)) return skip_nonfinite();
-    for (int i = 0; i < M; ++i)
-      if (!std::isfinite(phi[i])) return skip_nonfinite();
+    // Gather first, then test the gathered column: x * 0 is 0 for finite x and
+    // NaN for NaN or Inf, so the sum is 0 exactly when every value is finite.
+    // Both passes vectorise (no per-value branch); a skipped point's column is
+    // overwritten by the next point, since fill_ does not advance.
+    chunk_.col(fill_) = Eigen::Map<const VecM>(phi);
+    if (!((chunk_.col(fill_).array() * S(0)).sum() == S(0))) return skip_nonfinite();
     const bool has_var = !(var < S(0));  // NaN counts as given (and bad)
     if (has_var && !(std::isfinite(var) && var > S(0))) {
       ++n_bad_var_;
       return false;
     }
-    for (int i = 0; i < M; ++i) chunk_(i, fill_) = phi[i];
     zc_(fill_) = z;
     wc_(fill_) = has_var ? std::sqrt(var) : S(0);
     if (has_var) ++n_with_var_;
