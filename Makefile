@@ -44,9 +44,13 @@ $(STAMPS)/install: $(STAMPS)/venv $(NATIVE_SRC)
 	$(VPY) -m pip install -q --disable-pip-version-check --no-build-isolation -e ".[dev]"
 	@touch $@
 
+# CI (CI=true) builds what the tests need; the Google Benchmark targets
+# (several minutes of compiling on 2 cores) are built by `make bench`.
+BENCHMARKS ?= $(if $(CI),OFF,ON)
+
 $(STAMPS)/cpp-configure: $(STAMPS)/venv CMakeLists.txt
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
-	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=ON -DPROXOPS_BUILD_PYTHON=OFF >/dev/null
+	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=$(BENCHMARKS) -DPROXOPS_BUILD_PYTHON=OFF >/dev/null
 	@touch $@
 
 test-cpp: $(STAMPS)/cpp-configure
@@ -59,6 +63,7 @@ test-py: $(STAMPS)/install $(STAMPS)/cpp-configure
 
 # C++ benchmarks (Google Benchmark); results go to docs/PERFORMANCE.md by hand.
 bench: $(STAMPS)/cpp-configure
+	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -DPROXOPS_BUILD_BENCHMARKS=ON >/dev/null
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
 	for b in $(CPP_BUILD)/bench_*; do $$b --benchmark_repetitions=9 --benchmark_report_aggregates_only=true; done
 
