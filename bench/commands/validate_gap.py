@@ -30,6 +30,11 @@ def main(args):
     print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")
     for s, v in res["in_library_by_scale"].items():
         print(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")
+    for s, v in res.get("in_library_by_scale_separable", {}).items():
+        t1 = "-" if v["top1_separable"] is None else f"{v['top1_separable']:.2f}"
+        print(f"  {s}, runs whose data separate the effect from every other candidate: top-1 {t1} "
+              f"(n = {v['n_separable']}; not separable: {v['n_not_separable']}, "
+              + ", ".join(f"{e} {n}" for e, n in v["not_separable_by_effect"].items()) + ")")
     if "out_of_library" in res:
         o = res["out_of_library"]
         print(f"out-of-library: unexplained {o['unexplained_rate']:.2f}, not detected {o['not_detected_rate']:.2f}, "

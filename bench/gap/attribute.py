@@ -80,6 +80,7 @@ class Fit:
     bic: float = float("nan")
     ln_bf: float = float("nan")  # ln Bayes factor against the nominal model (Laplace, Cauchy prior at scale)
     screen_ln_bf: float = float("nan")
+    bound_excess_sigma: float = 0.0  # unconstrained fit beyond the physical bound [its sigmas]
     confirmed: bool = False
     after_nav: Pass | None = None
     after_dyn: np.ndarray | None = None  # (R, 3) dynamics rows with the candidate
@@ -153,6 +154,19 @@ def screen_logp(two_dll: float, rank: int) -> float:
     return float(-chi2.logsf(max(two_dll, 0.0), rank) / np.log(10.0))
 
 
+def bound_excess(theta_free: np.ndarray, sigma: np.ndarray, bound: float) -> float:
+    """How far the unconstrained fit lies beyond the candidate's physical
+    bound, in its own standard deviations (largest over the parameters; 0
+    inside). A candidate whose data want a physically impossible size is no
+    explanation, however well its bounded fit does."""
+    if not np.isfinite(bound):
+        return 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = (np.abs(theta_free) - bound) / sigma
+    z = np.where(np.isfinite(z), z, np.where(np.abs(theta_free) > bound, np.inf, 0.0))
+    return float(max(np.max(z, initial=0.0), 0.0))
+
+
 def numerical_rank(J: np.ndarray) -> int:
     return int(np.linalg.matrix_rank(J / (np.linalg.norm(J, axis=0) + 1e-300)))
 
@@ -169,14 +183,16 @@ def screen(ctx: Context, names=None, progress=None) -> list:
             fits.append(Fit(name, c.kind, np.zeros(c.n_params), np.full(c.n_params, np.nan), 0.0, -np.inf, 0))
             continue
         u, *_ = np.linalg.lstsq(J, -e0, rcond=None)
+        sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0, None))
+        beyond = bound_excess(u, sig, c.bound)
         if np.any(np.abs(u) > c.bound):
             from scipy.optimize import lsq_linear
 
             u = lsq_linear(J, -e0, bounds=(-c.bound, c.bound)).x
         r1 = e0 + J @ u
         two_dll = float(e0 @ e0 - r1 @ r1)
-        sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0, None))
         f = Fit(name, c.kind, u, sig, two_dll, two_dll - rank * np.log(n_obs), rank, screen_logp(two_dll, rank))
+        f.bound_excess_sigma = beyond
         f.J_u = J * c.scale
         f.screen_ln_bf = ln_bayes_factor(two_dll, u / c.scale, f.J_u)
         f.Jd_full = Jd_full

@@ -12,16 +12,21 @@ detectable size is the size at which that happens with probability POWER:
 
     P(chi2_k(lambda(size)) > c),  c = chi2_k.isf(p*),  equals POWER.
 
-The signature comes from simulation with common random numbers: the run's
-seed with the effect at a probe size, minus the same seed without it, both
-whitened by the nominal model (the same replay the diagnoser runs). The
-probes replay the effect-free run's valve commands open loop: closed loop,
-a tiny effect flips a firing decision and the runs part ways, and that
-divergence, not the effect, would fill the difference. lambda
-grows as size^2 for a small effect; two more probes, each placed by the
-power law through the two probes nearest the target, absorb the
-nonlinearity. An effect without a candidate (out of the
-library) uses its whole signature energy and k = its parameter count.
+The signature comes from simulation with common random numbers, on the
+manoeuvres the run really flies with the effect: each probe simulates the
+run closed loop with the effect at the probe size (the run the campaign
+will fly at that size), then replays its valve commands open loop without
+the effect; the difference of the two, whitened by the nominal model (the
+same replay the diagnoser runs), is the effect's signature on those
+manoeuvres. (Probing on the effect-free run's manoeuvres instead misjudged
+the size: a 1 % thrust loss changes which valves the controller fires, and
+the noncentrality on the run actually flown was 0.25 to 2 times the
+effect-free run's.) lambda grows about as size^2, scattered by the
+manoeuvres changing with the size; the next probe is placed by the power
+law through the two probes nearest the target. The answer is the smallest
+probed size whose own run reaches the required noncentrality, so the run
+flown at 1x has at least the stated power. An effect without a candidate
+(out of the library) is tested by the gap map.
 
 The size is per run, per drawn direction: a docking run that holds attitude
 shows no gyro scale factor, and the same size is easy to see in a run that
@@ -35,7 +40,9 @@ from __future__ import annotations
 import numpy as np
 
 POWER = 0.95
-N_PROBES = 4
+MIN_PROBES = 2
+MAX_PROBES = 6
+SETTLE = 1.3  # a probe within this factor above the required noncentrality ends the search
 MAX_SHRINKS = 4
 
 
@@ -101,7 +108,11 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
                         simulate=None, power: float = POWER) -> dict:
     """The size of effect ``name`` along ``unit_params`` (a draw at size 1)
     that the diagnoser's screen detects with probability ``power`` in the
-    run of ``seed``. Returns the size and how it was found."""
+    run of ``seed`` with the effect at that size. Returns the size and how it
+    was found.
+
+    ``simulate(effects, scripts)`` returns (log, scripts): the run closed loop
+    (scripts None) or replaying ``scripts`` open loop."""
     from bench.effects import EFFECTS
     from bench.gap.attribute import numerical_rank, signature
     from bench.gap.candidates import CANDIDATES
@@ -110,76 +121,110 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
         from bench.effects import EffectSet
         from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
 
-        scripts = []
-
-        def simulate(eff):
-            # The effect-free run closed loop; each probe replays its valves open
-            # loop, so the difference is the effect's physics and nothing the
-            # controller did about it.
-            runs = simulate_runs(seed, eff, duration_s, scripts=scripts if eff else None)
-            if not eff:
-                scripts[:] = [r["config"] for r in runs]
-            return runs_to_log(runs, log_config(seed, duration_s), _clock_rate(EffectSet(eff)), with_truth=False)
+        def simulate(eff, scripts=None):
+            runs = simulate_runs(seed, eff, duration_s, scripts=scripts)
+            log = runs_to_log(runs, log_config(seed, duration_s), _clock_rate(EffectSet(eff)), with_truth=False)
+            return log, [r["config"] for r in runs]
 
     spec = EFFECTS[name]
     thr = float(calibration.get("thresholds", {}).get("screen_logp", np.nan))
     if not np.isfinite(thr):
         raise ValueError("the null calibration has no screen_logp threshold (regenerate it: python -m bench.gap.null)")
-    ctx0, e0, rows_ok = _residuals(simulate({}))
-    n = e0.size
-    P = None
-    k = spec.n_params
-    if spec.in_library and name in CANDIDATES:
-        J, _ = signature(ctx0, name, rows_ok)
-        k = max(numerical_rank(J), 1)
-        U, sv, _ = np.linalg.svd(J, full_matrices=False)
-        U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
-        P = U
     from scipy.stats import chi2, norm
 
-    by_map = P is None
-    if by_map:
-        # No candidate: the gap map is the test. A cell's z moves by dz with the
-        # effect (about N(dz, 1)): detected with `power` when the largest |dz|
-        # reaches the map threshold plus the normal quantile of the power.
-        thr_map = float(calibration["thresholds"]["map_max_abs_z"])
-        z0 = _cells(ctx0)
-        c = thr_map
-        lam_req = float((thr_map + norm.isf(1.0 - power)) ** 2)
-    else:
-        c = float(chi2.isf(10.0 ** -thr, k))
-        lam_req = required_noncentrality(k, c, power)
+    with_candidate = spec.in_library and name in CANDIDATES
+    thr_map = float(calibration["thresholds"]["map_max_abs_z"])
+    k_all = spec.n_params
+
+    def probe(size: float) -> dict:
+        # The run with the effect, closed loop: the manoeuvres the campaign's
+        # run at this size will fly. Its valves replayed open loop without the
+        # effect give the same manoeuvres' effect-free residuals, so the
+        # difference is the effect's physics on those manoeuvres.
+        log1, scripts = simulate({name: spec.at(unit_params, size).tolist()})
+        log0, _ = simulate({}, scripts)
+        ctx0, e0, rows_ok = _residuals(log0)
+        ctx1, w, e_dyn = _residuals(log1, ctx0)
+        s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
+        if with_candidate:
+            J, _ = signature(ctx0, name, rows_ok)
+            k = max(numerical_rank(J), 1)
+            U, sv, _ = np.linalg.svd(J, full_matrices=False)
+            U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
+            lam = float(np.sum((U.T @ s) ** 2))
+            c = float(chi2.isf(10.0 ** -thr, k))
+            lam_req = required_noncentrality(k, c, power)
+        else:
+            # No candidate: the gap map is the test. A cell's z moves by dz with the
+            # effect (about N(dz, 1)): detected with `power` when the largest |dz|
+            # reaches the map threshold plus the normal quantile of the power.
+            z0, z1 = _cells(ctx0), _cells(ctx1)
+            lam = float(max((abs(z1[key] - z0[key]) for key in z0.keys() & z1.keys()), default=0.0) ** 2)
+            k, c = k_all, thr_map
+            lam_req = float((thr_map + norm.isf(1.0 - power)) ** 2)
+        return {"size": float(size), "lambda": lam, "lambda_required": lam_req, "k": int(k), "threshold": c,
+                "n_obs": int(e0.size)}
+
     size = float(spec.min_detectable)
     probes = []
     shrinks = 0
-    while len(probes) < N_PROBES + shrinks:
+    while len(probes) < MAX_PROBES + shrinks:
         try:
-            ctx1, w, e_dyn = _residuals(simulate({name: spec.at(unit_params, size).tolist()}), ctx0)
+            p = probe(size)
         except ValueError:
-            # The effect changed the run's length (the chained approaches split at
-            # other times): no common rows to compare. Probe smaller.
+            # The effect changed the run's length (no common rows to compare). Probe smaller.
             probes.append({"size": size, "lambda": None, "note": "run length changed"})
             shrinks += 1
             if shrinks > MAX_SHRINKS:
-                size = float("inf")
                 break
             size *= 0.25
             continue
-        e1 = np.concatenate([w[rows_ok].ravel(), e_dyn])
-        s = e1 - e0
-        if by_map:
-            z1 = _cells(ctx1)
-            lam = float(max((abs(z1[key] - z0[key]) for key in z0.keys() & z1.keys()), default=0.0) ** 2)
-        else:
-            lam = float(np.sum((P.T @ s) ** 2))
-        probes.append({"size": size, "lambda": lam})
-        if not lam > 0.0:
-            size = float(spec.max_size)
+        probes.append(p)
+        if not p["lambda"] > 0.0:
             break
-        size = _next_size(probes, lam_req)
+        if _settled(probes):
+            break
+        size = _next_size(probes, p["lambda_required"])
         if size > spec.max_size:
+            # One look at the largest sensible size before calling it beyond the limit.
+            if any(q.get("size") == spec.max_size for q in probes):
+                break
+            size = float(spec.max_size)
+    answer = _answer(probes, spec.max_size)
+    # The closed-loop runs' noncentrality scatters about its trend in size (the
+    # manoeuvres change with the effect); if no probe reached the requirement
+    # below the largest sensible size, step up from the largest probe.
+    tries = 0
+    while answer is None and tries < 3 and any(q.get("lambda") for q in probes):
+        top = max(q["size"] for q in probes if q.get("lambda") is not None)
+        if top >= spec.max_size:
             break
-    detectable = bool(size <= spec.max_size)
-    return {"effect": name, "size": size if detectable else float("nan"), "detectable": detectable,
-            "test": "gap map" if by_map else "screen", "k": int(k), "threshold_2dll": float(c), "lambda_required": lam_req, "n_obs": int(n),
-            "power": power, "probes": probes}
+        try:
+            probes.append(probe(min(1.5 * top, float(spec.max_size))))
+        except ValueError:
+            break
+        tries += 1
+        answer = _answer(probes, spec.max_size)
+    last = next((q for q in reversed(probes) if q.get("lambda") is not None), {})
+    return {"effect": name, "size": answer["size"] if answer else float("nan"), "detectable": answer is not None,
+            "test": "screen" if with_candidate else "gap map", "k": int(last.get("k", k_all)),
+            "threshold_2dll": float(last.get("threshold", np.nan)),
+            "lambda_required": float(last.get("lambda_required", np.nan)),
+            "lambda_at_size": float(answer["lambda"]) if answer else float("nan"),
+            "n_obs": int(last.get("n_obs", 0)), "power": power, "probes": probes}
+
+
+def _settled(probes: list) -> bool:
+    """A probe at or above the required noncentrality by at most SETTLE (and
+    at least MIN_PROBES probes): its size is the answer."""
+    good = [p for p in probes if p.get("lambda") is not None]
+    return len(good) >= MIN_PROBES and any(1.0 <= p["lambda"] / p["lambda_required"] <= SETTLE for p in good)
+
+
+def _answer(probes: list, max_size: float) -> dict | None:
+    """The smallest probed size whose run reaches the required noncentrality
+    (that run is the one the campaign flies at 1x, so its power is known);
+    without one, None (beyond the largest sensible size)."""
+    ok = [p for p in probes if p.get("lambda") is not None and p["lambda"] >= p["lambda_required"]
+          and p["size"] <= max_size]
+    return min(ok, key=lambda p: p["size"]) if ok else None

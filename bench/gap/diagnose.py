@@ -12,9 +12,12 @@ Bayes factor among those that explain the held-out data):
                deficit stands out of that spread at all), and the gap map
                after the fix is below the null threshold (or below
                MAP_REMAINDER of its value before, for a large gap);
-  ambiguous    it does, but a second confirmed candidate is within
-               BF_AMBIGUOUS of its ln Bayes factor (a factor below 20) and
-               also explains the held-out data;
+  ambiguous    it does, but a second confirmed candidate also explains the
+               held-out data and either is within BF_AMBIGUOUS of its ln
+               Bayes factor (a factor below 20) or reproduces its fitted
+               signature to within DELTA2_95 noise variances (the data
+               cannot tell the two apart; their Bayes factor is then only
+               the priors' Occam factors);
   unexplained  otherwise (nothing in the library accounts for the gap).
 Without a detected gap the verdict is "no_gap".
 """
@@ -28,6 +31,7 @@ from bench.gap import dyn, localise, null as nullmod, quantify
 from bench.gap.attribute import BF_AMBIGUOUS, Context, Pass, confirm, screen
 from bench.gap.candidates import CANDIDATES, NOT_MODELLED
 from bench.gap.replay import LogData, prepare, reference
+from bench.gap.separability import DELTA2_95
 
 HELDOUT_DLL_MIN = 3.0
 SHRINK_MIN = 0.5
@@ -92,6 +96,30 @@ def segment_of(d: LogData, t: np.ndarray) -> np.ndarray:
     return np.searchsorted(d.imu_t[brk], np.asarray(t, float), side="right")
 
 
+def signature_distance(a, b) -> float:
+    """|(I - P_b) J_a theta_a|^2 on the training rows (screen Jacobians): how
+    far, in noise standard deviations squared, candidate a's fitted signature
+    lies from anything candidate b can produce (bench/gap/separability.py)."""
+    Ja, Jb = getattr(a, "J_u", None), getattr(b, "J_u", None)
+    if Ja is None or Jb is None or Ja.shape[0] != Jb.shape[0]:
+        return float("inf")
+    sa = Ja @ (a.theta / CANDIDATES[a.name].scale)
+    U, sv, _ = np.linalg.svd(Jb, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
+    r = sa - U @ (U.T @ sa)
+    return float(r @ r)
+
+
+def _gap_cells(ctx: Context):
+    """The deficit cells where the nominal model's gap lies on the training
+    rows (quantify.gap_cells), and every dynamics row's cell."""
+    ch = ctx.ch
+    lab = quantify.dyn_cell_labels(ch) if ch is not None else None
+    q = np.sum(ch.e0[ctx.train_dyn] ** 2, axis=1) if ch is not None else None
+    cells = quantify.gap_cells(ctx.nominal.nis[ctx.train_nav], q, None if lab is None else lab[ctx.train_dyn])
+    return cells, lab
+
+
 def heldout_runs_shrink(ctx: Context, name: str) -> dict:
     """Fit ``name`` on the even-numbered runs of a chained log and measure
     the shrink on the odd-numbered ones (every time block of them)."""
@@ -116,7 +144,9 @@ def heldout_runs_shrink(ctx: Context, name: str) -> dict:
         t_d = ch.t[hd]
         q0 = np.sum(ch.e0[hd] ** 2, axis=1)
         q1 = np.sum((f.after_dyn if f.after_dyn is not None else ch.e0)[hd] ** 2, axis=1)
-    sh = quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], f.after_nav.nis[held], t_d, q0, q1)
+    cells, lab = _gap_cells(c2)
+    sh = quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], f.after_nav.nis[held], t_d, q0, q1,
+                                  cells=cells, lab_dyn=None if lab is None else lab[hd])
     return {"runs": n_runs, "train_runs": int((n_runs + 1) // 2), "heldout_runs": int(n_runs // 2), **sh,
             "parameters": {p: float(v) for p, v in zip(CANDIDATES[name].params, f.theta)}}
 
@@ -141,13 +171,16 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     thr_map, thr_glr = float(thr.get("map_max_abs_z", np.inf)), float(thr.get("screen_logp", np.inf))
     detected = bool(t_map > thr_map or t_glr > thr_glr)
 
+    gap_cells, lab_dyn = _gap_cells(ctx)
+
     def held_shrink(after_nav: Pass, after_dyn):
         q0 = q1 = td = None
         if ch is not None:
             td = ch.t[held_dyn]
             q0 = np.sum(ch.e0[held_dyn] ** 2, axis=1)
             q1 = np.sum((after_dyn if after_dyn is not None else ch.e0)[held_dyn] ** 2, axis=1)
-        return quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], after_nav.nis[held], td, q0, q1)
+        return quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], after_nav.nis[held], td, q0, q1,
+                                        cells=gap_cells, lab_dyn=None if lab_dyn is None else lab_dyn[held_dyn])
 
     def held_dll(after_nav: Pass, after_dyn):
         v = float(np.nansum(after_nav.loglik[held]) - np.nansum(nominal.loglik[held]))
@@ -182,6 +215,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                 "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
                                                               "screen_bic": f.screen_bic, "dll_heldout": dll_held},
                 "parameters": {p: {"value": float(v), "sigma": float(s)} for p, v, s in zip(c.params, f.theta, f.sigma)},
+                "unconstrained_fit_beyond_bound_sigma": f.bound_excess_sigma,
                 "shrink_heldout": sh, "map_max_abs_z_after": map_after, "explains_heldout": explains,
                 "separate_by": c.separate_by,
                 "replay_rms_heldout_after": quantify.channel_rms(f.after_nav.innovation[held]),
@@ -202,9 +236,18 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             ranking = explainers + [r for r in ranking if not r["explains_heldout"]]
             verdict = "explained"
             best = ranking[0]
+            fit_of = {f.name: f for f in fits}
             for r in ranking[1:]:
-                if best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"] < BF_AMBIGUOUS and r["explains_heldout"]:
-                    ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"],
+                if not r["explains_heldout"]:
+                    continue
+                dbf = best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"]
+                # Two ways the data fail to tell them apart: the evidence is close,
+                # or the best one's fitted signature is one the other reproduces
+                # to within DELTA2_95 (then the Bayes factor between them is only
+                # their priors' Occam factors, not the data).
+                d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]])
+                if dbf < BF_AMBIGUOUS or d2 < DELTA2_95:
+                    ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": dbf, "signature_distance2": d2,
                                            "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
             if ambiguous_with:
                 verdict = "ambiguous"

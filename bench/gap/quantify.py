@@ -16,6 +16,15 @@ chunks of held-out time. D has a null spread of sqrt(k n / 2) (k residuals
 per row, n rows): when D_before is within two of those the gap is too small
 for a shrink to be measured on the held-out data ("measurable": false), and
 the held-out log-likelihood gain is the evidence that remains.
+
+Where the gap lies: the deficit is summed over the cells (pose updates;
+accelerometer while firing; accelerometer while coasting; gyro) whose
+training-block deficit under the nominal model stands out of its null
+spread (gap_cells). A thrust effect leaves the coasting accelerometer rows
+and the pose updates at the null; summing them would only add their noise
+(a null spread of 30 to the deficit of a gap of 20 near the detection
+limit). The cells are chosen on the training blocks, before any candidate is
+fitted, and are the same for every candidate, right or wrong.
 """
 from __future__ import annotations
 
@@ -71,10 +80,19 @@ def shrink(nis_before: np.ndarray, nis_after: np.ndarray, seed: int = 0) -> dict
 CHUNK_S = 5.0
 
 
-def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_after=None, seed: int = 0) -> dict:
+def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_after=None, seed: int = 0,
+                    cells: list | None = None, lab_dyn=None) -> dict:
     """Shrink of the held-out deficit over both channels, the navigation
     updates (1/2 (NIS - 6)) and the dynamics rows (1/2 (|e|^2 - 3)), with a
-    95 % bootstrap interval over 5 s chunks of held-out time."""
+    95 % bootstrap interval over 5 s chunks of held-out time. ``cells``
+    (from gap_cells, with ``lab_dyn`` the held-out dynamics rows' cells):
+    only those cells count; None or empty: all."""
+    if cells:
+        if CELL_NAV not in cells:
+            t_nav, nis_before, nis_after = t_nav[:0], nis_before[:0], nis_after[:0]
+        if t_dyn is not None and q_before is not None:
+            keep = np.isin(lab_dyn, cells)
+            t_dyn, q_before, q_after = t_dyn[keep], q_before[keep], q_after[keep]
     parts_t = [np.asarray(t_nav, float)]
     b = [0.5 * (np.asarray(nis_before) - 6.0)]
     a = [0.5 * (np.asarray(nis_after) - 6.0)]
@@ -93,7 +111,8 @@ def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_a
         [np.full(np.asarray(q_before).size, 3.0)] if (t_dyn is not None and q_before is not None) else []))[ok]
     sd0 = float(np.sqrt(0.5 * dof.sum()))
     base = {"deficit_before": d0, "deficit_after": d1, "deficit_null_sd": sd0,
-            "measurable": bool(d0 > 2.0 * sd0)}
+            "measurable": bool(d0 > 2.0 * sd0),
+            "cells": [CELL_NAMES[c] for c in cells] if cells else "all"}
     if t.size == 0:
         return {"fraction": frac, "ci95": [float("nan")] * 2, **base, "n_chunks": 0}
     chunk = np.floor((t - t.min()) / CHUNK_S).astype(int)
@@ -109,6 +128,43 @@ def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_a
         boots = 1.0 - B1[good] / B0[good]
     lo, hi = (np.percentile(boots, [2.5, 97.5]) if len(boots) > 20 else (float("nan"), float("nan")))
     return {"fraction": float(frac), "ci95": [float(lo), float(hi)], **base, "n_chunks": int(ids.size)}
+
+
+# Deficit cells: the navigation updates, the accelerometer rows while a valve
+# is open and while none is, and the gyro rows. (Whitened gyro rows are not
+# split by regime: whitening the differenced gyro integrates it back, so a
+# torque error made while firing stays in the coasting rows after.)
+CELL_NAV, CELL_ACCEL_COAST, CELL_ACCEL_FIRE, CELL_GYRO = 0, 1, 2, 3
+CELL_NAMES = {CELL_NAV: "pose updates", CELL_ACCEL_COAST: "accelerometer, coasting",
+              CELL_ACCEL_FIRE: "accelerometer, firing", CELL_GYRO: "gyro"}
+
+
+def dyn_cell_labels(ch) -> np.ndarray:
+    """The deficit cell of each row of the dynamics channel."""
+    n = ch.F.shape[0]
+    lab = np.full(ch.rows, CELL_GYRO)
+    lab[:n] = np.where(ch.open_.any(axis=1), CELL_ACCEL_FIRE, CELL_ACCEL_COAST)
+    return lab
+
+
+def gap_cells(nis_train, q_train=None, lab_train=None) -> list:
+    """The cells where the nominal model's training-block deficit stands out
+    of its null spread (over 2 sd): where the gap lies. The held-out shrink is
+    measured over these cells only, so channels that carry nothing of the gap
+    add no noise to it; they are chosen on the training blocks, before and
+    independently of any candidate, and the same cells serve every candidate.
+    Empty when no cell stands out (then every cell counts)."""
+    out = []
+    nis = np.asarray(nis_train, float)
+    nis = nis[np.isfinite(nis)]
+    if nis.size and 0.5 * np.sum(nis - 6.0) > 2.0 * np.sqrt(0.5 * 6.0 * nis.size):
+        out.append(CELL_NAV)
+    if q_train is not None:
+        for c in (CELL_ACCEL_COAST, CELL_ACCEL_FIRE, CELL_GYRO):
+            q = np.asarray(q_train)[lab_train == c]
+            if q.size and 0.5 * np.sum(q - 3.0) > 2.0 * np.sqrt(0.5 * 3.0 * q.size):
+                out.append(c)
+    return out
 
 
 def channel_rms(innov: np.ndarray) -> dict:

@@ -132,7 +132,9 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     if result["ambiguous_with"]:
         lines += ["### Not told apart", ""]
         for a in result["ambiguous_with"]:
-            lines.append(f"- {best['effect']} vs {a['effect']} (ln Bayes factor difference {a['ln_bf_difference']:.1f}): "
+            lines.append(f"- {best['effect']} vs {a['effect']} (ln Bayes factor difference {a['ln_bf_difference']:.1f}; "
+                         f"{a['effect']} reproduces {best['effect']}'s fitted signature to within "
+                         f"{a['signature_distance2']:.1f} noise variances): "
                          f"separate with: {a['separate_by']}")
         lines.append("")
     lines += ["## Ranking (confirmed by full-filter refit on training blocks)", "",

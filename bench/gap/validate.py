@@ -114,6 +114,8 @@ def _size_one(arg):
     md = min_detectable_size(key["seed"], key["effect"], key["unit"], duration_s, calibration)
     key["min_detectable"] = md["size"]
     key["detectable"] = md["detectable"]
+    key["lambda_at_min_detectable"] = md.get("lambda_at_size")
+    key["lambda_required"] = md.get("lambda_required")
     # Beyond the effect's largest sensible size in this run: simulated at that
     # size and scored apart (the run's manoeuvres cannot show it).
     size = key["scale"] * md["size"] if md["detectable"] else spec.max_size
@@ -188,6 +190,12 @@ def _run_one(arg):
         wrong = [n for n in CANDIDATES if n != eff]
         w = wrong[np.random.default_rng(key["seed"]).integers(len(wrong))]
         out["wrong_fit"] = {"effect": w, **forced_fit(it, w)}
+    if eff is not None:
+        # Could this run's data tell its effect from each candidate at all?
+        from bench.gap.separability import separability
+
+        sep = separability(key["seed"], eff, key["effects"], duration_s, key["category"] == "in_library")
+        out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable")}
     return out
 
 
@@ -245,6 +253,25 @@ def score(keys: list, answers: list) -> dict:
                                        for k, a in sel])),
             }
     res["in_library_by_scale"] = by_scale
+    # The same, over the runs whose data can tell the true effect from every
+    # other candidate (bench/gap/separability.py: delta2 >= 10.8, where a
+    # perfect two-way decision is right 95 % of the time); the runs it leaves
+    # out are ones no diagnoser can attribute reliably.
+    sep_scale = {}
+    for s in SCALES:
+        sel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable")]
+        nsel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable") is False]
+        if sel or nsel:
+            sep_scale[f"{s:g}x"] = {
+                "n_separable": len(sel), "n_not_separable": len(nsel),
+                "top1_separable": float(np.mean([a["gap_detected"] and a["verdict"] != "unexplained"
+                                                 and a["top1"] == k["effect"] for k, a in sel])) if sel else None,
+                "not_separable_by_effect": {e: sum(1 for k, _ in nsel if k["effect"] == e)
+                                            for e in sorted({k["effect"] for k, _ in nsel})},
+                "closest_when_not_separable": {c: sum(1 for _, a in nsel if a["separability"]["closest"] == c)
+                                               for c in sorted({a["separability"]["closest"] for _, a in nsel})},
+            }
+    res["in_library_by_scale_separable"] = sep_scale
     per_effect = {}
     for k, a in inl:
         e = per_effect.setdefault(k["effect"], {})
@@ -310,13 +337,16 @@ def runs_table(res: dict) -> str:
     """One CSV line per run: the drawn key (after scoring) beside the answer."""
     by = {a["run"]: a for a in res["answers"]}
     lines = ["run,seed,category,effect,scale,min_detectable,size,detectable,gap_detected,verdict,top1,"
-             "map_max_abs_z,screen_logp_max,true_fit_shrink,wrong_fit_effect,wrong_fit_shrink"]
+             "map_max_abs_z,screen_logp_max,true_fit_shrink,wrong_fit_effect,wrong_fit_shrink,"
+             "lambda_at_min_detectable,signature_lambda,closest_candidate,delta2_closest"]
     for k in res["keys"]:
         a = by[k["run"]]
         tf, wf = a.get("true_fit", {}), a.get("wrong_fit", {})
         vals = [k["run"], k["seed"], k["category"], k["effect"] or "", k["scale"], k.get("min_detectable", ""),
                 k.get("size", ""), k.get("detectable", ""), a["gap_detected"], a["verdict"], a["top1"] or "",
                 f"{a['map_max_abs_z']:.4g}", f"{a['screen_logp_max']:.4g}", tf.get("shrink", ""),
-                wf.get("effect", ""), wf.get("shrink", "")]
+                wf.get("effect", ""), wf.get("shrink", ""), k.get("lambda_at_min_detectable", ""),
+                a.get("separability", {}).get("lambda", ""), a.get("separability", {}).get("closest", "") or "",
+                a.get("separability", {}).get("delta2_min", "")]
         lines.append(",".join(str(v) for v in vals))
     return "\n".join(lines) + "\n"

@@ -114,6 +114,9 @@ def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(ca
     unit = spec.draw_fn(np.random.default_rng(2), 1.0)
     md = min_detectable_size(31, "accel_bias", unit, 60.0, calibration)
     assert md["detectable"] and md["k"] == 3
+    # The answer is a probed size whose own closed-loop run reaches the required noncentrality.
+    assert md["size"] in [p["size"] for p in md["probes"]]
+    assert md["lambda_at_size"] >= md["lambda_required"]
     # A linear effect: the last probe sits at the answer and its lambda at the target.
     last = md["probes"][-1]
     assert last["size"] == pytest.approx(md["size"], rel=0.05)
@@ -190,3 +193,60 @@ def test_proxops_run_ends_with_the_three_answers_then_the_sealed_key(tmp_path, c
     assert where < which < how_far < key  # the key is opened only after the answers
     assert "thrust_loss (explained)" in out
     assert (tmp_path / "gap" / "README.md").exists() and (tmp_path / "gap" / "diagnosis.json").exists()
+
+
+def test_a_nozzle_tilt_in_a_docking_run_is_not_separable_from_thrust_loss():
+    from bench.gap.separability import DELTA2_95, separability
+
+    # Fixed couples: the gyro sees a small tilt's torque as a valve's lost torque.
+    tilt = np.zeros(24)
+    tilt[[1, 5, 13, 20]] = [0.006, -0.0045, 0.006, 0.0045]
+    s = separability(31, "thruster_misalignment", {"thruster_misalignment": tilt.tolist()}, 60.0, True)
+    assert s["lambda"] > 30.0  # detectable...
+    assert s["closest"] == "thrust_loss" and s["delta2_min"] < DELTA2_95 and not s["separable"]  # ...not attributable
+    # An accelerometer bias is nothing like any other candidate's signature.
+    b = separability(31, "accel_bias", {"accel_bias": [4e-4, -3e-4, 2e-4]}, 60.0, True)
+    assert b["separable"] and b["delta2_min"] > 0.5 * b["lambda"]
+
+
+def test_deficit_cells_keep_only_where_the_training_gap_lies():
+    from bench.gap import quantify
+
+    rng = np.random.default_rng(4)
+    n_nav, n_acc = 60, 600
+    nis_train = rng.chisquare(6, n_nav)  # null
+    lab = np.r_[np.full(n_acc, quantify.CELL_ACCEL_COAST), np.full(n_acc, quantify.CELL_ACCEL_FIRE),
+                np.full(n_acc, quantify.CELL_GYRO)]
+    q = rng.chisquare(3, lab.size)
+    q[lab == quantify.CELL_ACCEL_FIRE] += 0.5  # a gap of 150 in the firing rows
+    assert quantify.gap_cells(nis_train, q, lab) == [quantify.CELL_ACCEL_FIRE]
+    # Held out: the same gap; a fix that removes it shrinks the cell's deficit by
+    # about all of it, and the null rows elsewhere add no noise to that.
+    q_held = rng.chisquare(3, lab.size) + np.where(lab == quantify.CELL_ACCEL_FIRE, 0.5, 0.0)
+    q_fixed = q_held - np.where(lab == quantify.CELL_ACCEL_FIRE, 0.5, 0.0)
+    t = np.arange(lab.size) * 0.1
+    nis_h = rng.chisquare(6, n_nav)
+    sh = quantify.shrink_combined(t[:n_nav], nis_h, nis_h, t, q_held, q_fixed,
+                                  cells=[quantify.CELL_ACCEL_FIRE], lab_dyn=lab)
+    assert sh["deficit_null_sd"] == pytest.approx(np.sqrt(0.5 * 3 * n_acc))
+    assert sh["measurable"] and sh["fraction"] == pytest.approx(1.0, abs=0.4)
+    assert sh["cells"] == ["accelerometer, firing"]
+
+
+def test_signature_distance_is_zero_inside_the_other_span_and_full_outside():
+    from bench.gap.attribute import Fit
+    from bench.gap.candidates import CANDIDATES
+    from bench.gap.diagnose import signature_distance
+
+    rng = np.random.default_rng(1)
+    Jb = rng.standard_normal((200, 3))
+    a_in = Fit("gyro_bias", "sensor", np.array([CANDIDATES["gyro_bias"].scale]), np.zeros(1), 0.0, 0.0)
+    a_in.J_u = Jb @ np.array([[1.0], [2.0], [0.5]])  # inside b's span
+    b = Fit("accel_bias", "sensor", np.zeros(3), np.zeros(3), 0.0, 0.0)
+    b.J_u = Jb
+    assert signature_distance(a_in, b) == pytest.approx(0.0, abs=1e-9)
+    a_out = Fit("gyro_bias", "sensor", np.array([CANDIDATES["gyro_bias"].scale]), np.zeros(1), 0.0, 0.0)
+    v = rng.standard_normal(200)
+    v -= Jb @ np.linalg.lstsq(Jb, v, rcond=None)[0]  # orthogonal to b's span
+    a_out.J_u = v[:, None]
+    assert signature_distance(a_out, b) == pytest.approx(float(v @ v), rel=1e-9)
