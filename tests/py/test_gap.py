@@ -73,7 +73,7 @@ def test_thrust_loss_seen_through_the_dynamics_channel(calibration):
     assert np.max(np.abs(fitted - loss)) < 0.03
 
 
-def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path):
+def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
     out = tmp_path / "vg.json"
     res = run_campaign(4, seed=3, out=str(out), workers=1, duration_s=40.0, progress=False)
     assert (tmp_path / "vg.json.prereg.json").exists()
@@ -88,6 +88,17 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path):
 
             spec = EFFECTS[k["effect"]]
             assert spec.size(k["effects"][k["effect"]]) == pytest.approx(k["scale"] * k["min_detectable"], rel=1e-9)
+            assert k["lambda_at_min_detectable"] >= k["lambda_required"]
+    for k, a in zip(res["keys"], res["answers"]):  # scored for separability after the answer
+        assert ("separability" in a) == (k["effect"] is not None)
+    # The RESULTS.md tables render from the full JSON.
+    from bench.gap import results_tables
+    from bench.report import write_json
+
+    write_json(str(out), res)
+    assert results_tables.main([str(out)]) == 0
+    md = capsys.readouterr().out
+    assert "| false alarms on null runs |" in md and "### Per in-library effect" in md
 
 
 def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
