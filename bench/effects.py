@@ -11,7 +11,8 @@ turns it into the physical settings of the plant (bench/plant.py,
 equations live there, not here: this module only maps parameters to physics.
 
 ``in_library`` marks the effects a diagnoser may use as candidates; the
-others (fuel slosh, IMU clock drift, LED occlusion) exist to test that a gap
+others (fuel slosh, IMU clock drift, LED occlusion, a flexible mode, lens
+distortion) exist to test that a gap
 no candidate explains is reported as unexplained. Every effect, its physics,
 its parameters and how ``min_detectable`` was measured: docs/EFFECTS.md.
 """
@@ -81,6 +82,10 @@ class EffectSpec:
     # False when not even the truth shows the effect in a 120 s docking run up
     # to max_size: min_detectable is then max_size, a bound, not a measurement.
     detectable: bool = True
+    # True when the effect lives in the camera and so exists only with pose
+    # from rendered images (ScenarioConfig(pose_source="images")); the bench's
+    # synthetic pose sensor has no lens.
+    needs_images: bool = False
 
     def size(self, params) -> float:
         """The effect's magnitude (the quantity ``typical`` and ``min_detectable`` measure)."""
@@ -119,7 +124,9 @@ def _signed_draw(rng, size):
 # Parameters that do not scale with an effect's size (EffectSpec.at).
 _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": (1,)}
 
-# min_detectable: measured with `python -m bench.reality detect` (docs/EFFECTS.md).
+# min_detectable: measured with `python -m bench.reality detect` (docs/EFFECTS.md);
+# lens distortion on image-pose docking runs (`--effects lens_distortion`).
+LENS_K1_MIN_DETECTABLE = 0.028
 EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
     EffectSpec("thruster_misalignment", "dynamics", True, 24, "rad",
                "rotation vector of each nozzle's thrust direction (8 x 3, body axes; size: RMS angle)",
@@ -173,6 +180,10 @@ EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
                "on a random fraction of frames the position is biased along the line of sight (bias, fraction)",
                0.02, 0.057, ("bias_m", "fraction"), _first,
                lambda rng, size: np.array([size * rng.choice([-1.0, 1.0]), rng.uniform(0.2, 0.5)])),
+    # Pose from images only; no diagnoser candidate models a lens.
+    EffectSpec("lens_distortion", "sensor", False, 1, "1",
+               "radial lens distortion k1 of the docking camera, left out of the vision pipeline's pinhole model",
+               0.05, LENS_K1_MIN_DETECTABLE, ("k1",), _first, _signed_draw),
 )}
 
 # Largest physically sensible sizes (the min_detectable search stops there).
@@ -180,15 +191,19 @@ _MAX_SIZE = {"thruster_misalignment": 0.5, "thrust_loss": 0.9, "com_offset": 0.0
              "accel_bias": 0.05, "gyro_bias": 0.05, "gyro_scale": 0.5, "imu_misalignment": 0.5,
              "camera_latency": 3.0, "camera_lever_arm": 2.0, "host_eccentricity": 0.05, "differential_j2": 100.0,
              "differential_drag": 1000.0, "flex_mode": 0.5, "fuel_slosh": 1.5, "clock_drift": 0.05,
-             "led_occlusion": 1.0}
+             "led_occlusion": 1.0, "lens_distortion": 0.3}
 # Measured (docs/EFFECTS.md): shown only by the error against truth; not shown
 # at all up to max_size (min_detectable is then max_size, a bound).
 _NEEDS_TRUTH = {"camera_lever_arm"}
 _NOT_DETECTABLE = {"host_eccentricity", "differential_j2", "clock_drift"}
-EFFECTS = {n: replace(s, max_size=_MAX_SIZE[n], needs_truth=n in _NEEDS_TRUTH, detectable=n not in _NOT_DETECTABLE)
+_NEEDS_IMAGES = {"lens_distortion"}
+EFFECTS = {n: replace(s, max_size=_MAX_SIZE[n], needs_truth=n in _NEEDS_TRUTH, detectable=n not in _NOT_DETECTABLE,
+                      needs_images=n in _NEEDS_IMAGES)
            for n, s in EFFECTS.items()}
 
-PENDING = {"lens_distortion": "needs the image pipeline (pose from rendered LED images); joins when it lands"}
+# Effects that wait for a part of the bench not yet built (none now: lens
+# distortion joined with the image pipeline).
+PENDING: dict[str, str] = {}
 
 
 def canonical(name: str, params) -> np.ndarray:
@@ -238,6 +253,7 @@ class Realisation:
     occlusion: tuple | None = None
     camera_latency_s: float = 0.0
     imu_clock_rate: float = 1.0
+    lens_k1: float = 0.0  # radial distortion of the camera the pipeline takes for a pinhole
 
 
 def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: int) -> Realisation:
@@ -300,6 +316,8 @@ def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: i
             raise ValueError("camera_latency must be >= 0 (the pose is captured before its time tag)")
     if "clock_drift" in e:
         out.imu_clock_rate = 1.0 + float(e["clock_drift"][0])
+    if "lens_distortion" in e:
+        out.lens_k1 = float(e["lens_distortion"][0])
     return out
 
 

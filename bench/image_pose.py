@@ -75,16 +75,25 @@ class ImagePoseSensor:
     cam: cm.Camera = field(default_factory=docking_camera)
     status_counts: dict = field(default_factory=dict)
     last: object = None  # the pipeline's last LedPoseMeasurement (diagnostics)
+    # Radial distortion of the real lens, which the pipeline does not know
+    # (the lens_distortion effect): frames are rendered through it, the
+    # pipeline keeps ``cam``'s own model.
+    lens_k1: float = 0.0
 
     def __post_init__(self):
         from bench.pose_campaign import make_estimator
 
         self.pattern = docking_pattern()
         self.estimator = make_estimator(self.cam, face_offset_m=DOCK_FACE_OFFSET_M)
+        self.render_cam = self.cam
+        if self.lens_k1 != 0.0:
+            self.render_cam = self.cam.with_mount_error(np.zeros(3))  # a copy
+            self.render_cam.dist = np.asarray(self.cam.dist, float).copy()
+            self.render_cam.dist[0] += float(self.lens_k1)
 
     def measure(self, t_s: float, r_hill_m, q_hb) -> PoseMeasurement | None:
         img = cm.render(np.asarray(r_hill_m, float), np.asarray(q_hb, float), Q_H_PATTERN, self.scene, self.rng,
-                        self.cam, pattern=self.pattern)
+                        self.render_cam, pattern=self.pattern)
         m = self.estimator.estimate(img, float(t_s), Q_H_PATTERN)
         self.last = m
         self.status_counts[m.status] = self.status_counts.get(m.status, 0) + 1

@@ -211,10 +211,16 @@ STAT_NAMES = ("nis", "innov_bias", "accel", "accel_fit", "gyro", "gyro_fit")  # 
 TRUTH_STAT_NAMES = STAT_NAMES + ("nees",)
 
 
-def null_statistics(seeds, duration_s: float = 120.0) -> dict:
+def scenario_for(name: str) -> ScenarioConfig | None:
+    """The docking scenario an effect is measured in: pose from rendered
+    images for an effect of the camera (EffectSpec.needs_images)."""
+    return ScenarioConfig(pose_source="images") if EFFECTS[name].needs_images else None
+
+
+def null_statistics(seeds, duration_s: float = 120.0, scenario: ScenarioConfig | None = None) -> dict:
     vals = {k: [] for k in TRUTH_STAT_NAMES}
     for s in seeds:
-        st = gap_statistics(simulate_runs(int(s), None, duration_s))
+        st = gap_statistics(simulate_runs(int(s), None, duration_s, scenario))
         for k in TRUTH_STAT_NAMES:
             vals[k].append(st[k])
     return {k: {"mean": float(np.mean(x)), "std": float(np.std(x, ddof=1)), "values": x} for k, x in vals.items()}
@@ -236,7 +242,8 @@ def score_at(name: str, size: float, seeds, null: dict, duration_s: float = 120.
     scores, which = [], []
     for s in seeds:
         p = spec.draw_fn(rng, size)
-        sc, k = gap_score(gap_statistics(simulate_runs(int(s), {name: p}, duration_s)), null, names)
+        sc, k = gap_score(gap_statistics(simulate_runs(int(s), {name: p}, duration_s, scenario_for(name))), null,
+                          names)
         scores.append(sc)
         which.append(k)
     return float(np.median(scores)), scores, which
@@ -304,8 +311,16 @@ def main(argv=None):
     out = {"null": null, "z_detect": a.z, "seeds": list(range(100, 100 + a.seeds)), "effects": {}}
     with open(a.json, "w") as f:
         json.dump(out, f, indent=1, default=float)
+    null_synthetic = null
     for name in a.effects:
         spec = EFFECTS[name]
+        null = null_synthetic
+        if spec.needs_images:  # measured against a null of image-pose runs
+            if "null_images" not in out:
+                out["null_images"] = null_statistics(range(900, 900 + a.null_seeds), a.duration, scenario_for(name))
+                print("null (pose from images):",
+                      {k: (round(v["mean"], 3), round(v["std"], 3)) for k, v in out["null_images"].items()}, flush=True)
+            null = out["null_images"]
         res = {"effect": name, "min_detectable": float("nan"), "needs_truth": False, "detectable": True}
         for names, truth in ((STAT_NAMES, False), (TRUTH_STAT_NAMES, True)):
             # First the largest sensible size: if even that does not show, skip the search.

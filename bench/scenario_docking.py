@@ -185,6 +185,9 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
         imu = Imu(fx.profile, rng_imu, c_imu_b=fx.c_imu_b)
         if images and (fx.lever_arm_b_m is not None or fx.occlusion is not None):
             raise ValueError("pose_source 'images' does not model the camera lever arm or LED occlusion effects")
+        if fx.lens_k1 != 0.0 and not images:
+            raise ValueError("lens_distortion needs pose_source 'images' (the synthetic pose sensor has no lens)")
+        lens_k1 = fx.lens_k1
         pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=fx.lever_arm_b_m, occlusion=fx.occlusion)
         latency_s, clock_rate = fx.camera_latency_s, fx.imu_clock_rate
     else:
@@ -192,11 +195,11 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
                       substep_s=cfg.substep_s)
         imu = Imu(cfg.profile, rng_imu)
         pose = PoseSensor(cfg.profile, rng_pose)
-        latency_s, clock_rate = 0.0, 1.0
+        latency_s, clock_rate, lens_k1 = 0.0, 1.0, 0.0
     if images:
         from bench.image_pose import ImagePoseSensor
 
-        pose = ImagePoseSensor(cfg.profile, rng_pose)
+        pose = ImagePoseSensor(cfg.profile, rng_pose, lens_k1=lens_k1)
     ctrl = DockingController(params=cfg.controller)
 
     def seen(t_tag):

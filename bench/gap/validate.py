@@ -83,8 +83,10 @@ def draw_campaign(n_runs: int, seed: int) -> list:
     from bench.effects import EFFECTS
 
     rng = np.random.default_rng(seed)
-    inlib = sorted(n for n, s in EFFECTS.items() if s.in_library)
-    outlib = sorted(n for n, s in EFFECTS.items() if not s.in_library)
+    # The campaign's logs have synthetic poses: effects of the camera that
+    # exist only with rendered images are not drawn.
+    inlib = sorted(n for n, s in EFFECTS.items() if s.in_library and not s.needs_images)
+    outlib = sorted(n for n, s in EFFECTS.items() if not s.in_library and not s.needs_images)
     n_null = int(round(FRACTIONS["null"] * n_runs))
     n_out = int(round(FRACTIONS["out_of_library"] * n_runs))
     n_in = n_runs - n_null - n_out

@@ -20,8 +20,9 @@ fb = pytest.importorskip("fsw_bindings")
 LIBRARY = {"thruster_misalignment", "thrust_loss", "com_offset", "mass_depletion", "accel_bias", "gyro_bias",
            "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm", "host_eccentricity",
            "differential_j2", "differential_drag"}
-# flex_mode is simulated but has no diagnoser candidate: it tests "unexplained" too.
-OUT_OF_LIBRARY = {"fuel_slosh", "clock_drift", "led_occlusion", "flex_mode"}
+# flex_mode is simulated but has no diagnoser candidate: it tests "unexplained" too;
+# lens_distortion exists only with pose from rendered images.
+OUT_OF_LIBRARY = {"fuel_slosh", "clock_drift", "led_occlusion", "flex_mode", "lens_distortion"}
 
 
 def hill_fixed(r=(0.0, -0.75, 0.0), v=(0.0, 0.0, 0.0)):
@@ -38,10 +39,17 @@ def assert_runs_equal(a, b):
 
 # --- contract ---------------------------------------------------------------
 
-def test_library_membership_and_pending_lens_distortion():
+def test_library_membership_and_lens_distortion_joined_with_the_image_pipeline():
     assert {n for n, s in EFFECTS.items() if s.in_library} == LIBRARY
     assert {n for n, s in EFFECTS.items() if not s.in_library} == OUT_OF_LIBRARY
-    assert "lens_distortion" in PENDING and "lens_distortion" not in EFFECTS
+    assert PENDING == {} and {n for n, s in EFFECTS.items() if s.needs_images} == {"lens_distortion"}
+
+
+def test_campaign_draws_only_effects_the_synthetic_pose_logs_can_carry():
+    from bench.gap.validate import draw_campaign
+
+    drawn = {k["effect"] for k in draw_campaign(200, seed=3)} - {None}
+    assert "lens_distortion" not in drawn and drawn == (LIBRARY | OUT_OF_LIBRARY) - {"lens_distortion"}
 
 
 def test_every_spec_draws_its_size_at_scale_times_min_detectable():
