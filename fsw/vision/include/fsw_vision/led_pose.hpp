@@ -110,6 +110,12 @@ struct LedPoseConfig {
   double read_noise_counts = 1.5;  // pixel noise model of the centroid variance:
   double shot_gain = 0.05;         //   var = read^2 + shot_gain * signal [counts^2]
   double centroid_floor_px = 0.008; // added in quadrature to each blob's sigma
+  bool refine_centroid = true;        // false: the first estimate (component box + 2 px, clipped weights)
+  double centroid_weight_min_px = 0.8;  // bounds of the Gaussian weight's width (the spot's, from its moments)
+  double centroid_weight_max_px = 6.0;
+  double centroid_weight_sat_scale = 4.0;  // weight width factor for a spot with saturated pixels
+  double centroid_noise_scale = 1.0;  // calibrated factor on the propagated pixel noise
+  double sat_sigma_px = 0.024;        // calibrated: a saturated spot adds (sat_sigma_px / max(width, 1 px))^2 [px^2]
   double max_condition = 1e12;     // of J^T J
   double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
 };
@@ -119,7 +125,10 @@ struct Blob {
   double v_px;  // row
   double flux;  // background-subtracted sum [counts]
   int area_px;
-  double sigma_px;  // centroid standard deviation from the pixel-noise model
+  double sigma_px;  // centroid standard deviation from the calibrated error model
+  int n_saturated = 0;        // pixels at 255 in the centroid window
+  double sigma_noise_px = 0;  // pixel-noise part of sigma_px, before the calibration's scale and terms
+  double width_px = 0;        // spot width (rms radius per axis) from the component's moments
 };
 
 // A pose measurement ready for the navigation update (NavUkf::update_pose):
@@ -182,6 +191,9 @@ class LedPoseEstimator {
                 Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const;
 
  private:
+  bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, double u0,
+                       double v0, double width_px, double sigma_w, Blob& out) const;
+
   LedPoseConfig cfg_;
   cv::Mat K_;
   cv::Mat dist_;
