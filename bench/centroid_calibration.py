@@ -15,18 +15,23 @@ level (faint, bright, saturated), spot width and blur: detection rate, bias
 (mean e), rms error against rms model sigma, and mean z^2 (1 when the model is
 honest).
 
-Fit: the detector's sigma is
+Model (``fsw_vision`` detector, refined centroid): per spot
 
-    sigma^2 = noise_scale^2 var_noise + var_excess + floor^2
+    sigma^2 = centroid_noise_scale^2 sigma_noise^2
+              + (sat_sigma_px / max(width / 1 px, 1)^2)^2   [spot with a saturated pixel]
+              + centroid_floor_px^2
 
-with var_noise the propagated pixel noise (read and shot noise through the
-centroid's weights), and var_excess the spot-shape terms (saturation and
-undersampling, ``LedPoseConfig.sat_sigma_px`` per saturated pixel ...). The
-fit runs the detector with the excess terms switched off, then chooses the
-constants so that mean z^2 is 1 in each class of spot (least squares on the
-per-spot squared errors). Command:
+with sigma_noise the pixel noise propagated through the Gaussian-weighted
+centroid (ring background variance plus shot noise, and the background
+plane's error) and width the spot's width from its moments. ``fit`` chooses
+the three constants by non-negative least squares on the per-spot squared
+errors, reweighted by the model variance's inverse square (the Gaussian
+likelihood's weights for a variance); the check re-renders with the next
+seed through the flight defaults. ``--legacy`` also measures the first
+estimate alone (component box + 2 px, weights clipped at zero, plain
+pixel-noise sigma), the detector before the refinement. Command:
 
-    OPENBLAS_NUM_THREADS=1 python -m bench.centroid_calibration --seed 1 --images 60
+    OPENBLAS_NUM_THREADS=1 python -m bench.centroid_calibration --seed 1 --images 60 --legacy
 
 It prints the table and the fitted constants; ``--json`` writes them.
 """
@@ -144,6 +149,9 @@ def estimator(**overrides):
     return fb.LedPoseEstimator(cfg)
 
 
+# The detector before the refinement: first estimate and its pixel-noise sigma with the 0.008 px floor.
+LEGACY = {"refine_centroid": False, "centroid_floor_px": 0.008}
+
 PEAK_CLASSES = (("faint", 0.0, 60.0), ("bright", 60.0, 249.0), ("saturated", 249.0, np.inf))
 SIGMA_CLASSES = (("undersampled", 0.0, 1.0), ("1-1.6 px", 1.0, 1.6), ("1.6-2.5 px", 1.6, 2.5), ("wide", 2.5, np.inf))
 
@@ -197,7 +205,7 @@ def overall(d: dict) -> dict:
 
 
 def fit(d: dict, iterations: int = 5) -> dict:
-    """Constants of sigma^2 = noise_scale^2 sigma_noise^2 + (sat_sigma_px / max(width, 1))^2 [saturated]
+    """Constants of sigma^2 = noise_scale^2 sigma_noise^2 + (sat_sigma_px / max(width, 1)^2)^2 [saturated]
     + floor^2 from the
     per-spot squared errors (u and v pooled): non-negative least squares on e^2, reweighted by the
     model variance's inverse square (the Gaussian likelihood's weights for a variance)."""
@@ -206,7 +214,7 @@ def fit(d: dict, iterations: int = 5) -> dict:
     det = (d["detected"] > 0) & np.isfinite(d["sigma_noise"])
     e2 = np.concatenate([d["err_u"][det] ** 2, d["err_v"][det] ** 2])
     vn = np.tile(d["sigma_noise"][det] ** 2, 2)
-    ns = np.tile((d["n_sat"][det] > 0) / np.maximum(d["width"][det], 1.0) ** 2, 2)
+    ns = np.tile((d["n_sat"][det] > 0) / np.maximum(d["width"][det], 1.0) ** 4, 2)
     A = np.column_stack([vn, ns, np.ones_like(vn)])
     w = 1.0 / np.maximum(vn, 1e-8)
     for _ in range(iterations):
@@ -238,7 +246,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     res = {"seed": args.seed, "images": args.images}
     if args.legacy:
-        d = measure(estimator(refine_centroid=False), args.seed, args.images)
+        d = measure(estimator(**LEGACY), args.seed, args.images)
         res["legacy"] = {"rows": table(d), "overall": overall(d)}
         print("component-box centroid, pixel-noise sigma (before):")
         print_table(res["legacy"]["rows"])

@@ -109,13 +109,13 @@ struct LedPoseConfig {
   double pixel_sigma_px = 0.25;    // centroid noise for points given without their own sigma
   double read_noise_counts = 1.5;  // pixel noise model of the centroid variance:
   double shot_gain = 0.05;         //   var = read^2 + shot_gain * signal [counts^2]
-  double centroid_floor_px = 0.008; // added in quadrature to each blob's sigma
+  double centroid_floor_px = 0.004; // added in quadrature to each blob's sigma (calibrated)
   bool refine_centroid = true;        // false: the first estimate (component box + 2 px, clipped weights)
   double centroid_weight_min_px = 0.8;  // bounds of the Gaussian weight's width (the spot's, from its moments)
   double centroid_weight_max_px = 6.0;
   double centroid_weight_sat_scale = 4.0;  // weight width factor for a spot with saturated pixels
-  double centroid_noise_scale = 1.0;  // calibrated factor on the propagated pixel noise
-  double sat_sigma_px = 0.024;        // calibrated: a saturated spot adds (sat_sigma_px / max(width, 1 px))^2 [px^2]
+  double centroid_noise_scale = 0.96;  // calibrated factor on the propagated pixel noise
+  double sat_sigma_px = 0.036;        // calibrated: a saturated spot adds (sat_sigma_px / max(width / 1 px, 1)^2)^2 [px^2]
   double max_condition = 1e12;     // of J^T J
   double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
 };
