@@ -111,7 +111,7 @@ struct LedPoseConfig {
   double shot_gain = 0.05;         //   var = read^2 + shot_gain * signal [counts^2]
   double centroid_floor_px = 0.004; // added in quadrature to each blob's sigma (calibrated)
   bool refine_centroid = true;        // false: the first estimate (component box + 2 px, clipped weights)
-  double centroid_weight_min_px = 0.8;  // bounds of the Gaussian weight's width (the spot's, from its moments)
+  double centroid_weight_min_px = 1.0;  // bounds of the Gaussian weight's width (the spot's, from its moments)
   double centroid_weight_max_px = 6.0;
   double centroid_weight_sat_scale = 4.0;  // weight width factor for a spot with saturated pixels
   double centroid_noise_scale = 0.96;  // calibrated factor on the propagated pixel noise
