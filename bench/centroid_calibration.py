@@ -18,12 +18,15 @@ honest).
 Model (``fsw_vision`` detector, refined centroid): per spot
 
     sigma^2 = centroid_noise_scale^2 sigma_noise^2
-              + (sat_sigma_px / max(width / 1 px, 1)^2)^2   [spot with a saturated pixel]
+              + (sat_sigma_px n_sat / max(width / 1 px, 1)^4)^2
               + centroid_floor_px^2
 
 with sigma_noise the pixel noise propagated through the Gaussian-weighted
 centroid (ring background variance plus shot noise, and the background
-plane's error) and width the spot's width from its moments. ``fit`` chooses
+plane's error), n_sat the saturated pixels in the window and width the
+spot's width from its moments (the saturation term's form was chosen by
+likelihood over the same spots among n_sat^a / width^b, a in 0 to 3, b in
+2 to 12). ``fit`` chooses
 the three constants by non-negative least squares on the per-spot squared
 errors, reweighted by the model variance's inverse square (the Gaussian
 likelihood's weights for a variance); the check re-renders with the next
@@ -205,7 +208,7 @@ def overall(d: dict) -> dict:
 
 
 def fit(d: dict, iterations: int = 5) -> dict:
-    """Constants of sigma^2 = noise_scale^2 sigma_noise^2 + (sat_sigma_px / max(width, 1)^2)^2 [saturated]
+    """Constants of sigma^2 = noise_scale^2 sigma_noise^2 + (sat_sigma_px n_sat / max(width, 1)^4)^2
     + floor^2 from the
     per-spot squared errors (u and v pooled): non-negative least squares on e^2, reweighted by the
     model variance's inverse square (the Gaussian likelihood's weights for a variance)."""
@@ -214,7 +217,7 @@ def fit(d: dict, iterations: int = 5) -> dict:
     det = (d["detected"] > 0) & np.isfinite(d["sigma_noise"])
     e2 = np.concatenate([d["err_u"][det] ** 2, d["err_v"][det] ** 2])
     vn = np.tile(d["sigma_noise"][det] ** 2, 2)
-    ns = np.tile((d["n_sat"][det] > 0) / np.maximum(d["width"][det], 1.0) ** 4, 2)
+    ns = np.tile(d["n_sat"][det] ** 2 / np.maximum(d["width"][det], 1.0) ** 8, 2)
     A = np.column_stack([vn, ns, np.ones_like(vn)])
     w = 1.0 / np.maximum(vn, 1e-8)
     for _ in range(iterations):

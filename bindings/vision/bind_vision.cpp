@@ -140,8 +140,8 @@ void bind_vision(py::module_& m) {
       .def_readwrite("centroid_noise_scale", &LedPoseConfig::centroid_noise_scale,
                      "Calibrated factor on the propagated pixel-noise sigma of a refined centroid.")
       .def_readwrite("sat_sigma_px", &LedPoseConfig::sat_sigma_px,
-                     "Calibrated saturation term: a spot with saturated pixels adds (sat_sigma_px / max(width_px, 1)^2)^2 "
-                     "to its centroid variance [px^2].");
+                     "Calibrated saturation term: a spot with n_sat saturated pixels adds "
+                     "(sat_sigma_px n_sat / max(width_px, 1)^4)^2 to its centroid variance [px^2].");
 
   py::class_<LedPoseMeasurement>(m, "LedPoseMeasurement",
                                  "Pose measurement for NavUkf.update_pose: r_hill_m (inspector relative to host, "

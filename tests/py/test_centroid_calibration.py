@@ -61,8 +61,9 @@ def test_refined_centroid_beats_the_component_box_on_faint_blurred_spots(spots):
 
 def test_calibration_fit_recovers_the_flight_constants(spots):
     # Fitting the model to these spots gives the flight defaults back within
-    # the fit's spread on this sample size.
+    # the fit's spread on this sample size (seeds 11 to 13: k 0.95 to 0.99,
+    # sat_sigma_px 0.0043 to 0.0044 against 0.96 and 0.0047 from 11 674 spots).
     f = cc.fit(spots)
     cfg = fb.LedPoseConfig()
     assert abs(f["centroid_noise_scale"] - cfg.centroid_noise_scale) < 0.12
-    assert abs(f["sat_sigma_px"] - cfg.sat_sigma_px) < 0.008
+    assert abs(f["sat_sigma_px"] - cfg.sat_sigma_px) < 0.25 * cfg.sat_sigma_px

@@ -355,9 +355,10 @@ bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& label
   const double var_noise = std::max(vu, vv);
   const double k = cfg_.centroid_noise_scale;
   // Saturated spot: the plateau's edge is sampled by the pixels, an error
-  // the noise leaves out, largest for sharp (narrow) spots.
+  // the noise leaves out, largest for a large plateau on a narrow spot
+  // (a sharp edge): sat_sigma_px n_sat / max(width / 1 px, 1)^4.
   const double w2 = std::max(width_px, 1.0) * std::max(width_px, 1.0);
-  const double sat = n_sat > 0 ? cfg_.sat_sigma_px / w2 : 0.0;
+  const double sat = cfg_.sat_sigma_px * n_sat / (w2 * w2);
   const double var = k * k * var_noise + sat * sat + cfg_.centroid_floor_px * cfg_.centroid_floor_px;
   out.u_px = mu;
   out.v_px = mv;

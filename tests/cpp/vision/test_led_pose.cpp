@@ -390,7 +390,8 @@ TEST_F(LedPoseTest, SaturatedSpotGetsTheSaturationTerm) {
   ASSERT_EQ(blobs.size(), 1u);
   EXPECT_GT(blobs[0].n_saturated, 0);
   const double w = std::max(blobs[0].width_px, 1.0);
-  EXPECT_GE(blobs[0].sigma_px, cfg.sat_sigma_px / (w * w) - 1e-12);
+  EXPECT_GE(blobs[0].sigma_px, cfg.sat_sigma_px * blobs[0].n_saturated / (w * w * w * w) - 1e-12);
+  EXPECT_GT(blobs[0].sigma_px, 1.5 * cfg.centroid_noise_scale * blobs[0].sigma_noise_px);
   EXPECT_NEAR(blobs[0].u_px, 200.3, 0.1);
   EXPECT_NEAR(blobs[0].v_px, 150.6, 0.1);
 }

@@ -110,18 +110,18 @@ struct LedPoseConfig {
   // Centroid (docs/VISION.md, "Centroid error model"): a first estimate over
   // the component's box, refined by a Gaussian-weighted centroid on a ring
   // background plane. sigma^2 = centroid_noise_scale^2 sigma_noise^2
-  // + (sat_sigma_px / max(width / 1 px, 1)^2)^2 [a pixel saturated]
+  // + (sat_sigma_px n_sat / max(width / 1 px, 1)^4)^2 (n_sat saturated pixels)
   // + centroid_floor_px^2; the three constants are fitted by
   // `python -m bench.centroid_calibration`.
   double read_noise_counts = 1.5;  // pixel noise: read noise [counts] (the refined centroid measures its own
   double shot_gain = 0.05;         //   from the ring) and shot-noise variance per count of signal [counts]
-  double centroid_floor_px = 0.004;     // calibrated, added in quadrature to each blob's sigma [px]
+  double centroid_floor_px = 0.003;     // calibrated, added in quadrature to each blob's sigma [px]
   bool refine_centroid = true;          // false: the first estimate (component box + 2 px, clipped weights)
   double centroid_weight_min_px = 1.0;  // bounds of the Gaussian weight's width (the spot's, from its moments)
   double centroid_weight_max_px = 6.0;
   double centroid_weight_sat_scale = 4.0;  // weight width factor for a spot with saturated pixels
   double centroid_noise_scale = 0.96;      // calibrated factor on the propagated pixel noise
-  double sat_sigma_px = 0.036;             // calibrated saturation term [px]
+  double sat_sigma_px = 0.0047;            // calibrated saturation term [px per saturated pixel]
   double max_condition = 1e12;     // of J^T J
   double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
 };
