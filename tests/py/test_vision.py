@@ -89,8 +89,8 @@ def test_wrong_image_gives_bad_input(est):
 
 def test_nees_over_renders_inside_its_band(est):
     # The reported covariance matches the error over 50 renders at 0.3 to
-    # 2 m: mean NEES inside its 95% band (6.15 with this seed; 4.7, below
-    # the band, with the centroid model before its calibration,
+    # 2 m: mean NEES inside its 95% band (6.15 with this seed; 1.56, far
+    # below it, with the first-estimate centroid and its uncalibrated sigma,
     # docs/VISION.md) and no case beyond chi2(6) 99.9%.
     rng = np.random.default_rng(9)
     cam = cm.Camera()
