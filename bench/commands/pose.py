@@ -20,7 +20,7 @@ def register(sub):
 
 def _print(result):
     print(f"pose images: seed {result['seed']}, {result['images']['runs']} poses, 0.3-5 m, "
-          "centroid sigma per blob from the pixel-noise model")
+          "centroid sigma per blob from the calibrated centroid error model")
     print(f"{'condition':<9} {'ok':>4} {'fail%':>6} {'pos med [mm]':>12} {'pos p95':>8} {'att med [deg]':>13} "
           f"{'NEES mean':>9} {'band95':>13} {'gross':>5}  failures")
     for name, s in result["images"]["summary"].items():

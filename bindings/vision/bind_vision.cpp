@@ -127,7 +127,21 @@ void bind_vision(py::module_& m) {
                      "Pixel noise model of the centroid variance: read noise [counts].")
       .def_readwrite("shot_gain", &LedPoseConfig::shot_gain, "... and shot-noise variance per count of signal.")
       .def_readwrite("centroid_floor_px", &LedPoseConfig::centroid_floor_px,
-                     "Added in quadrature to every blob's centroid sigma [px].");
+                     "Added in quadrature to every blob's centroid sigma [px].")
+      .def_readwrite("refine_centroid", &LedPoseConfig::refine_centroid,
+                     "Refined centroid (window centred on the spot, ring background plane, signed weights, "
+                     "calibrated sigma); False: the component-box centroid with the plain pixel-noise sigma.")
+      .def_readwrite("centroid_weight_min_px", &LedPoseConfig::centroid_weight_min_px,
+                     "Lower bound of the centroid's Gaussian weight width [px].")
+      .def_readwrite("centroid_weight_max_px", &LedPoseConfig::centroid_weight_max_px,
+                     "Upper bound of the centroid's Gaussian weight width [px].")
+      .def_readwrite("centroid_weight_sat_scale", &LedPoseConfig::centroid_weight_sat_scale,
+                     "Factor on the weight width of a spot with saturated pixels.")
+      .def_readwrite("centroid_noise_scale", &LedPoseConfig::centroid_noise_scale,
+                     "Calibrated factor on the propagated pixel-noise sigma of a refined centroid.")
+      .def_readwrite("sat_sigma_px", &LedPoseConfig::sat_sigma_px,
+                     "Calibrated saturation term: a spot with n_sat saturated pixels adds "
+                     "(sat_sigma_px n_sat / max(width_px, 1)^4)^2 to its centroid variance [px^2].");
 
   py::class_<LedPoseMeasurement>(m, "LedPoseMeasurement",
                                  "Pose measurement for NavUkf.update_pose: r_hill_m (inspector relative to host, "
@@ -184,17 +198,22 @@ void bind_vision(py::module_& m) {
           "detect",
           [](const LedPoseEstimator& e, const Img& image) {
             const auto blobs = e.detect(wrap_image(image));
-            py::array_t<double> out({static_cast<py::ssize_t>(blobs.size()), py::ssize_t(5)});
+            py::array_t<double> out({static_cast<py::ssize_t>(blobs.size()), py::ssize_t(8)});
             for (size_t i = 0; i < blobs.size(); ++i) {
               out.mutable_at(i, 0) = blobs[i].u_px;
               out.mutable_at(i, 1) = blobs[i].v_px;
               out.mutable_at(i, 2) = blobs[i].flux;
               out.mutable_at(i, 3) = blobs[i].area_px;
               out.mutable_at(i, 4) = blobs[i].sigma_px;
+              out.mutable_at(i, 5) = blobs[i].n_saturated;
+              out.mutable_at(i, 6) = blobs[i].sigma_noise_px;
+              out.mutable_at(i, 7) = blobs[i].width_px;
             }
             return out;
           },
-          py::arg("image"), "Blobs, brightest first: rows [u_px, v_px, flux, area_px, sigma_px].")
+          py::arg("image"), "Blobs, brightest first: rows [u_px, v_px, flux, area_px, sigma_px, n_saturated, sigma_noise_px, width_px] "
+          "(sigma_noise_px: the propagated pixel noise before the calibration's scale and terms; width_px: "
+          "the spot's width from its moments).")
       .def(
           "project",
           [](const LedPoseEstimator& e, const Arr& r_hill_m, const Arr& q_hb, const Arr& q_h_host) {

@@ -87,10 +87,11 @@ def test_wrong_image_gives_bad_input(est):
         est.estimate(np.zeros((480, 640), np.uint8), 0.0, np.array([2.0, 0, 0, 0]))
 
 
-def test_nees_over_renders_not_overconfident(est):
-    # The reported covariance bounds the error over 50 renders: mean NEES at
-    # most the upper end of its 95% band and no case beyond chi2(6) 99.9%.
-    # (It is conservative at short range, docs/VISION.md.)
+def test_nees_over_renders_inside_its_band(est):
+    # The reported covariance matches the error over 50 renders at 0.3 to
+    # 2 m: mean NEES inside its 95% band (6.15 with this seed; 1.56, far
+    # below it, with the first-estimate centroid and its uncalibrated sigma,
+    # docs/VISION.md) and no case beyond chi2(6) 99.9%.
     rng = np.random.default_rng(9)
     cam = cm.Camera()
     nees = []
@@ -102,6 +103,6 @@ def test_nees_over_renders_not_overconfident(est):
             nees.append(e @ np.linalg.solve(m.R, e))
     k = len(nees)
     assert k >= 45
-    hi = chi2.ppf(0.975, 6 * k) / k
-    assert np.mean(nees) <= hi
+    lo, hi = chi2.ppf(0.025, 6 * k) / k, chi2.ppf(0.975, 6 * k) / k
+    assert lo <= np.mean(nees) <= hi
     assert max(nees) < chi2.ppf(0.999, 6)

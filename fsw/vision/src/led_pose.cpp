@@ -2,6 +2,7 @@
 // See led_pose.hpp and docs/VISION.md.
 #include "fsw_vision/led_pose.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -188,6 +189,186 @@ bool LedPoseEstimator::jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Qu
 // ---------------------------------------------------------------------------
 // Detection.
 
+// Centroid of one component with its error model: a Gaussian-weighted
+// centroid (weight width sigma_w, the spot's width from its moments) iterated
+// to its fixed point sum W_i w_i (x_i - x) = 0, which for a symmetric spot is
+// its centre whatever the pixel phase; the first estimate, an unweighted
+// mean over the thresholded component's box, is pulled towards the pixel
+// centre of undersampled spots and towards the box's centre by the tails it
+// cuts off. The weights w_i are the signed differences from a background
+// plane fitted to a ring around the window (pixels of other components and
+// outliers dropped): clipping them at zero, or a background that contains
+// the spot's own light, biases the centroid too.
+//
+// Variance, linearised at the fixed point: pixel noise (ring residual
+// variance plus shot noise; saturated pixels none) and the background
+// plane's error, scaled by centroid_noise_scale^2, plus the calibrated
+// saturation term and the floor (docs/VISION.md, "Centroid error model").
+// False (the caller keeps the first estimate) if the window or ring leaves
+// the image, the ring has too few pixels, the iteration does not settle
+// within 1.5 px of the first estimate, or a denominator is not positive.
+bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int l,
+                                       double u0, double v0, double width_px, double sigma_w, Blob& out) const {
+  constexpr int kRing = 2, kMinRing = 12, kMaxIter = 20;
+  const int half = static_cast<int>(std::ceil(3.0 * sigma_w)) + 1;
+  const int outer = half + kRing;
+  const double inv2s2 = 0.5 / (sigma_w * sigma_w);
+  double mu = u0, mv = v0;
+  int cu = static_cast<int>(std::lround(mu)), cv0 = static_cast<int>(std::lround(mv));
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();  // background plane p0 + p1 (c - cu) + p2 (r - cv0)
+  Eigen::Matrix3d AtA_inv = Eigen::Matrix3d::Zero();
+  double base_var = 0.0;
+  auto fit_background = [&]() {
+    if (cu - outer < 0 || cv0 - outer < 0 || cu + outer >= gray.cols || cv0 + outer >= gray.rows) return false;
+    std::vector<std::array<double, 3>> ring;  // dc, dr, value
+    ring.reserve(static_cast<size_t>(8 * (outer + 1) * kRing));
+    for (int r = cv0 - outer; r <= cv0 + outer; ++r) {
+      const int* lab = labels.ptr<int>(r);
+      const uint8_t* g = gray.ptr<uint8_t>(r);
+      const bool row_in = std::abs(r - cv0) <= half;
+      for (int c = cu - outer; c <= cu + outer; ++c) {
+        if (row_in && std::abs(c - cu) <= half) continue;
+        if (lab[c] != 0 || g[c] == 255) continue;
+        ring.push_back({double(c - cu), double(r - cv0), double(g[c])});
+      }
+    }
+    std::vector<char> use(ring.size(), 1);
+    double ring_var = 0.0;
+    for (int pass = 0; pass < 2; ++pass) {
+      Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d Atz = Eigen::Vector3d::Zero();
+      int k = 0;
+      for (size_t i = 0; i < ring.size(); ++i) {
+        if (!use[i]) continue;
+        const Eigen::Vector3d a(1.0, ring[i][0], ring[i][1]);
+        AtA += a * a.transpose();
+        Atz += a * ring[i][2];
+        ++k;
+      }
+      if (k < kMinRing || !(AtA.determinant() > 1e-9)) return false;
+      const Eigen::LDLT<Eigen::Matrix3d> ldlt(AtA);
+      if (ldlt.info() != Eigen::Success) return false;
+      p = ldlt.solve(Atz);
+      AtA_inv = ldlt.solve(Eigen::Matrix3d::Identity());
+      double ssr = 0.0;
+      for (size_t i = 0; i < ring.size(); ++i) {
+        if (!use[i]) continue;
+        const double res = ring[i][2] - (p(0) + p(1) * ring[i][0] + p(2) * ring[i][1]);
+        ssr += res * res;
+      }
+      ring_var = ssr / std::max(k - 3, 1);
+      if (pass == 0) {
+        // Drop ring pixels far off the plane (a neighbouring spot's tail, a line).
+        const double lim = 3.5 * std::sqrt(std::max(ring_var, cfg_.read_noise_counts * cfg_.read_noise_counts));
+        for (size_t i = 0; i < ring.size(); ++i) {
+          const double res = ring[i][2] - (p(0) + p(1) * ring[i][0] + p(2) * ring[i][1]);
+          if (std::abs(res) > lim) use[i] = 0;
+        }
+      }
+    }
+    base_var = std::max(ring_var, 0.5 * cfg_.read_noise_counts * cfg_.read_noise_counts);
+    return true;
+  };
+  // Pixels of another component count as the spot's own when that
+  // component's centre is within the weight's reach of this one (a faint
+  // spot that the threshold broke into fragments); other objects are left out.
+  auto own = [&](int lab) {
+    if (lab == 0 || lab == l) return true;
+    const double dx = cents.at<double>(lab, 0) - u0, dy = cents.at<double>(lab, 1) - v0;
+    return dx * dx + dy * dy < (2.0 * sigma_w + 1.5) * (2.0 * sigma_w + 1.5);
+  };
+  if (!fit_background()) return false;
+  // Fixed-point iteration x <- x + 2 sum W w (x_i - x) / sum W w (the factor
+  // 2 is exact for a Gaussian spot as wide as the weight).
+  double swu = 0.0, swv = 0.0, sw = 0.0;
+  bool settled = false;
+  for (int it = 0; it < kMaxIter; ++it) {
+    swu = swv = sw = 0.0;
+    double hu = 0.0, hv = 0.0;
+    for (int r = cv0 - half; r <= cv0 + half; ++r) {
+      const int* lab = labels.ptr<int>(r);
+      const uint8_t* g = gray.ptr<uint8_t>(r);
+      const double dr = r - mv;
+      for (int c = cu - half; c <= cu + half; ++c) {
+        if (!own(lab[c])) continue;
+        const double dc = c - mu;
+        const double W = std::exp(-(dc * dc + dr * dr) * inv2s2);
+        const double wgt = W * (g[c] - (p(0) + p(1) * (c - cu) + p(2) * (r - cv0)));
+        sw += wgt;
+        swu += wgt * dc;
+        swv += wgt * dr;
+        hu += wgt * (1.0 - dc * dc * 2.0 * inv2s2);
+        hv += wgt * (1.0 - dr * dr * 2.0 * inv2s2);
+      }
+    }
+    if (!(sw > 0.0)) return false;
+    // Newton step on F: dx = sum W w dx_i / sum W w (1 - dx_i^2 / sigma_w^2);
+    // the factor-2 step where that denominator is not safely positive.
+    const double du = hu > 0.1 * sw ? swu / hu : 2.0 * swu / sw;
+    const double dv = hv > 0.1 * sw ? swv / hv : 2.0 * swv / sw;
+    mu += du;
+    mv += dv;
+    if (!(std::abs(mu - u0) < 1.5 && std::abs(mv - v0) < 1.5)) return false;
+    const int ncu = static_cast<int>(std::lround(mu)), ncv = static_cast<int>(std::lround(mv));
+    if (ncu != cu || ncv != cv0) {
+      cu = ncu;
+      cv0 = ncv;
+      if (!fit_background()) return false;
+      continue;
+    }
+    if (std::abs(du) < 1e-4 && std::abs(dv) < 1e-4) {
+      settled = true;
+      break;
+    }
+  }
+  if (!settled) return false;
+  // Linearisation at the fixed point F(x) = sum W_i w_i (x_i - x) = 0:
+  // dF/dw_i = W_i (x_i - x), dF/dx = sum W_i w_i ((x_i - x)^2 / sigma_w^2 - 1),
+  // dF/dp = -sum W_i (x_i - x) a_i.
+  double vu = 0.0, vv = 0.0, du_dx = 0.0, dv_dx = 0.0, flux = 0.0;
+  int n_sat = 0;
+  Eigen::Vector3d Gu = Eigen::Vector3d::Zero(), Gv = Eigen::Vector3d::Zero();
+  for (int r = cv0 - half; r <= cv0 + half; ++r) {
+    const int* lab = labels.ptr<int>(r);
+    const uint8_t* g = gray.ptr<uint8_t>(r);
+    const double dr = r - mv;
+    for (int c = cu - half; c <= cu + half; ++c) {
+      if (!own(lab[c])) continue;
+      const double dc = c - mu;
+      const double W = std::exp(-(dc * dc + dr * dr) * inv2s2);
+      const double wgt = g[c] - (p(0) + p(1) * (c - cu) + p(2) * (r - cv0));
+      const double var = g[c] == 255 ? 0.0 : base_var + cfg_.shot_gain * std::max(wgt, 0.0);
+      vu += W * W * dc * dc * var;
+      vv += W * W * dr * dr * var;
+      du_dx += W * wgt * (dc * dc * 2.0 * inv2s2 - 1.0);
+      dv_dx += W * wgt * (dr * dr * 2.0 * inv2s2 - 1.0);
+      const Eigen::Vector3d a(1.0, double(c - cu), double(r - cv0));
+      Gu += W * dc * a;
+      Gv += W * dr * a;
+      flux += wgt;
+      n_sat += g[c] == 255;
+    }
+  }
+  if (!(du_dx < 0.0) || !(dv_dx < 0.0)) return false;
+  vu = (vu + base_var * Gu.dot(AtA_inv * Gu)) / (du_dx * du_dx);
+  vv = (vv + base_var * Gv.dot(AtA_inv * Gv)) / (dv_dx * dv_dx);
+  const double var_noise = std::max(vu, vv);
+  const double k = cfg_.centroid_noise_scale;
+  // Saturated spot: the plateau's edge is sampled by the pixels, an error
+  // the noise leaves out, largest for a large plateau on a narrow spot
+  // (a sharp edge): sat_sigma_px n_sat / max(width / 1 px, 1)^4.
+  const double w2 = std::max(width_px, 1.0) * std::max(width_px, 1.0);
+  const double sat = cfg_.sat_sigma_px * n_sat / (w2 * w2);
+  const double var = k * k * var_noise + sat * sat + cfg_.centroid_floor_px * cfg_.centroid_floor_px;
+  out.u_px = mu;
+  out.v_px = mv;
+  out.flux = flux > 0.0 ? flux : sw;
+  out.sigma_px = std::sqrt(var);
+  out.n_saturated = n_sat;
+  out.sigma_noise_px = std::sqrt(var_noise);
+  return std::isfinite(out.sigma_px) && out.sigma_px > 0.0 && std::isfinite(mu) && std::isfinite(mv);
+}
+
 std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
   std::vector<Blob> out;
   if (gray.empty() || gray.type() != CV_8UC1) return out;
@@ -206,6 +387,7 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
     // Background-subtracted intensity moments over the component's pixels.
     double s = 0.0, su = 0.0, sv = 0.0, suu = 0.0, svv = 0.0, suv = 0.0;
     double sn = 0.0, snu = 0.0, snv = 0.0, snuu = 0.0, snvv = 0.0;  // pixel-noise moments
+    bool any_sat = false;
     // Over the component's box grown by kPad, so that the spot's tails below
     // the threshold count too (a centroid of the thresholded core alone is
     // pulled towards pixel centres); pixels of other components excluded.
@@ -227,6 +409,7 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
         suv += wgt * c * r;
         // A saturated pixel carries no noise (it carries no information either,
         // but its weight is the clipped value, symmetric about the centre).
+        any_sat = any_sat || g[c] == 255;
         const double nv = g[c] == 255 ? 0.0 : cfg_.read_noise_counts * cfg_.read_noise_counts + cfg_.shot_gain * wgt;
         sn += nv;
         snu += nv * c;
@@ -245,14 +428,35 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
     const double disc = std::sqrt(std::max(0.0, 0.25 * (a - c) * (a - c) + b * b));
     const double lam1 = half_tr + disc, lam2 = std::max(half_tr - disc, 1e-9);
     if (std::sqrt(lam1 / lam2) > cfg_.max_elongation) continue;  // lines, streaks
-    // Centroid variance from the pixel noise, plus a floor for what the
-    // noise model leaves out (saturation, spot asymmetry, quantisation).
+    // Refined centroid (see refine_centroid): Gaussian-weighted, iterated from
+    // this first estimate, on a local background plane, with the calibrated
+    // error model; the weight's width is the spot's from its moments.
+    Blob blob;
+    const double width = std::sqrt(std::max(half_tr - 1.0 / 12.0, 0.0));
+    const double sigma_w = std::clamp(width * (any_sat ? cfg_.centroid_weight_sat_scale : 1.0),
+                                      cfg_.centroid_weight_min_px, cfg_.centroid_weight_max_px);
+    blob.width_px = width;
+    if (cfg_.refine_centroid && refine_centroid(gray, labels, cents, l, mu, mv, width, sigma_w, blob)) {
+      blob.area_px = area;
+      out.push_back(blob);
+      continue;
+    }
+    // Fallback (window or ring cut by the image border; or refinement off):
+    // the first estimate with its pixel-noise sigma.
     const double var_u = (snuu - 2.0 * mu * snu + mu * mu * sn) / (s * s);
     const double var_v = (snvv - 2.0 * mv * snv + mv * mv * sn) / (s * s);
     const double sig = std::sqrt(std::max(var_u, var_v) + cfg_.centroid_floor_px * cfg_.centroid_floor_px);
-    out.push_back(Blob{mu, mv, s, area, sig});
+    out.push_back(Blob{mu, mv, s, area, sig, 0, sig, width});
   }
   std::sort(out.begin(), out.end(), [](const Blob& x, const Blob& y) { return x.flux > y.flux; });
+  // Fragments of one spot refine to the same centre: keep the brightest.
+  std::vector<Blob> kept;
+  for (const Blob& b : out) {
+    bool dup = false;
+    for (const Blob& k : kept) dup = dup || std::hypot(b.u_px - k.u_px, b.v_px - k.v_px) < 1.0;
+    if (!dup) kept.push_back(b);
+  }
+  out.swap(kept);
   if (static_cast<int>(out.size()) > cfg_.max_blobs) out.resize(cfg_.max_blobs);
   return out;
 }

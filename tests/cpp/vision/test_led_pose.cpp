@@ -346,3 +346,70 @@ TEST_F(LedPoseTest, DetectorRejectsLinesAndLargeGlare) {
   EXPECT_NEAR(blobs[0].u_px, 100.0, 0.1);
   EXPECT_NEAR(blobs[0].v_px, 300.0, 0.1);
 }
+
+namespace {
+
+// Pixel-integrated Gaussian spot of total flux on a background, 8-bit.
+cv::Mat spot_image(double u, double v, double sigma, double flux, double background = 6.0) {
+  cv::Mat img(480, 640, CV_64F, cv::Scalar(background));
+  const double s = std::sqrt(2.0) * sigma;
+  for (int r = std::max(int(v) - 12, 0); r <= std::min(int(v) + 12, img.rows - 1); ++r)
+    for (int c = std::max(int(u) - 12, 0); c <= std::min(int(u) + 12, img.cols - 1); ++c) {
+      const double gx = 0.5 * (std::erf((c + 0.5 - u) / s) - std::erf((c - 0.5 - u) / s));
+      const double gy = 0.5 * (std::erf((r + 0.5 - v) / s) - std::erf((r - 0.5 - v) / s));
+      img.at<double>(r, c) += flux * gx * gy;
+    }
+  cv::Mat img8;
+  img.convertTo(img8, CV_8U);  // rounds and saturates at 255
+  return img8;
+}
+
+}  // namespace
+
+// Undersampled (0.8 px) noise-free spots across a pixel's width: the
+// Gaussian-weighted centroid settles on the centre at every phase, within
+// the 8-bit rounding's effect.
+TEST_F(LedPoseTest, RefinedCentroidUnbiasedAtEveryPixelPhase) {
+  const LedPoseEstimator est(cfg);
+  double worst = 0.0;
+  for (int k = 0; k < 10; ++k) {
+    const double u = 320.0 + 0.1 * k, v = 240.0 - 0.07 * k;
+    const auto blobs = est.detect(spot_image(u, v, 0.8, 800.0));
+    ASSERT_EQ(blobs.size(), 1u);
+    worst = std::max({worst, std::abs(blobs[0].u_px - u), std::abs(blobs[0].v_px - v)});
+    EXPECT_GT(blobs[0].sigma_px, 0.0);
+    EXPECT_EQ(blobs[0].n_saturated, 0);
+  }
+  EXPECT_LT(worst, 0.01);
+}
+
+// A saturated sharp spot carries the calibrated saturation term in its sigma.
+TEST_F(LedPoseTest, SaturatedSpotGetsTheSaturationTerm) {
+  const LedPoseEstimator est(cfg);
+  const auto blobs = est.detect(spot_image(200.3, 150.6, 0.8, 20000.0));
+  ASSERT_EQ(blobs.size(), 1u);
+  EXPECT_GT(blobs[0].n_saturated, 0);
+  const double w = std::max(blobs[0].width_px, 1.0);
+  EXPECT_GE(blobs[0].sigma_px, cfg.sat_sigma_px * blobs[0].n_saturated / (w * w * w * w) - 1e-12);
+  EXPECT_GT(blobs[0].sigma_px, 1.5 * cfg.centroid_noise_scale * blobs[0].sigma_noise_px);
+  EXPECT_NEAR(blobs[0].u_px, 200.3, 0.1);
+  EXPECT_NEAR(blobs[0].v_px, 150.6, 0.1);
+}
+
+// A spot whose centroid window leaves the image keeps the first estimate:
+// a finite centroid and a positive sigma, no crash.
+TEST_F(LedPoseTest, SpotAtImageBorderKeepsFirstEstimate) {
+  const LedPoseEstimator est(cfg);
+  const auto blobs = est.detect(spot_image(1.2, 240.4, 1.0, 2000.0));
+  ASSERT_EQ(blobs.size(), 1u);
+  EXPECT_TRUE(std::isfinite(blobs[0].u_px) && std::isfinite(blobs[0].v_px));
+  EXPECT_GT(blobs[0].sigma_px, 0.0);
+  EXPECT_NEAR(blobs[0].v_px, 240.4, 0.2);
+}
+
+TEST_F(LedPoseTest, FullySaturatedImageGivesNoBlobsAndTooFewLeds) {
+  const LedPoseEstimator est(cfg);
+  const cv::Mat img(480, 640, CV_8U, cv::Scalar(255));
+  EXPECT_TRUE(est.detect(img).empty());
+  EXPECT_EQ(est.estimate(img, 0.0).status, PoseStatus::TooFewLeds);
+}

@@ -10,7 +10,7 @@
 // gate (cv::solvePnPRansac, every LED must be an inlier) and Levenberg-
 // Marquardt refinement (cv::solvePnPRefineLM) -> covariance from the
 // reprojection Jacobian, (J^T W J)^-1 with W the inverse centroid variances
-// (from a pixel-noise model per blob), taken directly with respect
+// (from the calibrated centroid error model per blob), taken directly with respect
 // to the navigation filter's measurement coordinates.
 //
 // Frames: host body (pattern coordinates, origin at the host's centre of
@@ -107,9 +107,21 @@ struct LedPoseConfig {
   double ambiguity_ratio = 3.0;    // runner-up labelling closer than this in rms -> ambiguous
   double min_depth_m = 0.02;
   double pixel_sigma_px = 0.25;    // centroid noise for points given without their own sigma
-  double read_noise_counts = 1.5;  // pixel noise model of the centroid variance:
-  double shot_gain = 0.05;         //   var = read^2 + shot_gain * signal [counts^2]
-  double centroid_floor_px = 0.008; // added in quadrature to each blob's sigma
+  // Centroid (docs/VISION.md, "Centroid error model"): a first estimate over
+  // the component's box, refined by a Gaussian-weighted centroid on a ring
+  // background plane. sigma^2 = centroid_noise_scale^2 sigma_noise^2
+  // + (sat_sigma_px n_sat / max(width / 1 px, 1)^4)^2 (n_sat saturated pixels)
+  // + centroid_floor_px^2; the three constants are fitted by
+  // `python -m bench.centroid_calibration`.
+  double read_noise_counts = 1.5;  // pixel noise: read noise [counts] (the refined centroid measures its own
+  double shot_gain = 0.05;         //   from the ring) and shot-noise variance per count of signal [counts]
+  double centroid_floor_px = 0.003;     // calibrated, added in quadrature to each blob's sigma [px]
+  bool refine_centroid = true;          // false: the first estimate (component box + 2 px, clipped weights)
+  double centroid_weight_min_px = 1.0;  // bounds of the Gaussian weight's width (the spot's, from its moments)
+  double centroid_weight_max_px = 6.0;
+  double centroid_weight_sat_scale = 4.0;  // weight width factor for a spot with saturated pixels
+  double centroid_noise_scale = 0.96;      // calibrated factor on the propagated pixel noise
+  double sat_sigma_px = 0.0047;            // calibrated saturation term [px per saturated pixel]
   double max_condition = 1e12;     // of J^T J
   double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
 };
@@ -119,7 +131,10 @@ struct Blob {
   double v_px;  // row
   double flux;  // background-subtracted sum [counts]
   int area_px;
-  double sigma_px;  // centroid standard deviation from the pixel-noise model
+  double sigma_px;  // centroid standard deviation from the calibrated error model
+  int n_saturated = 0;        // pixels at 255 in the centroid window
+  double sigma_noise_px = 0;  // pixel-noise part of sigma_px, before the calibration's scale and terms
+  double width_px = 0;        // spot width (rms radius per axis) from the component's moments
 };
 
 // A pose measurement ready for the navigation update (NavUkf::update_pose):
@@ -182,6 +197,9 @@ class LedPoseEstimator {
                 Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const;
 
  private:
+  bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, double u0,
+                       double v0, double width_px, double sigma_w, Blob& out) const;
+
   LedPoseConfig cfg_;
   cv::Mat K_;
   cv::Mat dist_;
