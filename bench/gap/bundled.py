@@ -8,6 +8,8 @@ diagnosis has printed its answers, to compare.
 
 Regenerate both (seeded, so the files reproduce):
     python -m bench.gap.bundled
+A longer log with the same effect (for timing the diagnosis of a 10-minute log):
+    python -m bench.gap.bundled --duration 600 --log LOG600.h5 --key KEY600.json
 """
 from __future__ import annotations
 
@@ -26,14 +28,15 @@ DURATION_S = 120.0
 EFFECTS = {"thrust_loss": [0.0, 0.0, 0.0, 0.06, 0.0, 0.0, 0.04, 0.0]}
 
 
-def generate(log_path=LOG, key_path=KEY) -> dict:
+def generate(log_path=LOG, key_path=KEY, duration_s: float = DURATION_S) -> dict:
     from bench.flight_log import write_flight_log
     from bench.gap.validate import blind
     from bench.reality import simulate_log_with_key
 
-    log, key = simulate_log_with_key(SEED, EFFECTS, duration_s=DURATION_S, with_truth=False)
+    log, key = simulate_log_with_key(SEED, EFFECTS, duration_s=duration_s, with_truth=False)
     write_flight_log(log_path, blind(log))
-    key = {**key, "command": "python -m bench.gap.bundled"}
+    cmd = "python -m bench.gap.bundled" + ("" if duration_s == DURATION_S else f" --duration {duration_s:g}")
+    key = {**key, "command": cmd}
     Path(key_path).write_text(json.dumps(key, indent=1) + "\n")
     return key
 
@@ -46,8 +49,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description="regenerate the bundled reality run")
     ap.add_argument("--log", default=str(LOG))
     ap.add_argument("--key", default=str(KEY))
+    ap.add_argument("--duration", type=float, default=DURATION_S, help="simulated seconds (chained docking runs)")
     a = ap.parse_args(argv)
-    key = generate(a.log, a.key)
+    if not a.duration > 0:
+        raise SystemExit("--duration must be > 0")
+    key = generate(a.log, a.key, a.duration)
     print(f"wrote {a.log} and {a.key} (sha256 {key['sha256'][:12]})")
 
 
