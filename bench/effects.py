@@ -126,7 +126,7 @@ _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": 
 
 # min_detectable: measured with `python -m bench.reality detect` (docs/EFFECTS.md);
 # lens distortion on image-pose docking runs (`--effects lens_distortion`).
-LENS_K1_MIN_DETECTABLE = 0.028
+LENS_K1_MIN_DETECTABLE = 0.029
 EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
     EffectSpec("thruster_misalignment", "dynamics", True, 24, "rad",
                "rotation vector of each nozzle's thrust direction (8 x 3, body axes; size: RMS angle)",
