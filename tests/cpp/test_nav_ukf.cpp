@@ -608,6 +608,80 @@ TYPED_TEST(NavUkfBiasTest, EstimatesAConstantGyroBias) {
   EXPECT_TRUE(is_pos_def(f.P()));
 }
 
+TYPED_TEST(NavUkfBiasTest, AnHourWithoutPosesStaysOkAndAReinitialisedFilterReconverges) {
+  // 36000 predicts with IMU noise only (the inspector at rest at the host's
+  // centre of mass, inertially fixed), then 5 minutes of 1 Hz poses. In
+  // float the covariance of a long coast used to fail its Cholesky after
+  // 1076 s (position, velocity and bias errors correlated to within
+  // rounding) and every later step was refused; the repaired factor
+  // (cholesky_lower_repaired) keeps the filter running.
+  using S = TypeParam;
+  NavUkf<S, true> f(test_config<S>());
+  const double n = double(f.config().n_radps);
+  const Quat<double> q0 = normalized(Quat<double>(0.9, 0.1, -0.2, 0.3));
+  typename NavUkf<S, true>::State x;
+  x.q_hb = q0.cast<S>();
+  ASSERT_TRUE(f.init(0.0, x, initial_cov<S, true>()).ok());
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  const double sa = double(f.config().accel_sigma_mps2), sg = double(f.config().gyro_sigma_rps);
+  long not_ok = 0, repaired = 0;
+  auto imu_second = [&](long s) {
+    for (int k = 1; k <= 10; ++k) {
+      const Vec3<S> a(S(sa * nd(rng)), S(sa * nd(rng)), S(sa * nd(rng)));
+      const Vec3<S> w(S(sg * nd(rng)), S(sg * nd(rng)), S(sg * nd(rng)));
+      const auto rec = f.predict(double(s - 1) + 0.1 * k, a, w);
+      if (!rec.ok()) ++not_ok;
+      if (rec.detail == StepDetail::CovarianceRepaired) ++repaired;
+    }
+  };
+  for (long s = 1; s <= 3600; ++s) imu_second(s);
+  EXPECT_EQ(not_ok, 0);
+  EXPECT_TRUE(is_pos_def(f.P()));
+  EXPECT_GT(f.P()(0, 0), S(1e3));  // an hour of coasting: position unknown to kilometres
+  // Poses return. After an hour the attitude variance sits at its ceiling
+  // (1 rad^2) and the position's is kilometres: a pose is not a small
+  // correction any more (in float the update would shrink the position
+  // variance by 1e11, below its resolution, and is refused with the state
+  // untouched). The recovery is a re-initialisation from the first pose,
+  // the coasted velocity and bias variances kept; then every pose fuses.
+  {
+    const long s = 3601;
+    imu_second(s);
+    const Quat<double> q_true = exp(Vec3<double>(0, 0, -n * double(s))) * q0;
+    typename NavUkf<S, true>::State x1 = f.state();
+    x1.r_hill_m = Vec3<double>(kPosSigma * nd(rng), kPosSigma * nd(rng), kPosSigma * nd(rng)).cast<S>();
+    x1.q_hb = boxplus(q_true, Vec3<double>(kAttSigma * nd(rng), kAttSigma * nd(rng), kAttSigma * nd(rng))).cast<S>();
+    typename NavUkf<S, true>::Cov P1 = f.P();
+    P1.template block<3, 15>(0, 0).setZero();
+    P1.template block<15, 3>(0, 0).setZero();
+    P1.template block<3, 15>(6, 0).setZero();
+    P1.template block<15, 3>(0, 6).setZero();
+    P1.template block<3, 3>(0, 0) = pose_R<S>().template block<3, 3>(0, 0);
+    P1.template block<3, 3>(6, 6) = pose_R<S>().template block<3, 3>(3, 3);
+    ASSERT_TRUE(f.init(double(s), x1, P1).ok());
+  }
+  long fused = 0;
+  for (long s = 3602; s <= 3900; ++s) {
+    imu_second(s);
+    const Quat<double> q_true = exp(Vec3<double>(0, 0, -n * double(s))) * q0;
+    const Vec3<double> r_meas(kPosSigma * nd(rng), kPosSigma * nd(rng), kPosSigma * nd(rng));
+    const Quat<double> q_meas =
+        boxplus(q_true, Vec3<double>(kAttSigma * nd(rng), kAttSigma * nd(rng), kAttSigma * nd(rng)));
+    const auto rec = f.update_pose(double(s), r_meas.cast<S>(), q_meas.cast<S>(), pose_R<S>());
+    EXPECT_NE(rec.status, StepStatus::NotPosDef) << "second " << s << " detail " << to_string(rec.detail);
+    fused += rec.fused ? 1 : 0;
+    if (rec.detail == StepDetail::CovarianceRepaired) ++repaired;
+  }
+  EXPECT_EQ(not_ok, 0);
+  EXPECT_GE(fused, 290);
+  EXPECT_LT(double(f.state().r_hill_m.norm()), 0.1);
+  const Quat<double> q_end = exp(Vec3<double>(0, 0, -n * 3900.0)) * q0;
+  EXPECT_LT(boxminus(q_end, f.state().q_hb.template cast<double>()).norm(), 0.02);
+  EXPECT_TRUE(is_pos_def(f.P()));
+  this->RecordProperty("repaired_steps", int(repaired));
+}
+
 TYPED_TEST(NavUkfBiasTest, DelayedPoseEqualsOnTimePoseAndReplay) {
   using S = TypeParam;
   auto a = make_filter<S, true>();

@@ -229,6 +229,7 @@ class NavUkf {
     const int steps = on_grid ? int(m) : 1;
     const int kept = steps < kHistory - 1 ? steps : kHistory - 1;
     const int coast = steps - kept;
+    bool repaired = false;
     Entry coast_a, coast_b;
     const Entry* prev = &cur;
     for (int i = 0; i < steps; ++i) {  // bounded: max_gap_s / dt_imu_s
@@ -239,7 +240,7 @@ class NavUkf {
       next.dt_s = S(next.t_s - prev->t_s);
       next.bridged = i + 1 < steps;
       if (!propagate(prev->x, prev->P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.bridged, next.x,
-                     next.P))
+                     next.P, &repaired))
         return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
       prev = &next;
     }
@@ -249,6 +250,7 @@ class NavUkf {
       hist_[head_] = scratch_[i];
     }
     rec.status = StepStatus::Ok;
+    if (repaired) rec.detail = StepDetail::CovarianceRepaired;
     return rec;
   }
 
@@ -289,6 +291,7 @@ class NavUkf {
     const Quat<S> q_meas = normalized(q_hb);
     const StepStatus st = fuse(at.x, at.P, r_meas, q_meas, R, rec, out[0].x, out[0].P);
     if (st != StepStatus::Ok) return rec;  // state untouched; rec says why
+    bool repaired = rec.detail == StepDetail::CovarianceRepaired;
     // Re-apply the stored IMU samples from the capture tick to now.
     for (int k = back - 1, j = 1; k >= 0; --k, ++j) {
       const Entry& src = hist_[index_back(k)];
@@ -298,7 +301,7 @@ class NavUkf {
       out[j].dt_s = src.dt_s;
       out[j].bridged = src.bridged;
       if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, src.bridged,
-                     out[j].x, out[j].P)) {
+                     out[j].x, out[j].P, &repaired)) {
         rec.fused = false;
         return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
       }
@@ -308,6 +311,7 @@ class NavUkf {
     last_fused_t_s_ = at.t_s;
     rec.status = StepStatus::Ok;
     rec.fused = true;
+    if (repaired) rec.detail = StepDetail::CovarianceRepaired;
     return rec;
   }
 
@@ -399,11 +403,15 @@ class NavUkf {
     for (int i = 0; i < kSigma; ++i) D.col(i) = X[i].minus(mean);
   }
 
-  // Pure predict: no member written. Returns false if P does not factor.
+  // Pure predict: no member written. Returns false if P does not factor,
+  // even with the jitter of cholesky_lower_repaired.
+  // *repaired is set when P factored only with a jitter (cholesky_lower_repaired).
   bool propagate(const State& x, const Cov& P, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, bool bridged,
-                 State& x_out, Cov& P_out) const {
+                 State& x_out, Cov& P_out, bool* repaired = nullptr) const {
     Cov L;
-    if (!cholesky_lower(P, L)) return false;
+    const int rep = cholesky_lower_repaired(P, L);
+    if (rep < 0) return false;
+    if (rep > 0 && repaired != nullptr) *repaired = true;
     const bool nominal = std::abs(dt - dt_nom_) <= S(1e-6) * dt_nom_;
     StepModel other;
     if (!nominal) other = make_step(dt);
@@ -432,7 +440,8 @@ class NavUkf {
   StepStatus fuse(const State& x, const Cov& P, const Vec3<S>& r_meas, const Quat<S>& q_meas, const MeasCov& R,
                   Record& rec, State& x_out, Cov& P_out) const {
     Cov L;
-    if (!cholesky_lower(P, L)) return set(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+    const int rep = cholesky_lower_repaired(P, L);
+    if (rep < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
     Eigen::Matrix<S, kN, kSigma> DX;
     Vec3<S> r_sig[kSigma];
     Quat<S> q_sig[kSigma];
@@ -479,12 +488,14 @@ class NavUkf {
     Cov Pn = P;
     Pn.noalias() -= K * Szz * K.transpose();
     Cov Ln;
-    if (!condition_covariance(Pn, var_min_, var_max_) || !cholesky_lower(Pn, Ln)) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
+    if (!condition_covariance(Pn, var_min_, var_max_)) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
+    const int rep_n = cholesky_lower_repaired(Pn, Ln);
+    if (rep_n < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
     const State xn = x.plus(dx);
     if (!xn.all_finite()) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
     x_out = xn;
     P_out = Pn;
-    return set(rec, StepStatus::Ok, StepDetail::None);
+    return set(rec, StepStatus::Ok, (rep > 0 || rep_n > 0) ? StepDetail::CovarianceRepaired : StepDetail::None);
   }
 
   static StepStatus set(Record& rec, StepStatus s, StepDetail d) {
