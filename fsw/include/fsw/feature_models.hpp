@@ -152,9 +152,9 @@ inline bool circle_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, 
   if (h_phi != nullptr) {
     const DualQuat<S> Q_cl = camera_from_features(pose_lf, cam);
     const Vec3<S> d = transform_point(Q_cl, Sphi);
-    Eigen::Matrix<S, 2, 3> J;
+    Eigen::Matrix<S, 2, 3> J = Eigen::Matrix<S, 2, 3>::Zero();
     Vec2<S> zz;
-    project(d, cam.focal_m, cam.min_depth_m, zz, &J);
+    if (!project(d, cam.focal_m, cam.min_depth_m, zz, &J)) return false;
     const Vec3<S> axis_point = l_t.cross(m_t);  // foot of the axis from the lP origin
     const Vec3<S> dS_dphi = l_t.cross(Vec3<S>(Sphi - axis_point));
     *h_phi = J * (Q_cl.real.toRotationMatrix() * dS_dphi);
