@@ -26,7 +26,8 @@
 // circle points). Unmeasured and unconfigured slots are padded (innovation 0,
 // unit variance, no H row) and drop out of NIS and the likelihood.
 // R = image_sigma^2 I. The EKF uses the Joseph form; the UKF uses the scaled
-// unscented transform with sigma points in the tangent space, and halves
+// unscented transform with sigma points in the tangent space (its covariance
+// update in Joseph form with H = Pxz^T P^-1, for the float build), and halves
 // alpha (at most max_alpha_halvings times) when a sigma point would put a
 // feature behind the lens, so every sigma point stays in the model's domain.
 //
@@ -652,7 +653,13 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
       return Base::reject(rec, StepStatus::Gated, StepDetail::None);
     const Eigen::Matrix<S, kN, kMeas> K = llt.solve(Pxz.transpose()).transpose();
     const ErrVec dx = K * y;
-    Cov P = this->P_ - K * Sm * K.transpose();
+    // Joseph form with the statistically linearised H = Pxz^T P^-1 (equal to
+    // P - K S K^T in exact arithmetic, but keeps P positive definite in float).
+    Eigen::Matrix<S, kN, kMeas> PinvPxz = L.template triangularView<Eigen::Lower>().solve(Pxz);
+    L.transpose().template triangularView<Eigen::Upper>().solveInPlace(PinvPxz);
+    const MeasJac Hs = PinvPxz.transpose();
+    const Cov IKH = Cov::Identity() - K * Hs;
+    Cov P = IKH * this->P_ * IKH.transpose() + K * R * K.transpose();
     Cov L2;
     if (!dx.allFinite() || !condition_covariance(P, this->var_min_, this->var_max_) || !cholesky_lower(P, L2))
       return Base::reject(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
