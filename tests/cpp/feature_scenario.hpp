@@ -82,6 +82,18 @@ typename Ekf<S>::State guess1() {
   return x;
 }
 
+// The seed's second (larger) initial guess.
+template <typename S>
+typename Ekf<S>::State guess2() {
+  const auto cfg = config<S>();
+  typename Ekf<S>::State x;
+  x.q_lf = Quat<S>(S(0.9197), S(0.0265), S(0.0654), S(0.3861)).normalized();
+  const Vec3<S> t_c(S(-60), S(80), S(100));
+  x.r_l_m = cfg.camera.feature_origin_l_m - x.q_lf.toRotationMatrix() * (t_c + cfg.camera.camera_offset_f_m);
+  x.phi_rad = truth0<S>().phi_rad + Eigen::Matrix<S, 6, 1>::Constant(S(0.3));
+  return x;
+}
+
 template <typename S>
 typename Ekf<S>::Cov P0(S pos_sigma = S(20), S att_sigma = S(0.2)) {
   typename Ekf<S>::Cov P = Ekf<S>::Cov::Zero();

@@ -114,6 +114,33 @@ TEST(FeatureFilterTest, EkfConvergesWithLinesOnlyConsistently) {
   converges_from_first_guess<Ekf<double>>(2, 0.2, 3e-3, 2.0);
 }
 
+TEST(FeatureFilterTest, UkfConvergesFromSeedSecondGuessWhereTheEkfLags) {
+  // 81 m and 42 deg of initial error: the UKF's first updates halve its
+  // spread (features behind the lens) and take divided-difference statistics.
+  auto u = std::make_unique<Ukf<double>>(config<double>(), features<double>());
+  auto e = std::make_unique<Ekf<double>>(config<double>(), features<double>());
+  ASSERT_TRUE(u->init(0.0, 0.0, guess2<double>(), P0<double>(60.0, 0.8)).ok());
+  ASSERT_TRUE(e->init(0.0, 0.0, guess2<double>(), P0<double>(60.0, 0.8)).ok());
+  auto truth = truth0<double>();
+  double nu = 0.0;
+  std::mt19937 rng(11);
+  int fails = 0;
+  for (int k = 1; k <= 300; ++k) {
+    truth_step<double>(truth, nu, 1.0);
+    ASSERT_TRUE(u->predict(double(k)).ok());
+    ASSERT_TRUE(e->predict(double(k)).ok());
+    const auto z = measure<double>(truth, features<double>(), rng);
+    fails += !u->update(z).ok();
+    e->update(z);
+  }
+  EXPECT_EQ(fails, 0);
+  const double eu = (u->state().r_l_m - truth.r_l_m).norm();
+  const double ee = (e->state().r_l_m - truth.r_l_m).norm();
+  EXPECT_LE(eu, 0.3);
+  EXPECT_LT(eu, 0.5 * ee);
+  EXPECT_LE(att_err(u->state().q_lf, truth.q_lf), 5e-3);
+}
+
 TEST(FeatureFilterTest, RejectsNaNImageCoordinateAndLeavesStateUntouched) {
   Ekf<double> f(config<double>(), features<double>());
   ASSERT_TRUE(f.init(0.0, 0.0, guess1<double>(), P0<double>()).ok());

@@ -29,7 +29,10 @@
 // unscented transform with sigma points in the tangent space (its covariance
 // update in Joseph form with H = Pxz^T P^-1, for the float build), and halves
 // alpha (at most max_alpha_halvings times) when a sigma point would put a
-// feature behind the lens, so every sigma point stays in the model's domain.
+// feature behind the lens, so every sigma point stays in the model's domain;
+// with a halved spread the update takes the divided-difference (DD1)
+// statistics of the same points (mean at the central point), since the
+// scaled weights would then extrapolate with a large negative central weight.
 //
 // Every step returns a StepRecord; on any status other than Ok the filter is
 // left bit-identical. Time is double in both scalar builds.
@@ -112,7 +115,8 @@ struct FeatureFilterConfig {
   S q_vel = S(1e-6);           // velocity [(m/s)^2/s]
   S q_phi = S(0);              // circle angles [rad^2/s]
   S gate_chi2 = S(0);          // NIS gate; <= 0 disables
-  S alpha = S(1);              // UKF sigma-point spread
+  S alpha = S(0.5);            // UKF sigma-point spread (gamma = 2.1 for 18 states: attitude sigma
+                               // points stay inside pi for attitude sigmas up to 1.4 rad)
   S beta = S(2);
   S kappa = S(0);
   int max_alpha_halvings = 6;  // UKF: spread reductions tried when a sigma point is not imageable
@@ -625,21 +629,33 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
       if (!all_imageable) alpha *= S(0.5);
     }
     if (!all_imageable) return Base::reject(rec, StepStatus::BadInput, StepDetail::FeatureNotImageable);
-    MeasVec zm = w.wm0 * Z_.col(0);
-    for (int k = 1; k < kSigma; ++k) zm += w.wi * Z_.col(k);
     const MeasCov R = this->meas_cov(rowmask);
     MeasCov Sm = R;
     Eigen::Matrix<S, kN, kMeas> Pxz = Eigen::Matrix<S, kN, kMeas>::Zero();
-    {
-      const MeasVec dz = Z_.col(0) - zm;
-      Sm += w.wc0 * dz * dz.transpose();
-    }
-    for (int i = 0; i < kN; ++i) {
-      for (int sgn = 0; sgn < 2; ++sgn) {
-        const MeasVec dz = Z_.col(1 + 2 * i + sgn) - zm;
-        const ErrVec d = (sgn == 0 ? w.gamma : -w.gamma) * L.col(i);
-        Sm += w.wi * dz * dz.transpose();
-        Pxz += w.wi * d * dz.transpose();
+    MeasVec zm;
+    if (alpha == this->cfg_.alpha) {
+      zm = w.wm0 * Z_.col(0);
+      for (int k = 1; k < kSigma; ++k) zm += w.wi * Z_.col(k);
+      const MeasVec dz0 = Z_.col(0) - zm;
+      Sm += w.wc0 * dz0 * dz0.transpose();
+      for (int i = 0; i < kN; ++i) {
+        for (int sgn = 0; sgn < 2; ++sgn) {
+          const MeasVec dz = Z_.col(1 + 2 * i + sgn) - zm;
+          const ErrVec d = (sgn == 0 ? w.gamma : -w.gamma) * L.col(i);
+          Sm += w.wi * dz * dz.transpose();
+          Pxz += w.wi * d * dz.transpose();
+        }
+      }
+    } else {
+      // Spread reduced: the scaled weights would extrapolate the mean with a
+      // large negative central weight; use the divided-difference (DD1)
+      // statistics of the same points instead (mean at the central point,
+      // covariances from the central differences over the step gamma).
+      zm = Z_.col(0);
+      for (int i = 0; i < kN; ++i) {
+        const MeasVec dd = (Z_.col(1 + 2 * i) - Z_.col(2 + 2 * i)) / (S(2) * w.gamma);
+        Sm += dd * dd.transpose();
+        Pxz += L.col(i) * dd.transpose();
       }
     }
     symmetrize(Sm);
