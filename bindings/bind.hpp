@@ -10,6 +10,7 @@ void bind_nav(pybind11::module_& m);
 void bind_flight_app(pybind11::module_& m);
 void bind_blr(pybind11::module_& m);
 void bind_modal(pybind11::module_& m);
+void bind_features(pybind11::module_& m);
 #ifdef PROXOPS_HAVE_VISION
 void bind_vision(pybind11::module_& m);  // OpenCV found
 #endif

@@ -14,6 +14,7 @@ PYBIND11_MODULE(fsw_bindings, m) {
   bind_flight_app(m);
   bind_blr(m);
   bind_modal(m);
+  bind_features(m);
 #ifdef PROXOPS_HAVE_VISION
   bind_vision(m);
 #endif

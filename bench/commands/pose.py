@@ -1,5 +1,7 @@
 """`proxops pose`: the LED pose pipeline's accuracy campaign on rendered
-images (bench/pose_campaign.py, docs/VISION.md)."""
+images (bench/pose_campaign.py, docs/VISION.md), and the seed-001 feature
+comparison (points, lines, circles, all; EKF and UKF) on the flight feature
+filters (bench/feature_pose.py, docs/FEATURES.md)."""
 from __future__ import annotations
 
 import time
@@ -8,11 +10,13 @@ from bench.report import write_json
 
 
 def register(sub):
-    p = sub.add_parser("pose", help="pose from images: accuracy, NEES and failures by condition; distortion effect")
-    p.add_argument("--experiment", choices=["images"], required=True)
+    p = sub.add_parser("pose", help="pose from images (LED campaign) or from image features (seed-001 comparison)")
+    p.add_argument("--experiment", choices=["images", "features"], required=True)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--runs", type=int, default=200, help="random poses (each rendered under every condition)")
     p.add_argument("--distortion-runs", type=int, default=60, help="poses per k1 value in the distortion experiment")
+    p.add_argument("--duration", type=float, default=300.0, help="features: seconds of flight per run (1 s sampling)")
+    p.add_argument("--feature-runs", type=int, default=3, help="features: noise realisations per case")
     p.add_argument("--json", default=None)
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)
@@ -43,7 +47,43 @@ def _print(result):
                   f"{extra}  (ok {r['ok']}, failed {r['failures']})")
 
 
+def _fmt(v, spec):
+    return "   -" if v is None else format(v, spec)
+
+
+def _print_features(result):
+    print(f"pose features: seed {result['seed']}, {result['runs']} runs x {result['duration_s']:.0f} s, 1 s sampling; "
+          f"steady state = last third; converged = pos < {result['scenario']['convergence']['pos_m']} m and "
+          f"att < {result['scenario']['convergence']['att_deg']} deg to the end")
+    print(f"{'case':<22} {'pos [m]':>9} {'att [deg]':>10} {'conv [s]':>9} {'conv runs':>9} {'NEES6':>8} "
+          f"{'NIS/rows':>11}  failures")
+    for name, s in result["cases"].items():
+        nis = "   -" if s["nis_mean"] is None else f"{s['nis_mean']:.1f}/{s['nis_dof']}"
+        print(f"{name:<22} {s['steady_pos_err_m']:>9.4f} {s['steady_att_err_deg']:>10.4f} "
+              f"{_fmt(s['convergence_time_s'], '9.0f'):>9} {s['converged_runs']:>4}/{s['runs']:<4} "
+              f"{s['nees_pose_mean']:>8.1f} {nis:>11}  {s['failures_by_reason'] or ''}")
+
+
+def _main_features(args):
+    from bench import feature_pose as fp
+
+    if args.feature_runs < 1 or args.duration < 10:
+        raise ValueError("--feature-runs must be >= 1 and --duration >= 10")
+    t0 = time.perf_counter()
+    result = fp.comparison(args.seed, duration_s=args.duration, runs=args.feature_runs)
+    result["experiment"] = "features"
+    result["wall_s"] = time.perf_counter() - t0
+    _print_features(result)
+    if args.plots:
+        result["plots"] = fp.plots(result, args.plots)
+    if args.json:
+        write_json(args.json, {k: v for k, v in result.items() if not k.startswith("_")})
+    return 0
+
+
 def main(args):
+    if args.experiment == "features":
+        return _main_features(args)
     from bench import pose_campaign as pc
 
     if args.runs < 1:

@@ -36,6 +36,7 @@ enum class StepDetail : std::uint8_t {
   PriorCholesky,      // Cholesky of the state covariance failed
   InnovationCholesky, // Cholesky of the innovation covariance failed
   PosteriorCholesky,  // updated covariance not positive definite
+  FeatureNotImageable, // a predicted image feature is behind the lens or at infinity
   CovarianceRepaired, // status Ok: the covariance factored only after a relative diagonal jitter (rounding)
 };
 
@@ -65,6 +66,7 @@ constexpr const char* to_string(StepDetail d) {
     case StepDetail::PriorCholesky: return "prior_cholesky";
     case StepDetail::InnovationCholesky: return "innovation_cholesky";
     case StepDetail::PosteriorCholesky: return "posterior_cholesky";
+    case StepDetail::FeatureNotImageable: return "feature_not_imageable";
     case StepDetail::CovarianceRepaired: return "covariance_repaired";
   }
   return "unknown";
