@@ -367,7 +367,7 @@ def comparison(seed, duration_s=300.0, runs=3, ukf=True):
     zs = [measurements(truth, np.random.default_rng([seed, i])) for i in range(runs)]
     plan = [(case, "ekf", g) for g in (1, 2) for case in CASES]
     if ukf:
-        plan += [("all", "ukf", 1), ("all", "ukf", 2)]
+        plan += [(case, "ukf", 1) for case in CASES] + [("all", "ukf", 2)]
     cases = {}
     histories = {}
     for case, kind, g in plan:

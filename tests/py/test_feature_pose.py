@@ -84,9 +84,11 @@ def test_combined_ukf_beats_every_single_type_on_position_and_attitude(compariso
     c = comparison["cases"]
     u = c["all_ukf_guess1"]
     for single in ("points", "lines", "circles"):
-        s = c[f"{single}_ekf_guess1"]
-        assert u["steady_pos_err_m"] < s["steady_pos_err_m"], single
-        assert u["steady_att_err_deg"] < s["steady_att_err_deg"], single
+        for kind in ("ekf", "ukf"):  # every single type, with either filter
+            s = c[f"{single}_{kind}_guess1"]
+            assert u["steady_pos_err_m"] < s["steady_pos_err_m"], (single, kind)
+            assert u["steady_att_err_deg"] < s["steady_att_err_deg"], (single, kind)
+            assert u["convergence_time_s"] < (s["convergence_time_s"] or math.inf), (single, kind)
 
 
 def test_filters_converge_from_both_seed_guesses(comparison):
