@@ -37,7 +37,7 @@ set-up is therefore:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -85,11 +85,8 @@ class ImagePoseSensor:
 
         self.pattern = docking_pattern()
         self.estimator = make_estimator(self.cam, face_offset_m=DOCK_FACE_OFFSET_M)
-        self.render_cam = self.cam
-        if self.lens_k1 != 0.0:
-            self.render_cam = self.cam.with_mount_error(np.zeros(3))  # a copy
-            self.render_cam.dist = np.asarray(self.cam.dist, float).copy()
-            self.render_cam.dist[0] += float(self.lens_k1)
+        k1_extra = np.array([float(self.lens_k1), 0.0, 0.0, 0.0, 0.0])
+        self.render_cam = replace(self.cam, dist=np.asarray(self.cam.dist, float) + k1_extra)
 
     def measure(self, t_s: float, r_hill_m, q_hb) -> PoseMeasurement | None:
         img = cm.render(np.asarray(r_hill_m, float), np.asarray(q_hb, float), Q_H_PATTERN, self.scene, self.rng,
