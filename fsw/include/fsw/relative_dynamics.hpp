@@ -66,20 +66,45 @@ struct LeaderOrbit {
 template <typename S> using RelVec = Eigen::Matrix<S, 14, 1>;
 template <typename S> using Mat12 = Eigen::Matrix<S, 12, 12>;
 
+// What the derivative and its Jacobian both read off the packed state: the
+// leader frame's rate nd and acceleration ndd (true anomaly rates), and
+// those rates in the follower body, b and c, with the inertial body rate wf.
+template <typename S>
+struct RelativeFrameTerms {
+  Quat<S> q;
+  Vec3<S> w, r;
+  S nu, nd, ndd;
+  Vec3<S> b, c, wf;
+};
+
+template <typename S>
+inline RelativeFrameTerms<S> relative_frame_terms(const RelVec<S>& x, const LeaderOrbit<S>& orb) {
+  RelativeFrameTerms<S> t;
+  t.q = Quat<S>(x(0), x(1), x(2), x(3));
+  t.w = x.template segment<3>(4);
+  t.r = x.template segment<3>(7);
+  t.nu = x(13);
+  t.nd = orb.nu_dot(t.nu);
+  t.ndd = orb.nu_ddot(t.nu);
+  const Mat3<S> Rt = t.q.toRotationMatrix().transpose();
+  t.b = Rt * Vec3<S>(S(0), S(0), t.nd);
+  t.c = Rt * Vec3<S>(S(0), S(0), t.ndd);
+  t.wf = t.w + t.b;
+  return t;
+}
+
 template <typename S>
 inline RelVec<S> relative_derivative(const RelVec<S>& x, const LeaderOrbit<S>& orb, const Mat3<S>& J,
                                      const Mat3<S>& J_inv) {
-  const Quat<S> q(x(0), x(1), x(2), x(3));
-  const Vec3<S> w = x.template segment<3>(4);
-  const Vec3<S> r = x.template segment<3>(7);
+  const RelativeFrameTerms<S> t = relative_frame_terms(x, orb);
+  const Quat<S>& q = t.q;
+  const Vec3<S>& w = t.w;
+  const Vec3<S>& r = t.r;
   const Vec3<S> v = x.template segment<3>(10);
-  const S nu = x(13);
-  const S nd = orb.nu_dot(nu);
-  const S ndd = orb.nu_ddot(nu);
-  const Mat3<S> Rt = q.toRotationMatrix().transpose();
-  const Vec3<S> b = Rt * Vec3<S>(S(0), S(0), nd);
-  const Vec3<S> c = Rt * Vec3<S>(S(0), S(0), ndd);
-  const Vec3<S> wf = w + b;
+  const S nu = t.nu, nd = t.nd, ndd = t.ndd;
+  const Vec3<S>& b = t.b;
+  const Vec3<S>& c = t.c;
+  const Vec3<S>& wf = t.wf;
   const Vec3<S> wf_dot = -(J_inv * wf.cross(J * wf));
   RelVec<S> d;
   const Quat<S> qd = q * Quat<S>(S(0), w.x(), w.y(), w.z());
@@ -128,16 +153,13 @@ inline RelVec<S> relative_rk4(const RelVec<S>& x, S h, const LeaderOrbit<S>& orb
 template <typename S>
 inline Mat12<S> relative_jacobian(const RelVec<S>& x, const LeaderOrbit<S>& orb, const Mat3<S>& J,
                                   const Mat3<S>& J_inv) {
-  const Quat<S> q(x(0), x(1), x(2), x(3));
-  const Vec3<S> w = x.template segment<3>(4);
-  const Vec3<S> r = x.template segment<3>(7);
-  const S nu = x(13);
-  const S nd = orb.nu_dot(nu);
-  const S ndd = orb.nu_ddot(nu);
-  const Mat3<S> Rt = q.toRotationMatrix().transpose();
-  const Vec3<S> b = Rt * Vec3<S>(S(0), S(0), nd);
-  const Vec3<S> c = Rt * Vec3<S>(S(0), S(0), ndd);
-  const Vec3<S> wf = w + b;
+  const RelativeFrameTerms<S> t = relative_frame_terms(x, orb);
+  const Vec3<S>& w = t.w;
+  const Vec3<S>& r = t.r;
+  const S nu = t.nu, nd = t.nd, ndd = t.ndd;
+  const Vec3<S>& b = t.b;
+  const Vec3<S>& c = t.c;
+  const Vec3<S>& wf = t.wf;
   const Mat3<S> E = J_inv * (skew(Vec3<S>(J * wf)) - skew(wf) * J);  // d omega_f_dot / d omega_f
   const Mat3<S> I = Mat3<S>::Identity();
   Mat12<S> A = Mat12<S>::Zero();
