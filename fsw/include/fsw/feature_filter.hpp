@@ -442,6 +442,34 @@ class FeatureFilterBase {
     return rec;
   }
 
+  // The last part of every predict (EKF and UKF): the propagated state and
+  // covariance replace the old ones only if finite and positive; otherwise
+  // NotPosDef with the filter untouched.
+  Record& commit_predict(Record& rec, double t_s, const State& x, S nu, Cov& P) {
+    if (!x.all_finite() || !condition_covariance(P, var_min_, var_max_))
+      return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+    x_ = x;
+    nu_ = nu;
+    P_ = P;
+    t_ = t_s;
+    rec.status = StepStatus::Ok;
+    return rec;
+  }
+
+  // The last part of every update: the correction dx and the posterior P
+  // (Joseph form) are applied only if finite and P factors; otherwise
+  // NotPosDef with the filter untouched.
+  Record& commit_update(Record& rec, const ErrVec& dx, Cov& P) {
+    Cov L;
+    if (!dx.allFinite() || !condition_covariance(P, var_min_, var_max_) || !cholesky_lower(P, L))
+      return reject(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
+    x_ = boxplus(x_, dx);
+    P_ = P;
+    rec.status = StepStatus::Ok;
+    rec.fused = true;
+    return rec;
+  }
+
   Config cfg_;
   Features fs_;
   const char* bad_field_ = nullptr;
@@ -489,14 +517,7 @@ class FeatureEkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
     Cov F;
     this->propagate(x, nu, dt, &F);
     Cov P = F * this->P_ * F.transpose() + this->process_noise(dt);
-    if (!x.all_finite() || !condition_covariance(P, this->var_min_, this->var_max_))
-      return Base::reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-    this->x_ = x;
-    this->nu_ = nu;
-    this->P_ = P;
-    this->t_ = t_s;
-    rec.status = StepStatus::Ok;
-    return rec;
+    return this->commit_predict(rec, t_s, x, nu, P);
   }
 
   // Fuses the image coordinates z (slots per the header) marked in mask.
@@ -526,14 +547,7 @@ class FeatureEkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
     const ErrVec dx = K * y;
     const Cov IKH = Cov::Identity() - K * H;
     Cov P = IKH * this->P_ * IKH.transpose() + K * R * K.transpose();
-    Cov L;
-    if (!dx.allFinite() || !condition_covariance(P, this->var_min_, this->var_max_) || !cholesky_lower(P, L))
-      return Base::reject(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
-    this->x_ = Base::boxplus(this->x_, dx);
-    this->P_ = P;
-    rec.status = StepStatus::Ok;
-    rec.fused = true;
-    return rec;
+    return this->commit_update(rec, dx, P);
   }
 };
 
@@ -593,14 +607,7 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
       const ErrVec d = Base::boxminus(sig_[k], xm);
       P += (k == 0 ? w.wc0 : w.wi) * d * d.transpose();
     }
-    if (!xm.all_finite() || !condition_covariance(P, this->var_min_, this->var_max_))
-      return Base::reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-    this->x_ = xm;
-    this->nu_ = nu0;
-    this->P_ = P;
-    this->t_ = t_s;
-    rec.status = StepStatus::Ok;
-    return rec;
+    return this->commit_predict(rec, t_s, xm, nu0, P);
   }
 
   Record update(const MeasVec& z, std::uint32_t mask = Base::kAllSlots) {
@@ -676,14 +683,7 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
     const MeasJac Hs = PinvPxz.transpose();
     const Cov IKH = Cov::Identity() - K * Hs;
     Cov P = IKH * this->P_ * IKH.transpose() + K * R * K.transpose();
-    Cov L2;
-    if (!dx.allFinite() || !condition_covariance(P, this->var_min_, this->var_max_) || !cholesky_lower(P, L2))
-      return Base::reject(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
-    this->x_ = Base::boxplus(this->x_, dx);
-    this->P_ = P;
-    last_alpha_ = alpha;
-    rec.status = StepStatus::Ok;
-    rec.fused = true;
+    if (this->commit_update(rec, dx, P).ok()) last_alpha_ = alpha;
     return rec;
   }
 
