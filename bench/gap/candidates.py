@@ -103,9 +103,11 @@ _BUILDERS = {
 
 CANDIDATES = {c.name: c for c in (
     Candidate("thrust_loss", "dynamics", tuple(f"loss_{i} [1]" for i in range(8)), 0.1,
-              "fire each valve alone for a few seconds: a loss scales one valve's force and torque", bound=0.9, nav=False),
+              "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a loss changes the rate "
+              "along the valve's torque, a tilt across it (python -m bench.gap.characterise)", bound=0.9, nav=False),
     Candidate("thruster_misalignment", "dynamics", tuple(f"phi_{i}{a} [rad]" for i in range(8) for a in "xyz"), 0.05,
-              "fire each valve alone: a tilt adds a force and torque across its nominal direction", bound=0.5, nav=False),
+              "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a tilt changes the rate "
+              "across the valve's torque, a loss along it (python -m bench.gap.characterise)", bound=0.5, nav=False),
     Candidate("mass_depletion", "dynamics", ("mdot [kg/s per open valve]",), 1e-3,
               "a long firing: the acceleration per valve grows as propellant is used", bound=0.02, nav=False),
     Candidate("com_offset", "dynamics", ("c_x [m]", "c_y [m]", "c_z [m]"), 0.01,

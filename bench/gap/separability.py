@@ -31,16 +31,19 @@ def _basis(J: np.ndarray) -> np.ndarray:
     return U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
 
 
-def separability(seed: int, name: str, effects: dict, duration_s: float, in_library: bool) -> dict:
+def separability(seed: int, name: str, effects: dict, duration_s: float, in_library: bool,
+                 scripts: list | None = None) -> dict:
     """delta2 of effect ``name`` (parameters ``effects``) in the run of
-    ``seed`` against every library candidate; the closest competitor."""
+    ``seed`` against every library candidate; the closest competitor.
+    ``scripts``: fly these valve scripts (bench.reality.simulate_runs) instead
+    of the closed-loop docking runs."""
     from bench.effects import EffectSet
     from bench.gap.attribute import signature
     from bench.gap.candidates import CANDIDATES
     from bench.gap.detectable import _residuals
     from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
 
-    runs1 = simulate_runs(seed, effects, duration_s)
+    runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts)
     scripts = [r["config"] for r in runs1]
     runs0 = simulate_runs(seed, {}, duration_s, scripts=scripts)
     log1 = runs_to_log(runs1, log_config(seed, duration_s), _clock_rate(EffectSet(effects)), with_truth=False)

@@ -220,6 +220,25 @@ def test_a_nozzle_tilt_in_a_docking_run_is_not_separable_from_thrust_loss():
     assert b["separable"] and b["delta2_min"] > 0.5 * b["lambda"]
 
 
+def test_single_valve_characterisation_separates_thrust_loss_that_docking_cannot():
+    from bench.gap.characterise import compare, single_valve_scripts
+    from bench.gap.separability import DELTA2_95
+
+    scripts = single_valve_scripts(fire_s=3.0, coast_s=20.0)
+    assert len(scripts) == 8
+    for i, s in enumerate(scripts):  # closed, valve i alone for 3 s, closed for 20 s
+        assert s[:20] == [0] * 20 and s[20:50] == [1 << i] * 30 and s[50:] == [0] * 200
+    r = compare(1, "thrust_loss", 0.0069, fire_s=3.0, coast_s=20.0)
+    dock, char = r["docking"], r["characterisation"]
+    # Docking: detectable (lambda well above the screen's ~37) but a nozzle
+    # tilt set reproduces the losses; held through a coast, a loss's rate
+    # change along the valve's torque is nothing a tilt can give.
+    assert dock["lambda"] > 37.0 and dock["closest"] == "thruster_misalignment"
+    assert dock["delta2"] < DELTA2_95 and dock["fraction"] < 0.1
+    assert char["delta2"] > DELTA2_95 and char["fraction"] > 0.5
+    assert char["size_to_separate"] < 0.25 * dock["size_to_separate"]
+
+
 def test_deficit_cells_keep_only_where_the_training_gap_lies():
     from bench.gap import quantify
 
