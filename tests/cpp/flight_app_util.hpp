@@ -47,6 +47,12 @@ struct Uplink {
     m.valve_mask = mask;
     add(Apid::ThrusterValves, m, t);
   }
+  void config(double t, ConfigParam id, double value) {
+    CmdConfigMsg<double> m;
+    m.param_id = static_cast<std::uint32_t>(id);
+    m.value = value;
+    add(Apid::CmdConfig, m, t);
+  }
   void pose(double t_capture, const Vec3<double>& r, const Quat<double>& q, double r_sigma, double a_sigma) {
     LedPoseMsg<double> m;
     m.r_hill_m = r;
@@ -84,7 +90,8 @@ struct Telemetry {
       }
     }
   }
-  void drain(FlightApp<double>& app) {
+  template <typename S>
+  void drain(FlightApp<S>& app) {
     std::uint8_t buf[4096];
     while (app.tx_pending() > 0) {
       const std::size_t n = app.take_tx(buf, sizeof(buf));

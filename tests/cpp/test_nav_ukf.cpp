@@ -407,6 +407,35 @@ TYPED_TEST(NavUkfTest, CaptureTimeBetweenTicksOrInFutureIsRejected) {
   EXPECT_EQ(rec.detail, StepDetail::OutOfSequence);
 }
 
+TYPED_TEST(NavUkfTest, ReacquireRejectsBadPosesAndLeavesTheStateUntouched) {
+  using S = TypeParam;
+  NavUkf<S, false> f(test_config<S>());
+  const Vec3<S> r(S(0.1), S(-0.7), S(0));
+  const Quat<S> q = Quat<S>::Identity();
+  EXPECT_EQ(f.reacquire(0.0, r, q, pose_R<S>()).detail, StepDetail::NotInitialized);
+  ASSERT_TRUE(f.init(0.0, typename NavUkf<S, false>::State(), initial_cov<S, false>()).ok());
+  for (int k = 1; k <= 10; ++k) ASSERT_TRUE(f.predict(0.1 * k, Vec3<S>::Zero(), Vec3<S>::Zero()).ok());
+  const auto x0 = f.state();
+  const auto P0 = f.P();
+  Vec3<S> r_nan = r;
+  r_nan.x() = std::numeric_limits<S>::quiet_NaN();
+  EXPECT_EQ(f.reacquire(1.0, r_nan, q, pose_R<S>()).detail, StepDetail::NonFinite);
+  EXPECT_EQ(f.reacquire(1.0, r, Quat<S>(S(1.1), S(0), S(0), S(0)), pose_R<S>()).detail, StepDetail::NonUnitQuaternion);
+  EXPECT_EQ(f.reacquire(1.5, r, q, pose_R<S>()).detail, StepDetail::FromFuture);
+  EXPECT_EQ(f.reacquire(1.0 - f.config().max_delay_s - 0.05, r, q, pose_R<S>()).detail, StepDetail::TooOld);
+  typename NavUkf<S, false>::MeasCov R_bad = pose_R<S>();
+  R_bad(0, 0) = S(-1);
+  EXPECT_EQ(f.reacquire(1.0, r, q, R_bad).status, StepStatus::NotPosDef);
+  EXPECT_EQ(f.state().r_hill_m, x0.r_hill_m);
+  EXPECT_EQ(f.P(), P0);
+  EXPECT_EQ(f.t_s(), 1.0);
+  // A pose 0.2 s old is taken as of now; the filter's time does not go back.
+  ASSERT_TRUE(f.reacquire(0.8, r, q, pose_R<S>()).ok());
+  EXPECT_EQ(f.t_s(), 1.0);
+  EXPECT_EQ(f.state().r_hill_m, r);
+  EXPECT_EQ(f.history_count(), 1);
+}
+
 TYPED_TEST(NavUkfTest, PredictTimeNotIncreasingIsRejected) {
   using S = TypeParam;
   auto f = make_filter<S>();
@@ -608,7 +637,7 @@ TYPED_TEST(NavUkfBiasTest, EstimatesAConstantGyroBias) {
   EXPECT_TRUE(is_pos_def(f.P()));
 }
 
-TYPED_TEST(NavUkfBiasTest, AnHourWithoutPosesStaysOkAndAReinitialisedFilterReconverges) {
+TYPED_TEST(NavUkfBiasTest, AnHourWithoutPosesStaysOkAndAReacquiredFilterReconverges) {
   // 36000 predicts with IMU noise only (the inspector at rest at the host's
   // centre of mass, inertially fixed), then 5 minutes of 1 Hz poses. In
   // float the covariance of a long coast used to fail its Cholesky after
@@ -643,23 +672,25 @@ TYPED_TEST(NavUkfBiasTest, AnHourWithoutPosesStaysOkAndAReinitialisedFilterRecon
   // (1 rad^2) and the position's is kilometres: a pose is not a small
   // correction any more (in float the update would shrink the position
   // variance by 1e11, below its resolution, and is refused with the state
-  // untouched). The recovery is a re-initialisation from the first pose,
-  // the coasted velocity and bias variances kept; then every pose fuses.
+  // untouched). The recovery is a re-acquisition from the first pose
+  // (reacquire: position and attitude from the pose, the coasted velocity
+  // and bias variances kept); then every pose fuses.
   {
     const long s = 3601;
     imu_second(s);
     const Quat<double> q_true = exp(Vec3<double>(0, 0, -n * double(s))) * q0;
-    typename NavUkf<S, true>::State x1 = f.state();
-    x1.r_hill_m = Vec3<double>(kPosSigma * nd(rng), kPosSigma * nd(rng), kPosSigma * nd(rng)).cast<S>();
-    x1.q_hb = boxplus(q_true, Vec3<double>(kAttSigma * nd(rng), kAttSigma * nd(rng), kAttSigma * nd(rng))).cast<S>();
-    typename NavUkf<S, true>::Cov P1 = f.P();
-    P1.template block<3, 15>(0, 0).setZero();
-    P1.template block<15, 3>(0, 0).setZero();
-    P1.template block<3, 15>(6, 0).setZero();
-    P1.template block<15, 3>(0, 6).setZero();
-    P1.template block<3, 3>(0, 0) = pose_R<S>().template block<3, 3>(0, 0);
-    P1.template block<3, 3>(6, 6) = pose_R<S>().template block<3, 3>(3, 3);
-    ASSERT_TRUE(f.init(double(s), x1, P1).ok());
+    const Vec3<double> r_meas(kPosSigma * nd(rng), kPosSigma * nd(rng), kPosSigma * nd(rng));
+    const Quat<double> q_meas =
+        boxplus(q_true, Vec3<double>(kAttSigma * nd(rng), kAttSigma * nd(rng), kAttSigma * nd(rng)));
+    const auto v_var = f.P().diagonal().template segment<3>(3).eval();
+    const auto bias_var = f.P().diagonal().template tail<6>().eval();
+    ASSERT_TRUE(f.reacquire(double(s), r_meas.cast<S>(), q_meas.cast<S>(), pose_R<S>()).ok());
+    EXPECT_EQ(f.state().r_hill_m, r_meas.cast<S>());
+    EXPECT_EQ(f.P().diagonal().template head<3>(), pose_R<S>().diagonal().template head<3>());
+    EXPECT_EQ(f.P().diagonal().template segment<3>(6), pose_R<S>().diagonal().template tail<3>());
+    EXPECT_EQ(f.P().diagonal().template segment<3>(3), v_var);
+    EXPECT_EQ(f.P().diagonal().template tail<6>(), bias_var);
+    EXPECT_EQ((f.P().template block<3, 12>(0, 3).cwiseAbs().maxCoeff()), S(0));
   }
   long fused = 0;
   for (long s = 3602; s <= 3900; ++s) {

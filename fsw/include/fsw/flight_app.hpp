@@ -12,11 +12,27 @@
 //   cmd_reset (bit 3)   -> link counters cleared
 //   cmd_config          -> pose noise model (docs/LINK.md, parameter ids)
 //   imu_sample          -> NavUkf::predict to the packet time
-//   led_pose            -> NavUkf::update_pose at the capture time (may be late)
+//   led_pose            -> NavUkf::update_pose at the capture time (may be late);
+//                          or NavUkf::reacquire from it when the filter is lost
+//                          (see "Re-acquisition" below)
 //   thruster_valves     -> held until the IMU sample that ends its interval:
 //                          that sample (accelerometer x dt as the body dv, the
 //                          gyro's change as dw) enters the thruster learner
 //                          (ThrusterBlr, window 30) for that valve mask
+// Re-acquisition: a pose re-initialises position and attitude (velocity and
+// biases kept) instead of correcting them when either
+//   - the filter is lost: its position or attitude standard deviation is
+//     above reacquire_lost_pos_sigma_m / reacquire_lost_att_sigma_rad (an
+//     outage: after an hour's coast the attitude variance sits at its
+//     ceiling and a pose is no small correction; in float the update would
+//     be refused), or
+//   - it has rejected reacquire_after_poses poses in a row (gated or not
+//     positive definite) that agree with each other (position within
+//     4 sigma plus kReacquireMaxSpeed x dt, attitude within 4 sigma plus
+//     kReacquireMaxRate x dt): the filter, not the camera, is wrong. A lone
+//     outlier, or outliers that do not agree, change nothing.
+// That pose's tm_innovation then has step_kind 3 (reacquire), fused 0.
+//
 // Every imu_sample, led_pose and cmd_reset answers with tm_innovation (the
 // step record), tm_estimate and tm_covariance_diag, in that order; an
 // imu_sample that fed the learner also with tm_learner (its prediction for
@@ -52,16 +68,24 @@ enum class ConfigParam : std::uint32_t {
   NavMaxDelay = 7,       // max_delay_s
   NavOrbitRate = 8,      // n_radps
   NavDtImu = 9,          // dt_imu_s
+  // Re-acquisition (0 disables each rule):
+  ReacquireAfterPoses = 10,    // consecutive agreeing rejected poses that re-initialise (integer)
+  ReacquireLostPosSigma = 11,  // position 1-sigma above which the filter is lost [m]
+  ReacquireLostAttSigma = 12,  // attitude 1-sigma above which the filter is lost [rad]
 };
 
 // What a step did, as reported in tm_innovation.step_kind.
-enum class StepKind : std::uint8_t { Predict = 0, PoseUpdate = 1, Reset = 2 };
+enum class StepKind : std::uint8_t { Predict = 0, PoseUpdate = 1, Reset = 2, Reacquire = 3 };
 
 template <typename S>
 class FlightApp {
  public:
   using Nav = NavUkf<S, false>;
   static constexpr std::size_t kTxCapacity = 16384;
+  // Fastest relative motion two agreeing poses may differ by (the inspector
+  // closes at cm/s and turns at a few deg/s; these leave a wide margin).
+  static constexpr double kReacquireMaxSpeed = 0.5;  // [m/s]
+  static constexpr double kReacquireMaxRate = 0.5;   // [rad/s]
 
   struct Counters {
     std::uint32_t imu_steps = 0;
@@ -69,6 +93,7 @@ class FlightApp {
     std::uint32_t pose_fused = 0;
     std::uint32_t poses_deferred = 0;  // arrived before their capture tick's IMU sample; fused after it
     std::uint32_t resets = 0;
+    std::uint32_t reacquisitions = 0;  // filter re-initialised from a pose (lost, or rejecting agreeing poses)
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
     std::uint32_t learner_samples = 0;  // firing intervals entered into the learner
@@ -134,9 +159,9 @@ class FlightApp {
     learn(p.t_s, m);
     if (pending_.valid && nav_.initialized() && nav_.t_s() >= pending_.t_s - nav_cfg_.time_tol_s) {
       pending_.valid = false;
-      const typename Nav::Record prec = nav_.update_pose(pending_.t_s, pending_.r_hill_m, pending_.q_hb, pending_.R);
-      if (prec.fused) ++counters_.pose_fused;
-      report(StepKind::PoseUpdate, prec, nav_.t_s());
+      typename Nav::Record prec;
+      const StepKind kind = apply_pose(pending_.t_s, pending_.r_hill_m, pending_.q_hb, pending_.R, prec);
+      report(kind, prec, nav_.t_s());
     }
     if (hk_every_ > 0 && counters_.imu_steps % hk_every_ == 0) housekeeping(p.t_s);
   }
@@ -190,7 +215,8 @@ class FlightApp {
     typename Nav::MeasCov R = Nav::MeasCov::Zero();
     R.diagonal().template head<3>().setConstant(r_sigma * r_sigma);
     R.diagonal().template tail<3>().setConstant(a_sigma * a_sigma);
-    const typename Nav::Record rec = nav_.update_pose(p.t_s, m.r_hill_m, m.q_hb, R);
+    typename Nav::Record rec;
+    const StepKind kind = apply_pose(p.t_s, m.r_hill_m, m.q_hb, R, rec);
     ++counters_.pose_updates;
     // The pose and IMU streams are independent: a pose may arrive before the
     // IMU sample of its capture tick (or that sample may be lost and bridged
@@ -206,8 +232,64 @@ class FlightApp {
       pending_.R = R;
       ++counters_.poses_deferred;
     }
-    if (rec.fused) ++counters_.pose_fused;
-    report(StepKind::PoseUpdate, rec, nav_.initialized() ? nav_.t_s() : p.t_s);
+    report(kind, rec, nav_.initialized() ? nav_.t_s() : p.t_s);
+  }
+
+  // One pose into the filter: a correction, or a re-acquisition when the
+  // filter is lost or has rejected enough agreeing poses in a row.
+  StepKind apply_pose(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
+                      typename Nav::Record& rec) {
+    if (nav_.initialized() && lost()) return reacquire(t_s, r, q, R, rec);
+    rec = nav_.update_pose(t_s, r, q, R);
+    if (rec.fused) {
+      ++counters_.pose_fused;
+      rejected_.n = 0;
+      return StepKind::PoseUpdate;
+    }
+    if (rec.status == StepStatus::Gated || rec.status == StepStatus::NotPosDef) {
+      note_rejected(t_s, r, q, R);
+      if (reacquire_after_ > 0 && rejected_.n >= reacquire_after_) return reacquire(t_s, r, q, R, rec);
+    }
+    return StepKind::PoseUpdate;
+  }
+
+  StepKind reacquire(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
+                     typename Nav::Record& rec) {
+    rec = nav_.reacquire(t_s, r, q, R);
+    if (rec.status == StepStatus::Ok) {
+      ++counters_.reacquisitions;
+      rejected_.n = 0;
+    }
+    return StepKind::Reacquire;
+  }
+
+  bool lost() const {
+    const auto d = nav_.P().diagonal();
+    const S pos_var = d.template segment<3>(0).maxCoeff();
+    const S att_var = d.template segment<3>(6).maxCoeff();
+    return (lost_pos_sigma_ > S(0) && pos_var > lost_pos_sigma_ * lost_pos_sigma_) ||
+           (lost_att_sigma_ > S(0) && att_var > lost_att_sigma_ * lost_att_sigma_);
+  }
+
+  // A rejected pose extends the run of rejected poses when it agrees with
+  // the previous one, else starts a new run.
+  void note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R) {
+    const S r_var = R.diagonal().template head<3>().maxCoeff();
+    const S a_var = R.diagonal().template tail<3>().maxCoeff();
+    bool agrees = false;
+    if (rejected_.n > 0) {
+      const S dt = S(std::abs(t_s - rejected_.t_s));
+      const S dr = (r - rejected_.r).norm();
+      const S da = boxminus(normalized(q), rejected_.q).norm();
+      agrees = dr <= S(4) * std::sqrt(r_var + rejected_.r_var) + S(kReacquireMaxSpeed) * dt &&
+               da <= S(4) * std::sqrt(a_var + rejected_.a_var) + S(kReacquireMaxRate) * dt;
+    }
+    rejected_.n = agrees ? rejected_.n + 1 : 1;
+    rejected_.t_s = t_s;
+    rejected_.r = r;
+    rejected_.q = normalized(q);
+    rejected_.r_var = r_var;
+    rejected_.a_var = a_var;
   }
 
   void on_reset(const PacketView& p) {
@@ -223,6 +305,7 @@ class FlightApp {
     if (!(m.target_mask & 0x1u)) return;
     nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
     pending_.valid = false;
+    rejected_.n = 0;
     typename Nav::State x0;
     x0.r_hill_m = m.r_hill_m;
     x0.v_hill_mps = m.v_hill_mps;
@@ -254,6 +337,15 @@ class FlightApp {
       case ConfigParam::NavMaxDelay: return set_nav(nav_cfg_.max_delay_s, m.value);
       case ConfigParam::NavOrbitRate: return set_nav(nav_cfg_.n_radps, m.value);
       case ConfigParam::NavDtImu: return set_nav(nav_cfg_.dt_imu_s, m.value);
+      case ConfigParam::ReacquireAfterPoses:
+        if (m.value >= S(0) && m.value <= S(1000)) { reacquire_after_ = static_cast<std::uint32_t>(m.value); return; }
+        break;
+      case ConfigParam::ReacquireLostPosSigma:
+        if (m.value >= S(0)) { lost_pos_sigma_ = m.value; return; }
+        break;
+      case ConfigParam::ReacquireLostAttSigma:
+        if (m.value >= S(0)) { lost_att_sigma_ = m.value; return; }
+        break;
     }
     ++counters_.configs_rejected;
   }
@@ -330,6 +422,15 @@ class FlightApp {
     ++counters_.tx_packets;
   }
 
+  struct RejectedRun {
+    std::uint32_t n = 0;  // consecutive rejected poses that agree with each other
+    double t_s = 0.0;     // the last one
+    Vec3<S> r = Vec3<S>::Zero();
+    Quat<S> q = Quat<S>::Identity();
+    S r_var = S(0);
+    S a_var = S(0);
+  };
+
   struct PendingPose {
     bool valid = false;
     double t_s = 0.0;
@@ -343,6 +444,10 @@ class FlightApp {
   NavConfig<S> nav_cfg_;
   Nav nav_;
   PendingPose pending_;
+  RejectedRun rejected_;
+  std::uint32_t reacquire_after_ = 5;
+  S lost_pos_sigma_ = S(10);
+  S lost_att_sigma_ = S(0.5);
   Learner learner_;
   ThrusterValvesMsg<S> valves_;
   double valves_t_s_ = 0.0;

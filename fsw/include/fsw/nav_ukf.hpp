@@ -204,6 +204,45 @@ class NavUkf {
     return rec;
   }
 
+  // Re-acquisition from a pose when the filter is lost (an outage left it
+  // too uncertain for a pose to be a correction, or it keeps rejecting poses
+  // that agree with each other): at the current time, position and attitude
+  // become the pose's, with the pose's covariance and no correlation with
+  // the rest; velocity and biases keep their coasted values and covariance.
+  // The stored history restarts here (nothing before the jump is replayed).
+  // The pose may be up to max_delay_s old; it is taken as of now (the motion
+  // in that time is far inside a lost filter's error). On failure the filter
+  // keeps its state.
+  Record reacquire(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R) {
+    Record rec;
+    rec.t_s = t_capture_s;
+    if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized);
+    if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
+      return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
+    if (!quat_unit(q_hb)) return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
+    const double t_now = hist_[head_].t_s;
+    if (t_capture_s > t_now + cfg_.time_tol_s) return reject(rec, StepStatus::BadInput, StepDetail::FromFuture);
+    if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s)
+      return reject(rec, StepStatus::BadInput, StepDetail::TooOld);
+    State x = hist_[head_].x;
+    x.r_hill_m = r_hill_m;
+    x.q_hb = q_hb;
+    Cov P = hist_[head_].P;
+    constexpr int ip = Layout::kDPos.index, ia = Layout::kDTheta.index;
+    P.template middleRows<3>(ip).setZero();
+    P.template middleCols<3>(ip).setZero();
+    P.template middleRows<3>(ia).setZero();
+    P.template middleCols<3>(ia).setZero();
+    P.template block<3, 3>(ip, ip) = R.template block<3, 3>(0, 0);
+    P.template block<3, 3>(ia, ia) = R.template block<3, 3>(3, 3);
+    P.template block<3, 3>(ip, ia) = R.template block<3, 3>(0, 3);
+    P.template block<3, 3>(ia, ip) = R.template block<3, 3>(3, 0);
+    const Record r = init(t_now, x, P);
+    rec.status = r.status;
+    rec.detail = r.detail;
+    return rec;
+  }
+
   // IMU sample (specific force in body [m/s^2], omega_BI_B [rad/s]) held
   // over (t_current, t_s]; moves the filter to t_s. A step of m whole IMU
   // periods (samples lost) is taken as m stored ticks.
