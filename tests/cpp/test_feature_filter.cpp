@@ -216,25 +216,40 @@ TEST(FeatureFilterTest, CovarianceGrowsWithoutMeasurements) {
   }
 }
 
-TEST(FeatureFilterTest, FloatBuildTracksFromANearbyStart) {
-  // Float cannot factor the innovation covariance of a 20 m prior against
-  // 10 um image noise (condition ~1e8 > 1 / eps); from a 0.5 m prior it tracks.
+// Float tracks from the seed's 20 m, 0.2 rad prior with both filters at
+// their default settings: the innovation covariance (condition about 1e8
+// against 10 um image noise, beyond float's 1 / eps) is factored from the
+// rows of its square root, never formed (cholesky_from_rows).
+template <typename F>
+void float_tracks_from_the_seed_prior(double max_err_m) {
   using S = float;
-  auto f = std::make_unique<Ekf<S>>(config<S>(), features<S>());
+  auto f = std::make_unique<F>(config<S>(), features<S>());
   ASSERT_TRUE(f->config_ok());
   auto truth = truth0<double>();
   double nu = 0.0;
   auto x0 = truth0<S>();
-  x0.r_l_m += Vec3<S>(S(0.3), S(-0.2), S(0.3));
-  ASSERT_TRUE(f->init(0.0, 0.0f, x0, P0<S>(S(0.5), S(0.01))).ok());
+  x0.r_l_m += Vec3<S>(S(12), S(-8), S(12));  // 18.9 m off
+  ASSERT_TRUE(f->init(0.0, 0.0f, x0, P0<S>()).ok());
   std::mt19937 rng(3);
   int ok = 0;
   for (int k = 1; k <= 100; ++k) {
     truth_step<double>(truth, nu, 1.0);
     ASSERT_TRUE(f->predict(double(k)).ok());
-    const Ekf<S>::MeasVec z = measure<double>(truth, features<double>(), rng).cast<S>();
+    const typename F::MeasVec z = measure<double>(truth, features<double>(), rng).template cast<S>();
     ok += f->update(z).ok();
   }
   EXPECT_EQ(ok, 100);
-  EXPECT_LE((f->state().r_l_m.cast<double>() - truth.r_l_m).norm(), 0.1);
+  EXPECT_LE((f->state().r_l_m.template cast<double>() - truth.r_l_m).norm(), max_err_m);
+}
+
+TEST(FeatureFilterTest, FloatEkfTracksFromTheSeedPrior) { float_tracks_from_the_seed_prior<Ekf<float>>(0.1); }
+TEST(FeatureFilterTest, FloatUkfTracksFromTheSeedPrior) { float_tracks_from_the_seed_prior<Ukf<float>>(0.03); }
+
+TEST(FeatureFilterTest, RejectsBetaBelowAlphaSquared) {
+  auto cfg = config<double>();
+  cfg.alpha = 1.0;
+  cfg.beta = 0.5;  // the unscented covariance would carry a negative weight
+  Ukf<double> f(cfg, features<double>());
+  EXPECT_FALSE(f.config_ok());
+  EXPECT_STREQ(f.config_invalid_field(), "beta");
 }

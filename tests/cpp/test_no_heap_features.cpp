@@ -18,9 +18,6 @@ template <typename Filter, typename S>
 void run_without_heap() {
   // Construction may allocate (a heap-held filter, as in the bindings).
   auto cfg = config<S>();
-  // Float UKF: alpha 1 (at 0.5 its first innovation covariances from this
-  // 0.5 m prior do not factor in float; docs/FEATURES.md).
-  if (std::is_same<S, float>::value) cfg.alpha = S(1);
   auto f = std::make_unique<Filter>(cfg, features<S>());
   ASSERT_TRUE(f->config_ok());
   auto truth = truth0<double>();

@@ -7,6 +7,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/QR>
 #include <cmath>
 #include <limits>
 
@@ -109,6 +110,42 @@ inline S log_det(const Eigen::LLT<Eigen::Matrix<S, N, N>>& llt) {
   S acc = S(0);
   for (int i = 0; i < N; ++i) acc += std::log(llt.matrixLLT()(i, i));
   return S(2) * acc;
+}
+
+// The lower Cholesky factor L of A = B^T B taken from the rows of B (a
+// Householder QR of B; A itself is never formed). Forming A squares B's
+// spread: in float a 20 m prior against 10 um image noise (condition 1e8 >
+// 1 / eps) rounds A's small directions away and A stops factoring, while
+// the QR keeps them to B's own rounding. Returns false when B is not finite
+// or not of full column rank (a pivot within rounding of zero).
+template <typename S, int R, int N>
+inline bool cholesky_from_rows(const Eigen::Matrix<S, R, N>& B, Eigen::Matrix<S, N, N>& L) {
+  static_assert(R >= N, "at least as many rows as columns");
+  if (!B.allFinite()) return false;
+  const Eigen::HouseholderQR<Eigen::Matrix<S, R, N>> qr(B);
+  L = qr.matrixQR().template topRows<N>().template triangularView<Eigen::Upper>().transpose();
+  // A pivot at the QR's own rounding (R eps |B|) is a rank deficiency.
+  const S tol = S(R) * std::numeric_limits<S>::epsilon() * B.cwiseAbs().maxCoeff();
+  for (int i = 0; i < N; ++i) {
+    if (L(i, i) < S(0)) L.col(i) = -L.col(i);  // a row of Q^T B may come out negated
+    if (!(L(i, i) > tol) || !std::isfinite(L(i, i))) return false;
+  }
+  return true;
+}
+
+// log det(L L^T) for a lower factor with a positive diagonal.
+template <typename S, int N>
+inline S log_det_lower(const Eigen::Matrix<S, N, N>& L) {
+  S acc = S(0);
+  for (int i = 0; i < N; ++i) acc += std::log(L(i, i));
+  return S(2) * acc;
+}
+
+// X <- (L L^T)^-1 X.
+template <typename S, int N, int C>
+inline void solve_lower_llt(const Eigen::Matrix<S, N, N>& L, Eigen::Matrix<S, N, C>& X) {
+  L.template triangularView<Eigen::Lower>().solveInPlace(X);
+  L.transpose().template triangularView<Eigen::Upper>().solveInPlace(X);
 }
 
 }  // namespace fsw

@@ -149,7 +149,9 @@ inline const char* feature_config_invalid_field(const FeatureFilterConfig<S>& c,
   if (!nonneg(double(c.q_phi))) return "q_phi";
   if (!std::isfinite(double(c.gate_chi2))) return "gate_chi2";
   if (!pos(double(c.alpha))) return "alpha";
-  if (!nonneg(double(c.beta))) return "beta";
+  // beta >= alpha^2: the UKF's innovation covariance is then a sum of outer
+  // products with positive weights (FeatureUkf::update), factored from its rows.
+  if (!nonneg(double(c.beta)) || double(c.beta) < double(c.alpha) * double(c.alpha)) return "beta";
   if (!std::isfinite(double(c.kappa))) return "kappa";
   if (c.max_alpha_halvings < 0 || c.max_alpha_halvings > 30) return "max_alpha_halvings";
   if (!pos(double(c.var_min))) return "var_min";
@@ -428,11 +430,26 @@ class FeatureFilterBase {
   }
 
   // NIS and the log-likelihood over the used rows.
-  static void score(Record& rec, const MeasVec& y, const Eigen::LLT<MeasCov>& llt, int used_rows) {
-    rec.nis = y.dot(llt.solve(y));
+  // Ls: lower factor of the innovation covariance.
+  static void score(Record& rec, const MeasVec& y, const MeasCov& Ls, int used_rows) {
+    MeasVec w = y;
+    Ls.template triangularView<Eigen::Lower>().solveInPlace(w);
+    rec.nis = w.squaredNorm();
     const S l2pi = std::log(S(2) * S(3.14159265358979323846));
     // Padding rows add log(2 pi * 1) each to log det(2 pi S); remove them.
-    rec.log_likelihood = -(rec.nis + log_det(llt) + S(kMeas) * l2pi - S(kMeas - used_rows) * l2pi) / S(2);
+    rec.log_likelihood = -(rec.nis + log_det_lower(Ls) + S(kMeas) * l2pi - S(kMeas - used_rows) * l2pi) / S(2);
+  }
+
+  // The innovation covariance's factor from the rows of its square root
+  // (cholesky_from_rows: in float, forming the covariance of a metres-wide
+  // prior against micrometre image noise loses its small directions).
+  // B's last kMeas rows receive R^1/2 (R diagonal); the rows above hold the
+  // prediction's spread, filled by the caller.
+  template <int Rows>
+  static bool innovation_factor(Eigen::Matrix<S, Rows, kMeas>& B, const MeasCov& R, MeasCov& Ls) {
+    B.template bottomRows<kMeas>().setZero();
+    B.template bottomRows<kMeas>().diagonal() = R.diagonal().cwiseSqrt();
+    return cholesky_from_rows(B, Ls);
   }
 
   static Record& reject(Record& rec, StepStatus s, StepDetail d) {
@@ -537,13 +554,21 @@ class FeatureEkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
     symmetrize(Sm);
     rec.innovation = y;
     rec.innovation_cov = Sm;
-    Eigen::LLT<MeasCov> llt;
-    if (!factor(Sm, llt)) return Base::reject(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
-    Base::score(rec, y, llt, int(rowmask.sum()));
+    Cov Lp;
+    if (!cholesky_lower(this->P_, Lp)) return Base::reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+    // S = (H Lp)(H Lp)^T + R, factored from its rows [(H Lp)^T; R^1/2].
+    Eigen::Matrix<S, kN + kMeas, kMeas> B;
+    B.template topRows<kN>() = (H * Lp).transpose();
+    MeasCov Ls;
+    if (!Base::innovation_factor(B, R, Ls))
+      return Base::reject(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
+    Base::score(rec, y, Ls, int(rowmask.sum()));
     if (this->cfg_.gate_chi2 > S(0) && rec.nis > this->cfg_.gate_chi2)
       return Base::reject(rec, StepStatus::Gated, StepDetail::None);
     // K = P H^T S^-1, from S K^T = H P.
-    const Eigen::Matrix<S, kN, kMeas> K = llt.solve(H * this->P_).transpose();
+    Eigen::Matrix<S, kMeas, kN> Kt = H * this->P_;
+    solve_lower_llt(Ls, Kt);
+    const Eigen::Matrix<S, kN, kMeas> K = Kt.transpose();
     const ErrVec dx = K * y;
     const Cov IKH = Cov::Identity() - K * H;
     Cov P = IKH * this->P_ * IKH.transpose() + K * R * K.transpose();
@@ -639,20 +664,40 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
     const MeasCov R = this->meas_cov(rowmask);
     MeasCov Sm = R;
     Eigen::Matrix<S, kN, kMeas> Pxz = Eigen::Matrix<S, kN, kMeas>::Zero();
+    // Rows of the innovation covariance's square root: the weighted sigma
+    // point spreads, then R^1/2 (innovation_factor).
+    Eigen::Matrix<S, kSigma + kMeas, kMeas> B = Eigen::Matrix<S, kSigma + kMeas, kMeas>::Zero();
     MeasVec zm;
     if (alpha == this->cfg_.alpha) {
-      zm = w.wm0 * Z_.col(0);
-      for (int k = 1; k < kSigma; ++k) zm += w.wi * Z_.col(k);
-      const MeasVec dz0 = Z_.col(0) - zm;
-      Sm += w.wc0 * dz0 * dz0.transpose();
+      // The scaled statistics written about the central point: with
+      // d_k = z_k - z_0 (d_0 = 0) and the mean offset dm = sum_k wi d_k,
+      //   zm  = z_0 + dm,
+      //   Pzz = sum_k wi d_k d_k^T + (beta - alpha^2) dm dm^T,
+      //   Pxz = sum_k wi e_k d_k^T          (e_k = +-gamma L_i, sum wi e_k = 0),
+      // equal in exact arithmetic to the textbook sums with the central
+      // weights wm0 and wc0 (negative for alpha < 1), but every weight is
+      // positive: no cancellation against a large negative central term,
+      // which in float left the innovation covariance of a prior of more
+      // than a few decimetres indefinite.
+      MeasVec dm = MeasVec::Zero();
+      for (int k = 1; k < kSigma; ++k) {
+        Z_.col(k) -= Z_.col(0);
+        dm += w.wi * Z_.col(k);
+      }
+      zm = Z_.col(0) + dm;
+      const S swi = std::sqrt(w.wi);
       for (int i = 0; i < kN; ++i) {
         for (int sgn = 0; sgn < 2; ++sgn) {
-          const MeasVec dz = Z_.col(1 + 2 * i + sgn) - zm;
+          const auto dz = Z_.col(1 + 2 * i + sgn);
           const ErrVec d = (sgn == 0 ? w.gamma : -w.gamma) * L.col(i);
           Sm += w.wi * dz * dz.transpose();
           Pxz += w.wi * d * dz.transpose();
+          B.row(2 * i + sgn) = swi * dz.transpose();
         }
       }
+      const S c = this->cfg_.beta - alpha * alpha;  // >= 0 (config)
+      Sm += c * dm * dm.transpose();
+      B.row(2 * kN) = std::sqrt(c) * dm.transpose();
     } else {
       // Spread reduced: the scaled weights would extrapolate the mean with a
       // large negative central weight; use the divided-difference (DD1)
@@ -663,18 +708,22 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
         const MeasVec dd = (Z_.col(1 + 2 * i) - Z_.col(2 + 2 * i)) / (S(2) * w.gamma);
         Sm += dd * dd.transpose();
         Pxz += L.col(i) * dd.transpose();
+        B.row(i) = dd.transpose();
       }
     }
     symmetrize(Sm);
     const MeasVec y = Base::select_rows(z, zm, rowmask);
     rec.innovation = y;
     rec.innovation_cov = Sm;
-    Eigen::LLT<MeasCov> llt;
-    if (!factor(Sm, llt)) return Base::reject(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
-    Base::score(rec, y, llt, int(rowmask.sum()));
+    MeasCov Ls;
+    if (!Base::innovation_factor(B, R, Ls))
+      return Base::reject(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
+    Base::score(rec, y, Ls, int(rowmask.sum()));
     if (this->cfg_.gate_chi2 > S(0) && rec.nis > this->cfg_.gate_chi2)
       return Base::reject(rec, StepStatus::Gated, StepDetail::None);
-    const Eigen::Matrix<S, kN, kMeas> K = llt.solve(Pxz.transpose()).transpose();
+    Eigen::Matrix<S, kMeas, kN> Kt = Pxz.transpose();
+    solve_lower_llt(Ls, Kt);
+    const Eigen::Matrix<S, kN, kMeas> K = Kt.transpose();
     const ErrVec dx = K * y;
     // Joseph form with the statistically linearised H = Pxz^T P^-1 (equal to
     // P - K S K^T in exact arithmetic, but keeps P positive definite in float).
