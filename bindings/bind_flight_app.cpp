@@ -41,6 +41,18 @@ py::dict app_counters(const App& app) {
   d["tx_dropped"] = c.tx_dropped;
   return d;
 }
+
+py::dict modal_counters(const App& app) {
+  const auto& c = app.modal().counters();
+  py::dict d;
+  d["segments"] = c.segments;
+  d["segments_stale"] = c.segments_stale;
+  d["images"] = c.images;
+  d["images_fused"] = c.images_fused;
+  d["images_incomplete"] = c.images_incomplete;
+  d["points_outside"] = c.points_outside;
+  return d;
+}
 }  // namespace
 
 void bind_flight_app(py::module_& m) {
@@ -66,5 +78,6 @@ void bind_flight_app(py::module_& m) {
           },
           py::arg("data"), "Feeds link bytes (any chunking); returns the telemetry frames produced.")
       .def("link_counters", &link_counters, "Deframer counters, rejections by reason.")
-      .def("counters", &app_counters, "Application counters.");
+      .def("counters", &app_counters, "Application counters.")
+      .def("modal_counters", &modal_counters, "Modal estimator counters (range-image segments and images).");
 }

@@ -73,6 +73,8 @@ class ApidDef:
 
 
 RANGE_POINTS_PER_SEGMENT = 24
+MAX_RANGE_POINTS_PER_IMAGE = 4096
+MODAL_TM_MODES = 10  # modes carried by tm_modal
 
 # The APID table (docs/LINK.md).
 APIDS: Dict[int, ApidDef] = {
@@ -102,6 +104,9 @@ APIDS: Dict[int, ApidDef] = {
         ApidDef(0x044, "tm_link_counters", FROM_FLIGHT, "<32I", 0, 0),
         # uptime_s, last_step_cpu_s, max_step_cpu_s, cycle_count, mode, tx_packets, reserved
         ApidDef(0x045, "tm_housekeeping", FROM_FLIGHT, "<3d4I", 0, 3),
+        # image_id, status, decomposition, fused, n_modes, n_used, n_skipped, rcond, nis,
+        # omega_radps[10], alpha_ps[10], amplitude[10], amplitude_sigma[10]
+        ApidDef(0x046, "tm_modal", FROM_FLIGHT, "<IBBBBII42d", 16, 42),
     ]
 }
 APID_BY_NAME: Dict[str, ApidDef] = {a.name: a for a in APIDS.values()}
@@ -191,6 +196,31 @@ def unpack_payload(apid: int, payload: bytes) -> tuple:
     return struct.unpack(APIDS[apid].fmt, payload)
 
 
+def range_image_segments(image_id: int, p_m, sigma_m):
+    """One range image as range_image_segment payloads: [(seq_flags, payload)]
+    of up to RANGE_POINTS_PER_SEGMENT points each (docs/LINK.md,
+    "Segmentation"). p_m: (n, 3) points in the structure frame [m], all finite;
+    sigma_m: (n,) 1-sigma of each point's deflection [m] (0 = not given)."""
+    p_m = [tuple(map(float, p)) for p in p_m]
+    sigma_m = [float(s) for s in sigma_m]
+    n = len(p_m)
+    if not 1 <= n <= MAX_RANGE_POINTS_PER_IMAGE or len(sigma_m) != n:
+        raise ValueError(f"range image: {n} points and {len(sigma_m)} sigmas (1..{MAX_RANGE_POINTS_PER_IMAGE}, equal)")
+    k = RANGE_POINTS_PER_SEGMENT
+    n_seg = (n + k - 1) // k
+    out = []
+    for s in range(n_seg):
+        pts = p_m[s * k:(s + 1) * k]
+        sig = sigma_m[s * k:(s + 1) * k]
+        vals = []
+        for i in range(k):
+            vals += [*pts[i], sig[i]] if i < len(pts) else [0.0] * 4
+        flags = (SequenceFlags.UNSEGMENTED if n_seg == 1 else SequenceFlags.FIRST_SEGMENT if s == 0
+                 else SequenceFlags.LAST_SEGMENT if s == n_seg - 1 else SequenceFlags.CONTINUATION_SEGMENT)
+        out.append((flags, pack_payload(0x013, image_id, n, s * k, len(pts), 0, *vals)))
+    return out
+
+
 class Sender:
     """Keeps the per-APID 14-bit sequence counts of one direction."""
 
@@ -244,7 +274,7 @@ def _range_segment_ok(payload: bytes, flags: SequenceFlags) -> bool:
 
 
 _FIELD_CHECKED = frozenset(("led_pose", "thruster_valves", "range_image_segment", "cmd_reset",
-                            "tm_covariance_diag", "tm_innovation"))
+                            "tm_covariance_diag", "tm_innovation", "tm_modal"))
 
 
 def _fields_ok(a: ApidDef, flags: SequenceFlags, payload: bytes) -> bool:
@@ -263,6 +293,8 @@ def _fields_ok(a: ApidDef, flags: SequenceFlags, payload: bytes) -> bool:
         return v[0] <= 15
     if a.name == "tm_innovation":
         return v[1] <= 3 and v[3] <= 6
+    if a.name == "tm_modal":
+        return v[1] <= 3 and v[2] <= 3 and v[4] <= MODAL_TM_MODES
     return True
 
 

@@ -2,6 +2,7 @@
 // collector built from the same link code the bench cross-checks in Python.
 #pragma once
 
+#include <algorithm>
 #include <vector>
 
 #include "fsw/apid.hpp"
@@ -53,6 +54,37 @@ struct Uplink {
     m.value = value;
     add(Apid::CmdConfig, m, t);
   }
+  // One range image as segments of 24 points (first / continuation / last,
+  // or unsegmented), skipping the segments listed in drop.
+  void range_image(double t, std::uint32_t image_id, const std::vector<Vec3<double>>& p_m,
+                   const std::vector<double>& sigma_m, const std::vector<int>& drop = {}) {
+    const std::size_t total = p_m.size();
+    const std::size_t n_seg = (total + kRangePointsPerSegment - 1) / kRangePointsPerSegment;
+    for (std::size_t s = 0; s < n_seg; ++s) {
+      RangeImageSegmentMsg<double> m;
+      m.image_id = image_id;
+      m.points_total = static_cast<std::uint16_t>(total);
+      m.first_point = static_cast<std::uint16_t>(s * kRangePointsPerSegment);
+      const std::size_t n = std::min(kRangePointsPerSegment, total - s * kRangePointsPerSegment);
+      m.n_points = static_cast<std::uint16_t>(n);
+      for (std::size_t k = 0; k < n; ++k) {
+        m.points[k].p_m = p_m[s * kRangePointsPerSegment + k];
+        m.points[k].sigma_m = sigma_m[s * kRangePointsPerSegment + k];
+      }
+      const bool first = s == 0, last = s + 1 == n_seg;
+      const SeqFlags f = first && last ? SeqFlags::Unsegmented
+                         : first       ? SeqFlags::First
+                         : last        ? SeqFlags::Last
+                                       : SeqFlags::Continuation;
+      if (std::find(drop.begin(), drop.end(), int(s)) != drop.end()) {
+        framer.set_next_seq(Apid::RangeImageSegment, framer.next_seq(Apid::RangeImageSegment) + 1);
+        continue;  // lost on the link (its sequence count is skipped)
+      }
+      std::uint8_t buf[kMaxFrameBytes];
+      const std::size_t nb = framer.frame_message(Apid::RangeImageSegment, m, t, buf, sizeof(buf), f);
+      bytes.insert(bytes.end(), buf, buf + nb);
+    }
+  }
   void pose(double t_capture, const Vec3<double>& r, const Quat<double>& q, double r_sigma, double a_sigma) {
     LedPoseMsg<double> m;
     m.r_hill_m = r;
@@ -69,6 +101,7 @@ struct Telemetry {
   std::vector<TmInnovationMsg<double>> innovations;
   std::vector<TmCovarianceDiagMsg<double>> covariances;
   std::vector<TmLearnerMsg<double>> learner;
+  std::vector<TmModalMsg<double>> modal;
   int link_counters = 0;
   int rejected = 0;
 
@@ -85,6 +118,7 @@ struct Telemetry {
         case Apid::TmInnovation: { TmInnovationMsg<double> m; decode(p.payload, p.t_s, m); innovations.push_back(m); break; }
         case Apid::TmCovarianceDiag: { TmCovarianceDiagMsg<double> m; decode(p.payload, p.t_s, m); covariances.push_back(m); break; }
         case Apid::TmLearner: { TmLearnerMsg<double> m; decode(p.payload, p.t_s, m); learner.push_back(m); break; }
+        case Apid::TmModal: { TmModalMsg<double> m; decode(p.payload, p.t_s, m); modal.push_back(m); break; }
         case Apid::TmLinkCounters: ++link_counters; break;
         default: break;
       }

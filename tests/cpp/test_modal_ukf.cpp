@@ -115,6 +115,29 @@ TYPED_TEST(ModalUkfTest, JointConvergesToTrueFrequencyAndDamping) {
   }
 }
 
+// reset(cfg) in place is a fresh filter: a used filter reset to another
+// configuration then steps exactly as one constructed with it.
+template <typename Filter>
+void reset_equals_fresh() {
+  using S = typename Filter::VecM::Scalar;
+  auto other = pendulum_config<S, 2>();
+  for (int i = 0; i < 2; ++i) other.mode[i].omega_radps *= S(0.95);
+  auto used = std::make_unique<Filter>(pendulum_config<S, 2>());
+  run_pendulum(*used, 5, 40);
+  used->reset(other);
+  EXPECT_FALSE(used->initialized());
+  auto fresh = std::make_unique<Filter>(other);
+  run_pendulum(*used, 9, 60);
+  run_pendulum(*fresh, 9, 60);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(used->mode_state(i), fresh->mode_state(i)) << "mode " << i;
+    EXPECT_EQ(used->mode_cov(i), fresh->mode_cov(i)) << "mode " << i;
+  }
+}
+
+TYPED_TEST(ModalUkfTest, BankResetEqualsAFreshBank) { reset_equals_fresh<ModalUkfBank<TypeParam, 2>>(); }
+TYPED_TEST(ModalUkfTest, JointResetEqualsAFreshJoint) { reset_equals_fresh<ModalUkfJoint<TypeParam, 2>>(); }
+
 TYPED_TEST(ModalUkfTest, JointWithOneModeEqualsBank) {
   using S = TypeParam;
   // Same 4-state UT and the same scalar update: the two filters coincide.

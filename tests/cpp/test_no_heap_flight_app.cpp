@@ -2,7 +2,9 @@
 // touch the heap after construction.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <memory>
+#include <vector>
 
 #include "flight_app_util.hpp"
 #include "no_heap_guard.hpp"
@@ -66,3 +68,40 @@ void reacquire_without_heap() {
 
 TEST(NoHeapTest, FlightAppReacquisitionDouble) { reacquire_without_heap<double>(); }
 TEST(NoHeapTest, FlightAppReacquisitionFloat) { reacquire_without_heap<float>(); }
+
+// Range images through the modal estimator (segments into the streaming
+// decomposition, one bank step per image, tm_modal out): no heap, float and
+// double. Three images of the plate's first mode, the second missing a segment.
+template <typename S>
+void modal_without_heap() {
+  auto app = std::make_unique<FlightApp<S>>();
+  Uplink up;
+  const double pi = 3.14159265358979323846;
+  for (int k = 0; k < 3; ++k) {
+    std::vector<Vec3<double>> p;
+    std::vector<double> sig;
+    for (int j = 0; j < 400; ++j) {
+      const double x = 500.0 + 50.0 * (j % 20), y = 433.0 + 43.3 * (j / 20);
+      const double z = 25.0 * std::sin(pi * x / 2000.0) * std::sin(pi * y / 1732.0) * std::cos(0.0026 * 60.0 * k);
+      p.emplace_back(x, y, z + 0.5 * std::sin(7.0 * j));
+      sig.push_back(0.5);
+    }
+    up.range_image(60.0 * k, std::uint32_t(k), p, sig, k == 1 ? std::vector<int>{3} : std::vector<int>{});
+  }
+  std::uint8_t out[4096];
+  long allocations = 0;
+  {
+    NoHeapGuard guard;
+    for (std::size_t i = 0; i < up.bytes.size(); i += 64) {
+      app->on_bytes(up.bytes.data() + i, std::min<std::size_t>(64, up.bytes.size() - i));
+      while (app->tx_pending() > 0) app->take_tx(out, sizeof(out));
+    }
+    allocations = guard.allocations();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(app->modal().counters().images, 3u);
+  EXPECT_EQ(app->modal().counters().images_fused, 3u);
+}
+
+TEST(NoHeapTest, FlightAppModalDouble) { modal_without_heap<double>(); }
+TEST(NoHeapTest, FlightAppModalFloat) { modal_without_heap<float>(); }

@@ -46,6 +46,9 @@ def valid_payload(a: P.ApidDef, rng: random.Random, first=0, n=None, total=None)
     elif a.name == "tm_innovation":
         struct.pack_into("<BBBBI", buf, 0, rng.randrange(2), rng.randrange(4), rng.randrange(2), 6,
                          rng.randrange(2**32))
+    elif a.name == "tm_modal":
+        struct.pack_into("<IBBBBII", buf, 0, rng.randrange(2**32), rng.randrange(4), rng.randrange(4),
+                         rng.randrange(2), rng.choice([0, 10]), rng.randrange(2**32), rng.randrange(2**32))
     elif a.name in ("tm_learner", "tm_housekeeping"):
         pass
     elif a.name == "tm_link_counters":

@@ -37,6 +37,7 @@ enum class Apid : std::uint16_t {
   TmLearner = 0x043,          // from flight
   TmLinkCounters = 0x044,     // from flight
   TmHousekeeping = 0x045,     // from flight
+  TmModal = 0x046,            // from flight: one modal filter step per range image
 };
 
 // One row of the table. The floating-point fields of each payload form one
@@ -60,9 +61,10 @@ constexpr std::size_t kRangeSegmentHeaderBytes = 12;
 constexpr std::uint16_t kMaxRangePointsPerImage = 4096;
 constexpr std::size_t kCovDiagMax = 15;
 constexpr std::size_t kLinkCounterSlots = 28;
+constexpr std::size_t kModalTmModes = 10;  // modes carried by tm_modal
 constexpr double kQuatNormTol = 1e-6;  // |‖q‖ - 1| allowed on the wire
 
-inline constexpr std::array<ApidInfo, 12> kApidTable{{
+inline constexpr std::array<ApidInfo, 13> kApidTable{{
     {Apid::ImuSample, "imu_sample", Direction::ToFlight, 48, false, 0, 6, -1},
     {Apid::LedPose, "led_pose", Direction::ToFlight, 72, false, 0, 9, 24},
     {Apid::ThrusterValves, "thruster_valves", Direction::ToFlight, 16, false, 0, 1, -1},
@@ -77,6 +79,7 @@ inline constexpr std::array<ApidInfo, 12> kApidTable{{
     {Apid::TmLearner, "tm_learner", Direction::FromFlight, 104, false, 8, 12, -1},
     {Apid::TmLinkCounters, "tm_link_counters", Direction::FromFlight, 128, false, 0, 0, -1},
     {Apid::TmHousekeeping, "tm_housekeeping", Direction::FromFlight, 40, false, 0, 3, -1},
+    {Apid::TmModal, "tm_modal", Direction::FromFlight, 352, false, 16, 42, -1},
 }};
 
 constexpr std::size_t kApidCount = kApidTable.size();
@@ -156,6 +159,8 @@ inline bool payload_fields_valid(Apid apid, SeqFlags flags, const std::uint8_t* 
       return get_u32le(p) <= kCovDiagMax;
     case Apid::TmInnovation:
       return p[1] <= 3 && p[3] <= 6;
+    case Apid::TmModal:
+      return p[4] <= 3 && p[5] <= 3 && p[7] <= kModalTmModes;
     default:
       return true;
   }
@@ -256,6 +261,22 @@ template <typename S> struct TmHousekeepingMsg {
   std::uint32_t cycle_count = 0;
   std::uint32_t mode = 0;
   std::uint32_t tx_packets = 0;
+};
+template <typename S> struct TmModalMsg {
+  S t_s{};                        // image time
+  std::uint32_t image_id = 0;
+  std::uint8_t status = 0;        // StepStatus of the filter step
+  std::uint8_t decomposition = 0; // ModalStatus of the image's decomposition
+  std::uint8_t fused = 0;
+  std::uint8_t n_modes = 0;       // valid entries of the arrays (<= kModalTmModes)
+  std::uint32_t n_used = 0;       // points in the decomposition
+  std::uint32_t n_skipped = 0;    // points skipped: off the model, not finite, bad sigma
+  S rcond{};                      // 1 / cond(M_Y) (0 when not computed or singular)
+  S nis{};                        // sum of the per-mode NIS
+  Eigen::Matrix<S, kModalTmModes, 1> omega_radps = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
+  Eigen::Matrix<S, kModalTmModes, 1> alpha_ps = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
+  Eigen::Matrix<S, kModalTmModes, 1> amplitude = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
+  Eigen::Matrix<S, kModalTmModes, 1> amplitude_sigma = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
 };
 
 // ---------------------------------------------------------------------------
@@ -510,6 +531,37 @@ template <typename S> void encode(const TmHousekeepingMsg<S>& m, std::uint8_t* p
   put_u32le(p + 28, m.mode);
   put_u32le(p + 32, m.tx_packets);
   put_u32le(p + 36, 0);
+}
+
+template <typename S>
+bool decode(const std::uint8_t* p, double t_s, TmModalMsg<S>& m) {
+  using namespace payload_detail;
+  m.t_s = static_cast<S>(t_s);
+  m.image_id = get_u32le(p);
+  m.status = p[4];
+  m.decomposition = p[5];
+  m.fused = p[6];
+  m.n_modes = p[7];
+  m.n_used = get_u32le(p + 8);
+  m.n_skipped = get_u32le(p + 12);
+  return rd(p, 16, m.rcond) & rd(p, 24, m.nis) & rd(p, 32, m.omega_radps) & rd(p, 112, m.alpha_ps) &
+         rd(p, 192, m.amplitude) & rd(p, 272, m.amplitude_sigma) & std::isfinite(m.t_s);
+}
+template <typename S> void encode(const TmModalMsg<S>& m, std::uint8_t* p) {
+  using namespace payload_detail;
+  put_u32le(p, m.image_id);
+  p[4] = m.status;
+  p[5] = m.decomposition;
+  p[6] = m.fused;
+  p[7] = m.n_modes;
+  put_u32le(p + 8, m.n_used);
+  put_u32le(p + 12, m.n_skipped);
+  wr(p, 16, m.rcond);
+  wr(p, 24, m.nis);
+  wr(p, 32, m.omega_radps);
+  wr(p, 112, m.alpha_ps);
+  wr(p, 192, m.amplitude);
+  wr(p, 272, m.amplitude_sigma);
 }
 
 }  // namespace fsw

@@ -9,6 +9,8 @@
 //   cmd_reset (bit 0)   -> NavUkf rebuilt with the commanded settings, init,
 //                          then estimate telemetry
 //   cmd_reset (bit 1)   -> thruster learner emptied
+//   cmd_reset (bit 2)   -> modal estimator rebuilt with the commanded plate
+//                          model and priors (ModalTracker)
 //   cmd_reset (bit 3)   -> link counters cleared
 //   cmd_config          -> pose noise model (docs/LINK.md, parameter ids)
 //   imu_sample          -> NavUkf::predict to the packet time
@@ -19,6 +21,11 @@
 //                          that sample (accelerometer x dt as the body dv, the
 //                          gyro's change as dw) enters the thruster learner
 //                          (ThrusterBlr, window 30) for that valve mask
+//   range_image_segment -> its points into the modal decomposition (plate
+//                          mode shapes at each point); the image's last
+//                          segment (or the first segment of another image)
+//                          closes it: one modal filter step, answered with
+//                          tm_modal
 // Re-acquisition: a pose re-initialises position and attitude (velocity and
 // biases kept) instead of correcting them when either
 //   - the filter is lost: its position or attitude standard deviation is
@@ -52,6 +59,7 @@
 #include "fsw/blr.hpp"
 #include "fsw/deframer.hpp"
 #include "fsw/framer.hpp"
+#include "fsw/modal_tracker.hpp"
 #include "fsw/nav_ukf.hpp"
 
 namespace fsw {
@@ -72,6 +80,12 @@ enum class ConfigParam : std::uint32_t {
   ReacquireAfterPoses = 10,    // consecutive agreeing rejected poses that re-initialise (integer)
   ReacquireLostPosSigma = 11,  // position 1-sigma above which the filter is lost [m]
   ReacquireLostAttSigma = 12,  // attitude 1-sigma above which the filter is lost [rad]
+  // Modal estimator (ModalTrackerConfig), applied at the next cmd_reset with bit 2:
+  ModalPlateLx = 13,           // plate side along x [m]
+  ModalPlateLy = 14,           // plate side along y [m]
+  ModalPeriod1 = 15,           // period of the lowest mode [s]
+  ModalPeak1 = 16,             // peak deflection of the lowest mode at coefficient 1 [m]
+  ModalPriorOmegaFrac = 17,    // 1-sigma of the a priori frequencies, fraction of the model's
 };
 
 // What a step did, as reported in tm_innovation.step_kind.
@@ -81,6 +95,8 @@ template <typename S>
 class FlightApp {
  public:
   using Nav = NavUkf<S, false>;
+  static constexpr int kModalModes = static_cast<int>(kModalTmModes);
+  using Modal = ModalTracker<S, kModalModes>;
   static constexpr std::size_t kTxCapacity = 16384;
   // Fastest relative motion two agreeing poses may differ by (the inspector
   // closes at cm/s and turns at a few deg/s; these leave a wide margin).
@@ -97,7 +113,7 @@ class FlightApp {
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
     std::uint32_t learner_samples = 0;  // firing intervals entered into the learner
-    std::uint32_t unhandled = 0;  // accepted packets this build does not consume (range images)
+    std::uint32_t unhandled = 0;  // accepted packets this build does not consume
     std::uint32_t tx_packets = 0;
     std::uint32_t tx_dropped = 0;  // telemetry lost to a full transmit buffer
   };
@@ -137,6 +153,7 @@ class FlightApp {
   const ThrusterBlr<S, 30>& learner() const { return learner_; }
   const LinkCounters& link() const { return deframer_.counters(); }
   const Counters& counters() const { return counters_; }
+  const Modal& modal() const { return modal_; }
 
  private:
   void dispatch(const PacketView& p) {
@@ -146,6 +163,7 @@ class FlightApp {
       case Apid::CmdReset: return on_reset(p);
       case Apid::CmdConfig: return on_config(p);
       case Apid::ThrusterValves: return on_valves(p);
+      case Apid::RangeImageSegment: return on_range_segment(p);
       default: ++counters_.unhandled; return;
     }
   }
@@ -302,6 +320,7 @@ class FlightApp {
       valves_pending_ = false;
       have_prev_gyro_ = false;
     }
+    if (m.target_mask & 0x4u) modal_.configure(modal_cfg_);  // checked when set
     if (!(m.target_mask & 0x1u)) return;
     nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
     pending_.valid = false;
@@ -346,6 +365,11 @@ class FlightApp {
       case ConfigParam::ReacquireLostAttSigma:
         if (m.value >= S(0)) { lost_att_sigma_ = m.value; return; }
         break;
+      case ConfigParam::ModalPlateLx: return set_modal(modal_cfg_.plate.lx_m, m.value);
+      case ConfigParam::ModalPlateLy: return set_modal(modal_cfg_.plate.ly_m, m.value);
+      case ConfigParam::ModalPeriod1: return set_modal(modal_cfg_.plate.period1_s, m.value);
+      case ConfigParam::ModalPeak1: return set_modal(modal_cfg_.plate.peak1_m, m.value);
+      case ConfigParam::ModalPriorOmegaFrac: return set_modal(modal_cfg_.prior_omega_frac, m.value);
     }
     ++counters_.configs_rejected;
   }
@@ -360,6 +384,49 @@ class FlightApp {
       field = old;
       ++counters_.configs_rejected;
     }
+  }
+
+  void set_modal(double& field, S value) {
+    const double old = field;
+    field = double(value);
+    if (modal_tracker_config_invalid_field(modal_cfg_) != nullptr) {
+      field = old;
+      ++counters_.configs_rejected;
+    }
+  }
+
+  void on_range_segment(const PacketView& p) {
+    RangeImageSegmentMsg<S> m;
+    decode(p.payload, p.t_s, p.header.seq_flags, m);  // the deframer has checked fields and finiteness
+    typename Modal::Report rep;
+    if (modal_.close_other(m.image_id, rep)) report_modal(rep);
+    if (modal_.add(m, p.t_s, rep)) report_modal(rep);
+  }
+
+  void report_modal(const typename Modal::Report& r) {
+    TmModalMsg<S> tm;
+    tm.image_id = r.image_id;
+    tm.status = static_cast<std::uint8_t>(r.step.status);
+    tm.decomposition = static_cast<std::uint8_t>(r.decomposition.status);
+    tm.fused = r.step.fused ? 1 : 0;
+    tm.n_used = static_cast<std::uint32_t>(r.decomposition.n_used);
+    tm.n_skipped = static_cast<std::uint32_t>(r.decomposition.n_nonfinite + r.decomposition.n_bad_variance +
+                                              r.n_outside);
+    const S emax = r.decomposition.eig_max, emin = r.decomposition.eig_min;
+    tm.rcond = emax > S(0) && emin > S(0) && std::isfinite(emax) ? emin / emax : S(0);
+    tm.nis = r.step.nis;
+    const auto& bank = modal_.bank();
+    if (bank.initialized()) {
+      tm.n_modes = static_cast<std::uint8_t>(kModalModes);
+      for (int i = 0; i < kModalModes; ++i) {
+        const auto x = bank.mode_state(i);
+        tm.amplitude(i) = x(0);
+        tm.omega_radps(i) = x(2);
+        tm.alpha_ps(i) = x(3);
+        tm.amplitude_sigma(i) = std::sqrt(bank.mode_cov(i)(0, 0));
+      }
+    }
+    send(Apid::TmModal, tm, r.t_s);
   }
 
   // tm_innovation (the step record), then the estimate and the covariance
@@ -449,6 +516,8 @@ class FlightApp {
   S lost_pos_sigma_ = S(10);
   S lost_att_sigma_ = S(0.5);
   Learner learner_;
+  ModalTrackerConfig modal_cfg_;
+  Modal modal_;
   ThrusterValvesMsg<S> valves_;
   double valves_t_s_ = 0.0;
   bool valves_pending_ = false;

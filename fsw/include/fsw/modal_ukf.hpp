@@ -236,7 +236,14 @@ class ModalUkfBank {
   using Decomp = ModalDecompositionRecord<S, M>;
   static constexpr int kModes = M;
 
-  explicit ModalUkfBank(const Config& cfg = Config()) : cfg_(cfg), w_(UtWeights<S>::make(4, cfg.ut)) {}
+  explicit ModalUkfBank(const Config& cfg = Config()) { reset(cfg); }
+
+  // Back to uninitialised with a new configuration, in place.
+  void reset(const Config& cfg) {
+    cfg_ = cfg;
+    w_ = UtWeights<S>::make(4, cfg.ut);
+    initialized_ = false;
+  }
 
   bool initialized() const { return initialized_; }
 
@@ -341,7 +348,14 @@ class ModalUkfJoint {
   using Record = ModalStepRecord<S, M>;
   using Decomp = ModalDecompositionRecord<S, M>;
 
-  explicit ModalUkfJoint(const Config& cfg = Config()) : cfg_(cfg), w_(UtWeights<S>::make(N, cfg.ut)) {
+  explicit ModalUkfJoint(const Config& cfg = Config()) { reset(cfg); }
+
+  // Back to uninitialised with a new configuration, in place (the filter
+  // is too large to rebuild through a stack temporary).
+  void reset(const Config& cfg) {
+    cfg_ = cfg;
+    w_ = UtWeights<S>::make(N, cfg.ut);
+    initialized_ = false;
     P_.m().setIdentity();
     x_.m().setZero();
     for (int i = 0; i < M; ++i) {

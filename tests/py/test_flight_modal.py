@@ -1,0 +1,78 @@
+"""The flight app's modal estimator fed by the bench over the link: range
+images of the seed's plate (bench/structure.py: ray-cast, 3 % range noise),
+segmented by hil_sim.packets, into the flight app in-process; tm_modal back.
+Checked against the same decomposition and joint filter called directly."""
+import numpy as np
+import pytest
+
+from bench import structure as st
+from bench.modal_campaign import make_filter
+from hil_sim import packets as P
+
+fb = pytest.importorskip("fsw_bindings")
+
+TM_MODAL = P.APID_BY_NAME["tm_modal"].apid
+SEG = P.APID_BY_NAME["range_image_segment"].apid
+
+
+def _tm_modal(deframer, data):
+    out = []
+    for p in deframer.feed(data):
+        if isinstance(p, P.Packet) and p.apid == TM_MODAL:
+            v = p.values()
+            out.append(dict(t_s=p.t_s, image_id=v[0], status=v[1], decomposition=v[2], fused=v[3],
+                            n_modes=v[4], n_used=v[5], n_skipped=v[6], rcond=v[7], nis=v[8],
+                            omega=np.array(v[9:19]), alpha=np.array(v[19:29]), amplitude=np.array(v[29:39]),
+                            amplitude_sigma=np.array(v[39:49])))
+    return out
+
+
+def test_range_image_segments_split_and_flag_as_the_link_requires():
+    pts = np.arange(50 * 3, dtype=float).reshape(50, 3)
+    segs = P.range_image_segments(7, pts, np.full(50, 0.5))
+    assert [f for f, _ in segs] == [P.SequenceFlags.FIRST_SEGMENT, P.SequenceFlags.CONTINUATION_SEGMENT,
+                                    P.SequenceFlags.LAST_SEGMENT]
+    v = P.unpack_payload(SEG, segs[2][1])
+    assert v[:4] == (7, 50, 48, 2)
+    assert v[5:9] == (144.0, 145.0, 146.0, 0.5) and v[13] == 0.0
+    assert [f for f, _ in P.range_image_segments(1, pts[:3], [0.1] * 3)] == [P.SequenceFlags.UNSEGMENTED]
+    with pytest.raises(ValueError, match="points"):
+        P.range_image_segments(1, np.zeros((4097, 3)), np.zeros(4097))
+
+
+def test_flight_app_steps_each_bench_image_like_the_library():
+    rng = np.random.default_rng(4)
+    plate = st.Plate(n_modes=10)
+    sensor = st.plate_sensor(plate)
+    amp, phase = st.plate_truth(plate, rng)
+    app = fb.FlightApp(fb.NavConfig())
+    sender, down = P.Sender(), P.Deframer(P.FROM_FLIGHT)
+    w0 = plate.omega_radps
+    ref = make_filter("joint", 10, w0, np.zeros(10), sigma_v0=w0, sigma_w0=0.1 * w0, sigma_a0=1e-6,
+                      q_a=0.0, q_v=0.0)
+    dec = fb.ModalDecomposition10()
+    n_img, dt = 40, 60.0
+    got = []
+    for k in range(n_img):
+        t = k * dt
+        r_meas, d = st.plate_range_image(plate, sensor, st.plate_coeffs(plate, amp, phase, t), rng)
+        keep = np.isfinite(r_meas)  # missed rays are not sent
+        p = sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
+        sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])
+        data = b"".join(sender.frame(SEG, t, pl, seq_flags=f) for f, pl in P.range_image_segments(k, p, sigma))
+        tm = _tm_modal(down, app.on_bytes(data))
+        assert len(tm) == 1 and tm[0]["image_id"] == k and tm[0]["t_s"] == t
+        got.append(tm[0])
+        phi, z, var = st.plate_points(plate, sensor, r_meas[keep], d[keep])
+        rec = dec.decompose(phi, z, var)
+        ref.step(dt, rec)
+        m = tm[0]
+        assert m["fused"] == 1 and m["n_used"] == keep.sum() and m["n_skipped"] == 0
+        assert m["rcond"] == pytest.approx(1.0 / rec.condition_number, rel=1e-9)
+        np.testing.assert_allclose(m["amplitude"], ref.state[:, 0], rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(m["omega"], ref.state[:, 2], rtol=1e-9)
+    assert app.modal_counters()["images_fused"] == n_img
+    assert app.counters()["unhandled"] == 0
+    # The modes it can see well are already near their frequencies after 40 min.
+    strong = amp >= 0.5
+    np.testing.assert_allclose(got[-1]["omega"][strong], w0[strong], rtol=0.02)
