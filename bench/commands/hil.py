@@ -1,4 +1,5 @@
-"""`proxops hil`: the docking scenario with the flight executable behind a
+"""`proxops hil`: the docking scenario (navigation) or the vibrating plate
+(modal estimator, range images) with the flight executable behind a
 pseudo-terminal link."""
 from __future__ import annotations
 
@@ -11,8 +12,12 @@ from bench.report import report_dir, write_json
 
 
 def register(sub):
-    p = sub.add_parser("hil", help="docking over a pseudo-terminal link with the flight executable (fsw_node)")
-    p.add_argument("--scenario", choices=["docking"], default="docking")
+    p = sub.add_parser("hil", help="docking or plate range images over a pseudo-terminal link with the flight "
+                                   "executable (fsw_node)")
+    p.add_argument("--scenario", choices=["docking", "plate"], default="docking",
+                   help="docking: navigation at 10 Hz; plate: range images of the seed's plate to the modal estimator")
+    p.add_argument("--images", type=int, default=120,
+                   help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode)")
     p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (docking runs are chained)")
     p.add_argument("--realtime", action="store_true", help="pace the loop at 10 Hz by the wall clock")
     p.add_argument("--ber", type=float, default=0.0, help="bit error rate on both directions")
@@ -90,6 +95,41 @@ def print_summary(s: dict):
     print(f"  fsw_node: {s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})")
 
 
+def plate_main(args, faults) -> int:
+    from hil_sim.modal_link import PlateHilConfig, plate_hil_summary, run_plate_hil
+
+    if args.images < 1:
+        print("proxops hil: --images must be at least 1", file=sys.stderr)
+        return 2
+
+    def progress(done, total):
+        print(f"  [{done:4d} / {total} images]", file=sys.stderr, flush=True)
+
+    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults), progress=progress)
+    s = plate_hil_summary(res)
+    s["scenario"] = "plate"
+    s["seed"] = args.seed
+    s["faults"] = faults.as_dict()
+    print(f"HIL plate: {s['images_sent']} range images ({s['lowest_mode_periods']:.1f} periods of the lowest mode), "
+          f"{s['points_sent']} points, a priori frequencies {100 * s['prior_frequency_error']:+.1f} %")
+    print(f"  answered {s['images_answered']}, fused {s['images_fused']}; images with points lost on the link "
+          f"{s['images_with_points_lost']} ({s['points_sent'] - s['points_used']} points)")
+    rel = np.array(s["final_frequency_rel_error"])
+    print(f"  modes excited >= 0.2: {len(s['strong_modes'])}, within 1 % of their frequency at the end: "
+          f"{s['strong_modes_within_1pct']}; worst {100 * np.max(np.abs(rel[s['strong_modes']])):.2f} %"
+          if s["strong_modes"] else "  no mode excited >= 0.2")
+    print(f"  answer latency p50 {s['answer_latency_p50_ms']:.2f} ms, p99 {s['answer_latency_p99_ms']:.2f} ms; "
+          f"wall {s['wall_s']:.1f} s")
+    print(f"  fsw_node: {s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})")
+    if args.json:
+        write_json(args.json, s)
+    if args.report:
+        out = report_dir(args.report)
+        write_json(out / "hil_plate.json", s)
+        print(f"  report: {out}/hil_plate.json")
+    return 0 if s["fsw_node_exit_code"] == 0 else 1
+
+
 def main(args):
     from hil_sim.faults import FaultConfig
     from hil_sim.run import HilConfig, run_hil
@@ -97,6 +137,8 @@ def main(args):
     faults = FaultConfig(ber=args.ber, drop_rate=args.drop_rate, burst_rate=args.burst_rate,
                          duplicate_rate=args.duplicate_rate, reorder_rate=args.reorder_rate,
                          stall_rate=args.stall_rate)
+    if args.scenario == "plate":
+        return plate_main(args, faults)
     timeout = 0.05 if faults.clean else 0.02
 
     def progress(t_done, total, run):

@@ -48,7 +48,7 @@ TYPED_TEST_SUITE(FlightAppModalTest, Scalars);
 
 TYPED_TEST(FlightAppModalTest, FrequenciesConvergeWithinThreePeriodsOfTheLowestMode) {
   // The on-board model's first period 5 % long (every a priori frequency
-  // 5 % low, told 10 %); 180 images = 3 periods of the lowest mode.
+  // 5 % low, told 10 %); 120 images = 3 periods of the lowest mode.
   using S = TypeParam;
   auto app = std::make_unique<FlightApp<S>>();
   PlateScene scene(11);
@@ -59,12 +59,12 @@ TYPED_TEST(FlightAppModalTest, FrequenciesConvergeWithinThreePeriodsOfTheLowestM
   feed(*app, up, tm);
   std::vector<Vec3<double>> p;
   std::vector<double> sig;
-  for (int k = 0; k < 180; ++k) {
+  for (int k = 0; k < 120; ++k) {
     scene.image(k * kDt, p, sig);
     up.range_image(k * kDt, std::uint32_t(k), p, sig);
     feed(*app, up, tm);
   }
-  ASSERT_EQ(tm.modal.size(), 180u);
+  ASSERT_EQ(tm.modal.size(), 120u);
   int fused = 0;
   for (const auto& m : tm.modal) {
     fused += m.fused;
@@ -72,12 +72,12 @@ TYPED_TEST(FlightAppModalTest, FrequenciesConvergeWithinThreePeriodsOfTheLowestM
     EXPECT_EQ(m.decomposition, std::uint8_t(ModalStatus::Ok));
     EXPECT_GT(m.rcond, 1e-4);  // central quarter: cond(M_Y) in the hundreds
   }
-  EXPECT_EQ(fused, 180);
+  EXPECT_EQ(fused, 120);
   EXPECT_EQ(app->counters().unhandled, 0u);
-  EXPECT_EQ(app->modal().counters().images_fused, 180u);
+  EXPECT_EQ(app->modal().counters().images_fused, 120u);
   const auto& last = tm.modal.back();
   EXPECT_EQ(last.n_modes, kM);
-  EXPECT_DOUBLE_EQ(double(last.t_s), 179 * kDt);
+  EXPECT_DOUBLE_EQ(double(last.t_s), 119 * kDt);
   int strong = 0;
   for (int i = 0; i < kM; ++i) {
     const double w = scene.truth.omega_radps(i);
@@ -85,7 +85,7 @@ TYPED_TEST(FlightAppModalTest, FrequenciesConvergeWithinThreePeriodsOfTheLowestM
     if (scene.amp[i] < 0.2) continue;  // too little signal at 18 m noise (docs/perf/modal.md)
     ++strong;
     EXPECT_NEAR(last.omega_radps(i), w, 0.01 * w) << "mode " << i << " amplitude " << scene.amp[i];
-    EXPECT_NEAR(last.amplitude(i), scene.coeff(i, 179 * kDt), 4 * last.amplitude_sigma(i) + 0.02) << "mode " << i;
+    EXPECT_NEAR(last.amplitude(i), scene.coeff(i, 119 * kDt), 4 * last.amplitude_sigma(i) + 0.02) << "mode " << i;
   }
   EXPECT_GE(strong, 6);
 }

@@ -12,10 +12,11 @@
 //
 // The filter is the joint one by default (ModalUkfJoint: the exact coupled
 // covariance of the coarse amplitudes). A partial view makes M_Y
-// non-diagonal and the decoupled bank, which drops that coupling, settled a
-// well-excited high mode 1-11 % off in 7 of 30 seeded plates where the
-// joint filter missed in 2 (test_modal_tracker.cpp); at 10 modes the joint
-// step costs tens of microseconds, nothing at one image a minute.
+// non-diagonal and the decoupled bank, which drops that coupling, left a
+// well-excited mode more than 1 % off its frequency about twice as often
+// (30 seeded plates: 15 vs 8 runs after 3 periods of the lowest mode, 7 vs
+// 2 after 4.5; test_modal_tracker.cpp); at 10 modes the joint step costs
+// tens of microseconds, nothing at one image a minute.
 //
 // Point: p_m = [x, y, z] in the structure frame, z the measured deflection;
 // sigma_m its 1-sigma [m] (eq. 4a), or 0 for "not given" (eq. 4b with the
