@@ -1,6 +1,8 @@
 """`proxops run`: the main job behind `make run`: the docking scenario with
 the flight executable behind the pseudo-terminal link, a printed summary
-and a report folder (plots, JSON, the flight log); then the sim-to-real gap
+and a report folder (plots, JSON, the flight log); range images of the
+vibrating plate to the same executable's modal estimator (three periods of
+the lowest mode, a second of wall time); then the sim-to-real gap
 diagnosis of the bundled reality run (bench/gap/bundled.py), whose effect
 the diagnoser is not told, with its three answers: where, which, how far."""
 from __future__ import annotations
@@ -26,6 +28,13 @@ def main(args):
                                   drop_rate=0.0, burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0,
                                   stall_rate=0.0, seed=args.seed, json=None, report=args.report, learner=True)
     rc = hil.main(hil_args)
+    if rc:
+        return rc
+    print("\nproxops run: range images of the vibrating plate to the flight modal estimator over the link")
+    plate_args = argparse.Namespace(scenario="plate", images=120, ber=0.0, drop_rate=0.0, burst_rate=0.0,
+                                    duplicate_rate=0.0, reorder_rate=0.0, stall_rate=0.0, seed=args.seed,
+                                    json=None, report=args.report)
+    rc = hil.main(plate_args)
     if rc:
         return rc
     return diagnose_bundled(Path(args.report) / "gap")

@@ -88,12 +88,15 @@ int main(int argc, char** argv) {
   }
   const auto& c = app->counters();
   const auto& l = app->link();
+  const auto& m = app->modal().counters();
   if (!quiet) {
     std::fprintf(stderr,
                  "fsw_node: stopped; frames %u, packets accepted %u, rejected %u, imu steps %u, "
-                 "pose updates %u (fused %u, deferred %u), learner samples %u, telemetry packets %u (dropped %u)\n",
+                 "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u), "
+                 "telemetry packets %u (dropped %u)\n",
                  l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates,
-                 c.pose_fused, c.poses_deferred, c.learner_samples, c.tx_packets, c.tx_dropped);
+                 c.pose_fused, c.poses_deferred, c.learner_samples, m.images, m.images_fused, c.tx_packets,
+                 c.tx_dropped);
   }
   return exit_code;
 }
