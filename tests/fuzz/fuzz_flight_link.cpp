@@ -1,6 +1,7 @@
 // Coverage-guided fuzzer (libFuzzer) for the flight side of the serial link:
 // arbitrary bytes, split into arbitrary chunks, go through FlightApp::on_bytes
-// (deframer, dispatch, navigation filter, telemetry framing). Built with clang
+// (deframer, dispatch, navigation filter, modal estimator on range-image
+// segments, telemetry framing). Built with clang
 // and -fsanitize=fuzzer,address,undefined (CMake target fuzz_flight_link).
 //
 // Fails (abort, reported by libFuzzer with the input saved) when:
@@ -90,6 +91,11 @@ App* run(const std::uint8_t* data, std::size_t size, std::size_t chunk, int slot
       fail("navigation state is not finite");
     if (!app->nav().P().allFinite()) fail("covariance is not finite");
   }
+  const auto& bank = app->modal().bank();
+  if (bank.initialized()) {
+    for (int i = 0; i < App::kModalModes; ++i)
+      if (!bank.mode_state(i).allFinite() || !bank.mode_cov(i).allFinite()) fail("modal state is not finite");
+  }
   return app;
 }
 
@@ -117,6 +123,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const auto& y = split->nav().state();
     if (x.r_hill_m != y.r_hill_m || x.v_hill_mps != y.v_hill_mps || x.q_hb.coeffs() != y.q_hb.coeffs())
       fail("navigation estimate depends on chunking");
+  }
+  const auto& ma = whole->modal().counters();
+  const auto& mb = split->modal().counters();
+  if (ma.segments != mb.segments || ma.images != mb.images || ma.images_fused != mb.images_fused ||
+      ma.points_outside != mb.points_outside)
+    fail("modal counters depend on chunking");
+  if (whole->modal().bank().initialized()) {
+    for (int i = 0; i < App::kModalModes; ++i)
+      if (whole->modal().bank().mode_state(i) != split->modal().bank().mode_state(i))
+        fail("modal estimate depends on chunking");
   }
   whole->~App();
   split->~App();
