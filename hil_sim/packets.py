@@ -19,6 +19,7 @@ import struct
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple, Union
 
+import numpy as np
 from cobs import cobs
 from crc import Calculator, Configuration
 from fastcrc.crc16 import ibm_3740 as _fast_crc16
@@ -201,11 +202,19 @@ def range_image_segments(image_id: int, p_m, sigma_m):
     of up to RANGE_POINTS_PER_SEGMENT points each (docs/LINK.md,
     "Segmentation"). p_m: (n, 3) points in the structure frame [m], all finite;
     sigma_m: (n,) 1-sigma of each point's deflection [m] (0 = not given)."""
-    p_m = [tuple(map(float, p)) for p in p_m]
-    sigma_m = [float(s) for s in sigma_m]
-    n = len(p_m)
-    if not 1 <= n <= MAX_RANGE_POINTS_PER_IMAGE or len(sigma_m) != n:
-        raise ValueError(f"range image: {n} points and {len(sigma_m)} sigmas (1..{MAX_RANGE_POINTS_PER_IMAGE}, equal)")
+    p_arr = np.asarray(p_m, float)
+    s_arr = np.asarray(sigma_m, float)
+    n = len(p_arr)
+    if p_arr.ndim != 2 or p_arr.shape[1] != 3:
+        raise ValueError(f"range image: p_m must be (n, 3), got shape {p_arr.shape}")
+    if not 1 <= n <= MAX_RANGE_POINTS_PER_IMAGE or s_arr.shape != (n,):
+        raise ValueError(f"range image: {n} points and {s_arr.size} sigmas (1..{MAX_RANGE_POINTS_PER_IMAGE}, equal)")
+    bad = np.nonzero(~np.isfinite(p_arr).all(axis=1) | ~(s_arr >= 0))[0]
+    if len(bad):
+        raise ValueError(f"range image: point {bad[0]} is not finite or has a negative sigma "
+                         f"(p_m {p_arr[bad[0]].tolist()}, sigma_m {s_arr[bad[0]]}); leave missing points out")
+    p_m = [tuple(p) for p in p_arr.tolist()]
+    sigma_m = s_arr.tolist()
     k = RANGE_POINTS_PER_SEGMENT
     n_seg = (n + k - 1) // k
     out = []

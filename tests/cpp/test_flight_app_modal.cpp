@@ -202,6 +202,12 @@ TYPED_TEST(FlightAppModalTest, ShortStaleAndOffPlateImages) {
   EXPECT_EQ(tm.modal[2].n_skipped, 10u);
   EXPECT_EQ(tm.modal[2].fused, 1);
   EXPECT_EQ(app.modal().counters().points_outside, 10u);
+  // A modal reset restarts the filter; the counters run on.
+  modal_reset(up, 2 * kDt);
+  feed(app, up, tm);
+  EXPECT_FALSE(app.modal().bank().initialized());
+  EXPECT_EQ(app.modal().counters().images, 3u);
+  EXPECT_EQ(app.modal().counters().segments_stale, 38u);
 }
 
 TEST(FlightAppModalTest, SettingsApplyAtTheModalResetAndBadOnesAreRefused) {

@@ -38,6 +38,14 @@ def test_range_image_segments_split_and_flag_as_the_link_requires():
     assert [f for f, _ in P.range_image_segments(1, pts[:3], [0.1] * 3)] == [P.SequenceFlags.UNSEGMENTED]
     with pytest.raises(ValueError, match="points"):
         P.range_image_segments(1, np.zeros((4097, 3)), np.zeros(4097))
+    bad = pts[:5].copy()
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match="point 2 is not finite"):
+        P.range_image_segments(1, bad, np.ones(5))
+    with pytest.raises(ValueError, match="point 4 .* negative sigma"):
+        P.range_image_segments(1, pts[:5], [1, 1, 1, 1, -1])
+    with pytest.raises(ValueError, match=r"\(n, 3\)"):
+        P.range_image_segments(1, np.zeros((5, 2)), np.ones(5))
 
 
 def test_flight_app_steps_each_bench_image_like_the_library():

@@ -102,12 +102,12 @@ class ModalTracker {
     return true;
   }
 
-  // Forgets the filter and any open image (cmd_reset bit 2).
+  // Forgets the filter and any open image (cmd_reset bit 2); the counters
+  // run on, as the app's do across resets.
   void reset() {
     bank_.reset(filter_cfg_);
     open_ = false;
     have_last_ = false;
-    counters_ = Counters();
   }
 
   // Closes the open image if seg_image_id is another image's; true with
