@@ -13,6 +13,7 @@
 #include "fsw/flight_app.hpp"
 #include "fsw/framer.hpp"
 #include "fsw/modal_decomposition.hpp"
+#include "fsw/modal_tracker.hpp"
 #include "fsw/modal_ukf.hpp"
 #include "fsw/plate_modes.hpp"
 
@@ -106,13 +107,7 @@ void BM_LibraryRangeImage(benchmark::State& st) {
       z[std::size_t(k)].push_back(p.z());
     }
   }
-  ModalFilterConfig<double, kM> cfg;
-  for (int i = 0; i < kM; ++i) {
-    cfg.mode[i].omega_radps = model.omega_radps(i);
-    cfg.mode[i].sigma_v0_ps = model.omega_radps(i);
-    cfg.mode[i].sigma_omega0_radps = 0.1 * model.omega_radps(i);
-    cfg.mode[i].sigma_alpha0_ps = 1e-6;
-  }
+  const auto cfg = ModalTracker<double, kM>::filter_config(model, ModalTrackerConfig());
   auto filt = std::make_unique<ModalUkfJoint<double, kM>>(cfg);
   ModalDecomposition<double, kM> dec;
   ModalDecompositionRecord<double, kM> drec;

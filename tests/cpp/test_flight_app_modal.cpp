@@ -100,14 +100,7 @@ TEST(FlightAppModalTest, SameStepsAsTheLibraryFedDirectly) {
   Telemetry tm;
   PlateModes<double, kM> model;
   ModalDecomposition<double, kM> dec;
-  ModalFilterConfig<double, kM> cfg;
-  for (int i = 0; i < kM; ++i) {
-    cfg.mode[i].omega_radps = model.omega_radps(i);
-    cfg.mode[i].sigma_v0_ps = model.omega_radps(i);
-    cfg.mode[i].sigma_omega0_radps = 0.1 * model.omega_radps(i);
-    cfg.mode[i].sigma_alpha0_ps = 1e-6;
-  }
-  ModalUkfJoint<double, kM> bank(cfg);
+  ModalUkfJoint<double, kM> bank(ModalTracker<double, kM>::filter_config(model, ModalTrackerConfig()));
   std::vector<Vec3<double>> p;
   std::vector<double> sig;
   double phi[kM];

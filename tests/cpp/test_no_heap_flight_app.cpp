@@ -12,6 +12,23 @@
 using namespace fsw;
 using namespace flight_app_test;
 
+namespace {
+
+// The uplink in 64-byte reads with the telemetry drained after each, under
+// the heap guard; returns the allocations counted.
+template <typename S>
+long feed_counting_allocations(FlightApp<S>& app, const Uplink& up) {
+  std::uint8_t out[4096];
+  NoHeapGuard guard;
+  for (std::size_t i = 0; i < up.bytes.size(); i += 64) {
+    app.on_bytes(up.bytes.data() + i, std::min<std::size_t>(64, up.bytes.size() - i));
+    while (app.tx_pending() > 0) app.take_tx(out, sizeof(out));
+  }
+  return guard.allocations();
+}
+
+}  // namespace
+
 TEST(NoHeapTest, FlightAppByteToTelemetryPath) {
   auto app = std::make_unique<FlightApp<double>>();
   Uplink up;
@@ -23,18 +40,7 @@ TEST(NoHeapTest, FlightAppByteToTelemetryPath) {
   }
   const std::uint8_t junk[] = {0x01, 0x02, 0x00, 0x05, 0xFF, 0x00};
   up.bytes.insert(up.bytes.end(), junk, junk + sizeof(junk));
-  std::uint8_t out[4096];
-  long allocations = 0;
-  {
-    NoHeapGuard guard;
-    for (std::size_t i = 0; i < up.bytes.size(); i += 64) {
-      const std::size_t n = std::min<std::size_t>(64, up.bytes.size() - i);
-      app->on_bytes(up.bytes.data() + i, n);
-      while (app->tx_pending() > 0) app->take_tx(out, sizeof(out));
-    }
-    allocations = guard.allocations();
-  }
-  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(feed_counting_allocations(*app, up), 0);
   EXPECT_EQ(app->counters().imu_steps, 30u);
   EXPECT_EQ(app->counters().pose_fused, 3u);
   EXPECT_EQ(app->counters().learner_samples, 29u);  // intervals ending at 0.2 .. 3.0 s
@@ -51,17 +57,7 @@ void reacquire_without_heap() {
     up.imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
     if (k % 10 == 0) up.pose(0.1 * k, Vec3<double>(0.1, -0.7, 0.0), Quat<double>::Identity(), 0.01, 0.005);
   }
-  std::uint8_t out[4096];
-  long allocations = 0;
-  {
-    NoHeapGuard guard;
-    for (std::size_t i = 0; i < up.bytes.size(); i += 64) {
-      app->on_bytes(up.bytes.data() + i, std::min<std::size_t>(64, up.bytes.size() - i));
-      while (app->tx_pending() > 0) app->take_tx(out, sizeof(out));
-    }
-    allocations = guard.allocations();
-  }
-  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(feed_counting_allocations(*app, up), 0);
   EXPECT_EQ(app->counters().reacquisitions, 1u);
   EXPECT_EQ(app->counters().pose_fused, 3u);  // the three poses after the fifth
 }
@@ -88,17 +84,7 @@ void modal_without_heap() {
     }
     up.range_image(60.0 * k, std::uint32_t(k), p, sig, k == 1 ? std::vector<int>{3} : std::vector<int>{});
   }
-  std::uint8_t out[4096];
-  long allocations = 0;
-  {
-    NoHeapGuard guard;
-    for (std::size_t i = 0; i < up.bytes.size(); i += 64) {
-      app->on_bytes(up.bytes.data() + i, std::min<std::size_t>(64, up.bytes.size() - i));
-      while (app->tx_pending() > 0) app->take_tx(out, sizeof(out));
-    }
-    allocations = guard.allocations();
-  }
-  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(feed_counting_allocations(*app, up), 0);
   EXPECT_EQ(app->modal().counters().images, 3u);
   EXPECT_EQ(app->modal().counters().images_fused, 3u);
 }

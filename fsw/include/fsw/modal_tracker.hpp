@@ -89,17 +89,26 @@ class ModalTracker {
     if (modal_tracker_config_invalid_field(cfg) != nullptr) return false;
     cfg_ = cfg;
     model_.configure(cfg.plate);
+    filter_cfg_ = filter_config(model_, cfg);
+    reset();
+    return true;
+  }
+
+  // The filter's a priori knowledge (eq. 7) from the model: expected
+  // frequencies the model's, no damping (a space structure's is tiny and
+  // unknown), no process noise (the model is exact but for its parameters).
+  static ModalFilterConfig<S, M> filter_config(const PlateModes<S, M>& model, const ModalTrackerConfig& cfg) {
+    ModalFilterConfig<S, M> f;
     for (int i = 0; i < M; ++i) {
-      ModalModeConfig<S>& m = filter_cfg_.mode[i];
-      const S w = model_.omega_radps(i);
+      ModalModeConfig<S>& m = f.mode[i];
+      const S w = model.omega_radps(i);
       m.omega_radps = w;
       m.alpha_ps = S(0);
       m.sigma_v0_ps = S(cfg.prior_rate_frac) * w;
       m.sigma_omega0_radps = S(cfg.prior_omega_frac) * w;
       m.sigma_alpha0_ps = S(1e-6);
     }
-    reset();
-    return true;
+    return f;
   }
 
   // Forgets the filter and any open image (cmd_reset bit 2); the counters

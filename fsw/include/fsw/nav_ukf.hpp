@@ -216,14 +216,7 @@ class NavUkf {
   Record reacquire(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R) {
     Record rec;
     rec.t_s = t_capture_s;
-    if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized);
-    if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
-      return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
-    if (!quat_unit(q_hb)) return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
-    const double t_now = hist_[head_].t_s;
-    if (t_capture_s > t_now + cfg_.time_tol_s) return reject(rec, StepStatus::BadInput, StepDetail::FromFuture);
-    if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s)
-      return reject(rec, StepStatus::BadInput, StepDetail::TooOld);
+    if (!pose_input_ok(t_capture_s, r_hill_m, q_hb, R, rec)) return rec;
     State x = hist_[head_].x;
     x.r_hill_m = r_hill_m;
     x.q_hb = q_hb;
@@ -237,7 +230,7 @@ class NavUkf {
     P.template block<3, 3>(ia, ia) = R.template block<3, 3>(3, 3);
     P.template block<3, 3>(ip, ia) = R.template block<3, 3>(0, 3);
     P.template block<3, 3>(ia, ip) = R.template block<3, 3>(3, 0);
-    const Record r = init(t_now, x, P);
+    const Record r = init(hist_[head_].t_s, x, P);  // taken as of now
     rec.status = r.status;
     rec.detail = r.detail;
     return rec;
@@ -298,14 +291,7 @@ class NavUkf {
   Record update_pose(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R) {
     Record rec;
     rec.t_s = t_capture_s;
-    if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized);
-    if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
-      return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
-    if (!quat_unit(q_hb)) return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
-    const double t_now = hist_[head_].t_s;
-    if (t_capture_s > t_now + cfg_.time_tol_s) return reject(rec, StepStatus::BadInput, StepDetail::FromFuture);
-    if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s)
-      return reject(rec, StepStatus::BadInput, StepDetail::TooOld);
+    if (!pose_input_ok(t_capture_s, r_hill_m, q_hb, R, rec)) return rec;
     if (t_capture_s < last_fused_t_s_ - cfg_.time_tol_s)
       return reject(rec, StepStatus::BadInput, StepDetail::OutOfSequence);
     // Find the stored tick at the capture time, newest first.
@@ -546,6 +532,25 @@ class NavUkf {
   static Record reject(Record& rec, StepStatus s, StepDetail d) {
     set(rec, s, d);
     return rec;
+  }
+
+  // What a pose must be before either use (update or re-acquisition):
+  // filter initialised, values finite, unit quaternion, captured neither
+  // after the filter time nor more than max_delay_s before it. False with
+  // the reason in rec.
+  bool pose_input_ok(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R,
+                     Record& rec) const {
+    StepDetail d = StepDetail::None;
+    const double t_now = hist_[head_].t_s;
+    if (!initialized_) d = StepDetail::NotInitialized;
+    else if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
+      d = StepDetail::NonFinite;
+    else if (!quat_unit(q_hb)) d = StepDetail::NonUnitQuaternion;
+    else if (t_capture_s > t_now + cfg_.time_tol_s) d = StepDetail::FromFuture;
+    else if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s) d = StepDetail::TooOld;
+    if (d == StepDetail::None) return true;
+    set(rec, StepStatus::BadInput, d);
+    return false;
   }
 
   bool quat_unit(const Quat<S>& q) const { return std::abs(q.norm() - S(1)) <= cfg_.quat_unit_tol; }
