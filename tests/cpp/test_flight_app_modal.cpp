@@ -198,7 +198,7 @@ TYPED_TEST(FlightAppModalTest, ShortStaleAndOffPlateImages) {
   // A modal reset restarts the filter; the counters run on.
   modal_reset(up, 2 * kDt);
   feed(app, up, tm);
-  EXPECT_FALSE(app.modal().bank().initialized());
+  EXPECT_FALSE(app.modal().filter().initialized());
   EXPECT_EQ(app.modal().counters().images, 3u);
   EXPECT_EQ(app.modal().counters().segments_stale, 38u);
 }
@@ -219,5 +219,5 @@ TEST(FlightAppModalTest, SettingsApplyAtTheModalResetAndBadOnesAreRefused) {
   feed(app, up, tm);
   EXPECT_NEAR(2 * 3.14159265358979323846 / app.modal().model().omega_radps(0), 1200.0, 1e-9);
   EXPECT_NEAR(app.modal().model().scale_m(0), 10.0, 1e-12);
-  EXPECT_FALSE(app.modal().bank().initialized());
+  EXPECT_FALSE(app.modal().filter().initialized());
 }

@@ -20,7 +20,7 @@ namespace {
 template <typename Tracker>
 int feed_image(Tracker& tr, double t, std::uint32_t id, const std::vector<Vec3<double>>& p,
                const std::vector<double>& sig, typename Tracker::Report& rep) {
-  using S = typename Tracker::Bank::VecM::Scalar;
+  using S = typename Tracker::Filter::VecM::Scalar;
   const std::size_t n_seg = (p.size() + kRangePointsPerSegment - 1) / kRangePointsPerSegment;
   int closed = 0;
   for (std::size_t s = 0; s < n_seg; ++s) {
@@ -64,7 +64,7 @@ Converged strong_modes_converge(unsigned seed) {
     bool all = true;
     for (int i = 0; i < kM; ++i) {
       const double w = scene.truth.omega_radps(i);
-      if (scene.amp[i] >= 0.2) all = all && std::abs(double(tr->bank().mode_state(i)(2)) / w - 1.0) < 0.01;
+      if (scene.amp[i] >= 0.2) all = all && std::abs(double(tr->filter().mode_state(i)(2)) / w - 1.0) < 0.01;
     }
     return all;
   };
@@ -121,15 +121,15 @@ TEST(ModalTrackerTest, FirstGoodImageInitialisesAndTimeMovesOnlyWithTheFilter) {
   ASSERT_EQ(feed_image(tr, 0.0, 1, p, sig, rep), 1);
   EXPECT_EQ(rep.decomposition.status, ModalStatus::TooFewPoints);
   EXPECT_EQ(rep.step.status, StepStatus::BadInput);
-  EXPECT_FALSE(tr.bank().initialized());
+  EXPECT_FALSE(tr.filter().initialized());
   // So an image at the same time is not stale: it initialises (eq. 7).
   scene.image(0.0, p, sig);
   ASSERT_EQ(feed_image(tr, 0.0, 2, p, sig, rep), 1);
   EXPECT_TRUE(rep.step.fused);
-  EXPECT_TRUE(tr.bank().initialized());
+  EXPECT_TRUE(tr.filter().initialized());
   for (int i = 0; i < kM; ++i) {
-    EXPECT_EQ(tr.bank().mode_state(i)(0), rep.decomposition.a_coarse(i));
-    EXPECT_EQ(tr.bank().mode_state(i)(2), tr.model().omega_radps(i));
+    EXPECT_EQ(tr.filter().mode_state(i)(0), rep.decomposition.a_coarse(i));
+    EXPECT_EQ(tr.filter().mode_state(i)(2), tr.model().omega_radps(i));
   }
   // Now one at that time again is stale, and one later steps.
   ASSERT_EQ(feed_image(tr, 0.0, 3, p, sig, rep), 0);

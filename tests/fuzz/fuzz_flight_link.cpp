@@ -91,10 +91,10 @@ App* run(const std::uint8_t* data, std::size_t size, std::size_t chunk, int slot
       fail("navigation state is not finite");
     if (!app->nav().P().allFinite()) fail("covariance is not finite");
   }
-  const auto& bank = app->modal().bank();
-  if (bank.initialized()) {
+  const auto& filt = app->modal().filter();
+  if (filt.initialized()) {
     for (int i = 0; i < App::kModalModes; ++i)
-      if (!bank.mode_state(i).allFinite() || !bank.mode_cov(i).allFinite()) fail("modal state is not finite");
+      if (!filt.mode_state(i).allFinite() || !filt.mode_cov(i).allFinite()) fail("modal state is not finite");
   }
   return app;
 }
@@ -129,9 +129,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (ma.segments != mb.segments || ma.images != mb.images || ma.images_fused != mb.images_fused ||
       ma.points_outside != mb.points_outside)
     fail("modal counters depend on chunking");
-  if (whole->modal().bank().initialized()) {
+  if (whole->modal().filter().initialized()) {
     for (int i = 0; i < App::kModalModes; ++i)
-      if (whole->modal().bank().mode_state(i) != split->modal().bank().mode_state(i))
+      if (whole->modal().filter().mode_state(i) != split->modal().filter().mode_state(i))
         fail("modal estimate depends on chunking");
   }
   whole->~App();

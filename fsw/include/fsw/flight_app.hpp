@@ -415,15 +415,15 @@ class FlightApp {
     const S emax = r.decomposition.eig_max, emin = r.decomposition.eig_min;
     tm.rcond = emax > S(0) && emin > S(0) && std::isfinite(emax) ? emin / emax : S(0);
     tm.nis = r.step.nis;
-    const auto& bank = modal_.bank();
-    if (bank.initialized()) {
+    const auto& filt = modal_.filter();
+    if (filt.initialized()) {
       tm.n_modes = static_cast<std::uint8_t>(kModalModes);
       for (int i = 0; i < kModalModes; ++i) {
-        const auto x = bank.mode_state(i);
+        const auto x = filt.mode_state(i);
         tm.amplitude(i) = x(0);
         tm.omega_radps(i) = x(2);
         tm.alpha_ps(i) = x(3);
-        tm.amplitude_sigma(i) = std::sqrt(bank.mode_cov(i)(0, 0));
+        tm.amplitude_sigma(i) = std::sqrt(filt.mode_cov(i)(0, 0));
       }
     }
     send(Apid::TmModal, tm, r.t_s);

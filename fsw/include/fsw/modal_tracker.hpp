@@ -64,10 +64,10 @@ struct ModalImageReport {
   ModalStepRecord<S, M> step;
 };
 
-template <typename S, int M, typename Filter = ModalUkfJoint<S, M>>
+template <typename S, int M, typename F = ModalUkfJoint<S, M>>
 class ModalTracker {
  public:
-  using Bank = Filter;
+  using Filter = F;  // ModalUkfJoint (default) or ModalUkfBank
   using Decomposition = ModalDecomposition<S, M>;
   using Report = ModalImageReport<S, M>;
   static constexpr int kModes = M;
@@ -89,7 +89,6 @@ class ModalTracker {
     if (modal_tracker_config_invalid_field(cfg) != nullptr) return false;
     cfg_ = cfg;
     model_.configure(cfg.plate);
-    filter_cfg_ = filter_config(model_, cfg);
     reset();
     return true;
   }
@@ -114,7 +113,7 @@ class ModalTracker {
   // Forgets the filter and any open image (cmd_reset bit 2); the counters
   // run on, as the app's do across resets.
   void reset() {
-    bank_.reset(filter_cfg_);
+    filter_.reset(filter_config(model_, cfg_));
     open_ = false;
     have_last_ = false;
   }
@@ -160,14 +159,14 @@ class ModalTracker {
     return false;
   }
 
-  const Bank& bank() const { return bank_; }
+  const Filter& filter() const { return filter_; }
   const PlateModes<S, M>& model() const { return model_; }
   const ModalTrackerConfig& config() const { return cfg_; }
   const Counters& counters() const { return counters_; }
   bool image_open() const { return open_; }
 
  private:
-  // Solves the open image and steps the bank to its time.
+  // Solves the open image and steps the filter to its time.
   void close(Report& out) {
     open_ = false;
     out = Report();
@@ -178,19 +177,19 @@ class ModalTracker {
     ++counters_.images;
     dec_.solve(out.decomposition);
     out.step.decomposition = out.decomposition.status;
-    bool moved = false;  // the bank's time is the image's once it initialised or predicted
-    if (!bank_.initialized()) {
-      out.step.status = bank_.initialize(out.decomposition);
+    bool moved = false;  // the filter's time is the image's once it initialised or predicted
+    if (!filter_.initialized()) {
+      out.step.status = filter_.initialize(out.decomposition);
       out.step.fused = out.step.status == StepStatus::Ok;
       moved = out.step.fused;
     } else {
-      const StepStatus sp = bank_.predict(S(image_t_s_ - last_t_s_));
+      const StepStatus sp = filter_.predict(S(image_t_s_ - last_t_s_));
       if (sp != StepStatus::Ok) {
         out.step.status = sp;
         out.step.detail = sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None;
       } else {
         moved = true;
-        bank_.update(out.decomposition, out.step);
+        filter_.update(out.decomposition, out.step);
       }
     }
     if (moved) {
@@ -201,10 +200,9 @@ class ModalTracker {
   }
 
   ModalTrackerConfig cfg_;
-  ModalFilterConfig<S, M> filter_cfg_;
   PlateModes<S, M> model_;
   Decomposition dec_;
-  Bank bank_;
+  Filter filter_;
   Counters counters_;
   bool open_ = false;
   std::uint32_t image_id_ = 0;
