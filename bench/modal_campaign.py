@@ -107,9 +107,13 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 
 
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
-                prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True):
+                prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
+                batch_ml_periods=()):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
-    uniformly in +-prior_err (the seed assumes it bounded by about 20 %)."""
+    uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
+    batch_ml_periods: times [lowest-mode periods] at which the batch ML
+    reference (bench.modal_batch_ml) is fitted to every coarse estimate so far
+    and its shape error compared with the filter's at the same image."""
     fb = _fb()
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
@@ -117,6 +121,10 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     amp, phase = st.plate_truth(plate, rng)
     w_true = plate.omega_radps
     w_prior = w_true * (1 + rng.uniform(-prior_err, prior_err, n_modes))
+    batch_ml_images = [int(round(p * 2 * np.pi / w_true[0] / dt_s)) + 1 for p in batch_ml_periods]
+    for p, k in zip(batch_ml_periods, batch_ml_images):
+        if not 3 <= k <= n_images:
+            raise ValueError(f"batch ML reference at {p} lowest-mode periods needs {k} images; the run has {n_images}")
     gx, gy = plate.grid(40)
     phi_grid = plate.phi(gx, gy)
 
@@ -124,12 +132,14 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         return make_filter(kind, n_modes, w0, np.zeros(n_modes), sigma_v0=w0 * 1.0, sigma_w0=sw0,
                            sigma_a0=1e-6, q_a=0.0, q_v=0.0)
 
-    filt = new_filter(w_prior, 0.1 * w_prior)
+    sigma_w_prior = 0.1 * w_prior
+    filt = new_filter(w_prior, sigma_w_prior)
     orc = new_filter(w_true, 1e-6 * w_true) if oracle else None
     dec = getattr(fb, f"ModalDecomposition{n_modes}")()
     shape = getattr(fb, f"reconstruct_shape{n_modes}")
     est = np.zeros((n_images, n_modes, 4))
     coarse = np.full((n_images, n_modes), np.nan)
+    coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if batch_ml_periods else None
     truth = np.zeros((n_images, n_modes))
     shape_rms = np.full(n_images, np.nan)
     shape_rms_oracle = np.full(n_images, np.nan)
@@ -146,6 +156,8 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         n_nan.append(rec.n_nonfinite)
         if rec.ok:
             coarse[k] = rec.a_coarse
+            if coarse_cov is not None:
+                coarse_cov[k] = rec.cov_a
         statuses.append(filt.step(dt_s, rec)["status"])
         est[k] = filt.state
         truth[k] = a
@@ -203,9 +215,31 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         ks = 0 if bad.size == 0 else int(bad[-1]) + 1
         out["shape_converge_index"] = ks if ks < n_images else None
         out["shape_converge_periods"] = None if ks >= n_images else ks * dt_s / period1
+    if batch_ml_periods:
+        out["batch_ml"] = [_batch_ml_row(k, coarse, coarse_cov, t, w_prior, sigma_w_prior, est, truth, phi_grid,
+                                         shape_rms, shape_rms_oracle, w_true, strong, period1) for k in batch_ml_images]
     if keep_series:
         out.update(t_s=t, est=est, coarse=coarse, truth=truth)
     return out
+
+
+def _batch_ml_row(k, coarse, cov, t, w_prior, sigma_w, est, truth, phi_grid, shape_rms, shape_rms_oracle,
+                  w_true, strong, period1):
+    """The batch ML reference on the first k images beside the filter at image k - 1."""
+    from bench import modal_batch_ml
+
+    ml = modal_batch_ml.fit(coarse[:k], cov[:k], t[:k], w_prior, sigma_w, extra_starts=[("filter", est[k - 1, :, 2])])
+    err = phi_grid @ (ml["amplitude_end"] - truth[k - 1])
+    return {"images": int(k), "periods": float(t[k - 1] / period1),
+            "shape_rms_batch_ml_m": float(np.sqrt(np.mean(err ** 2))),
+            "shape_rms_filter_m": float(shape_rms[k - 1]),
+            "shape_rms_known_omega_m": float(shape_rms_oracle[k - 1]),
+            "omega_batch_ml_radps": ml["omega"],
+            # over the modes excited >= 0.2 (the others' frequencies are not observable yet)
+            "freq_rel_err_max_excited_batch_ml": float(np.max(np.abs(ml["omega"] / w_true - 1)[strong], initial=0.0)),
+            "freq_rel_err_max_excited_filter": float(np.max(np.abs(est[k - 1, :, 2] / w_true - 1)[strong],
+                                                            initial=0.0)),
+            "batch_ml_start": ml["start"]}
 
 
 def plate_aliased_case(n_modes: int = 10):

@@ -35,6 +35,9 @@ def register(sub):
     p.add_argument("--filter", choices=["bank", "joint"], default="bank")
     p.add_argument("--images", type=int, default=None, help="images per trial (default: structure 180, pendulum 150)")
     p.add_argument("--dt", type=float, default=None, help="image interval [s] (default: structure 60, pendulum 1/15)")
+    p.add_argument("--batch-ml-at", type=float, nargs="+", default=(), metavar="PERIODS",
+                   help="structure: also fit the batch maximum-likelihood reference to every coarse estimate up to "
+                        "these times [lowest-mode periods] and compare its shape error with the filter's")
     p.add_argument("--json", default=None)
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)
@@ -85,7 +88,8 @@ def main(args):
         n_img = args.images or 180
         for k in range(args.trials):
             trials.append(mc.plate_trial(args.seed + k, n_modes=args.modes, kind=args.filter, n_images=n_img,
-                                         dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots)))
+                                         dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots),
+                                         batch_ml_periods=args.batch_ml_at))
         out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "trials": []}
         for tr in trials:
             out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
@@ -94,6 +98,8 @@ def main(args):
                   f"{_fmt(tr['time_to_converge_1pct_excited_periods'])} periods; final max rel err "
                   f"{tr['freq_rel_err_final_max']:.2e}; shape RMS at floor ({tr['shape_noise_floor_m']:.2f} m) after "
                   f"{_fmt(tr['shape_converge_periods'])} periods; cond(M_Y) {tr['condition_number_median']:.1f}")
+        if args.batch_ml_at:
+            out["batch_ml_summary"] = _batch_ml_summary(trials)
         out["ill_conditioned_cases"] = mc.plate_aliased_case(args.modes)
         print("ill-conditioned cases:", out["ill_conditioned_cases"])
         if args.plots:
@@ -101,6 +107,35 @@ def main(args):
     if args.json:
         write_json(args.json, out)
     return 0
+
+
+def _batch_ml_summary(trials):
+    """Per requested time, medians over trials of the shape error of the filter,
+    the batch ML reference and the known-frequency filter, each also over the
+    trial's floor; and how many trials are within twice the floor."""
+    rows = []
+    for j, first in enumerate(trials[0]["batch_ml"]):
+        r = {"periods": first["periods"], "images": first["images"], "trials": len(trials)}
+        for key, name in (("shape_rms_filter_m", "filter"), ("shape_rms_batch_ml_m", "batch_ml"),
+                          ("shape_rms_known_omega_m", "known_omega")):
+            v = np.array([t["batch_ml"][j][key] for t in trials])
+            floor = np.array([t["shape_noise_floor_m"] for t in trials])
+            r[f"{name}_median_m"] = float(np.median(v))
+            r[f"{name}_over_floor_median"] = float(np.median(v / floor))
+            r[f"{name}_within_2x_floor"] = int(np.sum(v <= 2.0 * floor))
+        ratio = np.array([t["batch_ml"][j]["shape_rms_filter_m"] / t["batch_ml"][j]["shape_rms_batch_ml_m"]
+                          for t in trials])
+        r["filter_over_batch_ml_median"] = float(np.median(ratio))
+        r["filter_over_batch_ml_quartiles"] = [float(q) for q in np.percentile(ratio, [25, 75])]
+        rows.append(r)
+        print(f"at {r['periods']:.2f} periods ({r['images']} images), medians over {len(trials)} trials: shape RMS "
+              f"filter {r['filter_median_m']:.3f} m ({r['filter_over_floor_median']:.2f} x floor), batch ML "
+              f"{r['batch_ml_median_m']:.3f} m ({r['batch_ml_over_floor_median']:.2f} x), known omega "
+              f"{r['known_omega_median_m']:.3f} m ({r['known_omega_over_floor_median']:.2f} x); filter / batch ML "
+              f"{r['filter_over_batch_ml_median']:.2f} [{r['filter_over_batch_ml_quartiles'][0]:.2f}, "
+              f"{r['filter_over_batch_ml_quartiles'][1]:.2f}]; within 2x floor: filter {r['filter_within_2x_floor']}, "
+              f"batch ML {r['batch_ml_within_2x_floor']}, known omega {r['known_omega_within_2x_floor']}")
+    return rows
 
 
 def _fmt(v):

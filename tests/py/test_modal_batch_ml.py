@@ -1,0 +1,65 @@
+"""The batch maximum-likelihood reference for the modal filter: it recovers
+known frequencies from synthetic coarse estimates (starting 7-9 % off), skips
+images without an estimate, refuses too little data, and on a plate run sits
+beside the flight filter."""
+import numpy as np
+import pytest
+
+from bench import modal_batch_ml
+
+
+def _synthetic(seed, k=100, dt=60.0):
+    rng = np.random.default_rng(seed)
+    w = np.array([0.0030, 0.0061, 0.0112])
+    c, s = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
+    t = np.arange(k) * dt
+    truth = np.cos(np.outer(t, w)) * c + np.sin(np.outer(t, w)) * s
+    b = 0.05 * rng.standard_normal((3, 3))
+    cov = np.broadcast_to(b @ b.T + 0.03 ** 2 * np.eye(3), (k, 3, 3)).copy()
+    noise = np.einsum("ij,kj->ki", np.linalg.cholesky(cov[0]), rng.standard_normal((k, 3)))
+    return t, w, truth, truth + noise, cov, np.hypot(c, s)
+
+
+def _omega_tol(cov, amp, n, dt):
+    """Four times the Cramer-Rao bound of one sinusoid's frequency from n
+    evenly spaced samples: sqrt(12) sigma / (A n^1.5 dt)."""
+    return 4 * np.sqrt(12) * np.sqrt(np.diag(cov[0])) / (amp * n ** 1.5 * dt)
+
+
+def test_recovers_frequencies_and_final_amplitude():
+    t, w, truth, coarse, cov, amp = _synthetic(1)
+    prior = w * np.array([1.08, 0.91, 1.07])
+    ml = modal_batch_ml.fit(coarse, cov, t, prior, 0.1 * prior)
+    assert np.all(np.abs(ml["omega"] - w) < _omega_tol(cov, amp, len(t), 60.0))
+    sigma = np.sqrt(np.diag(cov[0]))
+    assert np.all(np.abs(ml["amplitude_end"] - truth[-1]) < 3 * sigma)
+    # the fit is a least-squares optimum: its cost is no more than at the truth
+    assert ml["cost"] <= modal_batch_ml.fit(coarse, cov, t, prior, 0.1 * prior, extra_starts=[("truth", w)])["cost"] + 1e-6
+
+
+def test_images_without_an_estimate_are_left_out_and_too_few_refused():
+    t, w, truth, coarse, cov, amp = _synthetic(2)
+    coarse[10] = np.nan
+    cov[20, 0, 0] = np.inf
+    ml = modal_batch_ml.fit(coarse, cov, t, w, 0.1 * w)
+    assert ml["n_images"] == len(t) - 2
+    assert np.all(np.abs(ml["omega"] - w) < _omega_tol(cov, amp, len(t) - 2, 60.0))
+    with pytest.raises(ValueError, match="at least 3 images"):
+        modal_batch_ml.fit(coarse[:2], cov[:2], t[:2], w, 0.1 * w)
+
+
+fb = pytest.importorskip("fsw_bindings")
+
+
+@pytest.mark.skipif(not hasattr(fb, "ModalDecomposition10"), reason="bindings built without the modal estimator")
+def test_plate_run_compares_filter_with_batch_ml():
+    from bench import modal_campaign as mc
+
+    tr = mc.plate_trial(0, n_modes=10, kind="joint", n_images=41, batch_ml_periods=(1.0,))
+    (row,) = tr["batch_ml"]
+    assert row["images"] == 41 and row["periods"] == pytest.approx(1.0)
+    # the same data and prior: neither is far from the other after one period
+    assert 0.5 < row["shape_rms_filter_m"] / row["shape_rms_batch_ml_m"] < 2.0
+    assert row["freq_rel_err_max_excited_batch_ml"] < 0.05
+    with pytest.raises(ValueError, match="needs 81 images; the run has 41"):
+        mc.plate_trial(0, n_modes=10, kind="joint", n_images=41, batch_ml_periods=(2.0,))
