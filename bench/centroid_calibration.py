@@ -152,8 +152,9 @@ def estimator(**overrides):
     return fb.LedPoseEstimator(cfg)
 
 
-# The detector before the refinement: first estimate and its pixel-noise sigma with the 0.008 px floor.
-LEGACY = {"refine_centroid": False, "centroid_floor_px": 0.008}
+# The detector before the refinement: first estimate and its pixel-noise sigma with the 0.008 px floor,
+# plain threshold only (no faint-spot pass).
+LEGACY = {"refine_centroid": False, "centroid_floor_px": 0.008, "faint_sigma_px": 0.0}
 
 PEAK_CLASSES = (("faint", 0.0, 60.0), ("bright", 60.0, 249.0), ("saturated", 249.0, np.inf))
 SIGMA_CLASSES = (("undersampled", 0.0, 1.0), ("1-1.6 px", 1.0, 1.6), ("1.6-2.5 px", 1.6, 2.5), ("wide", 2.5, np.inf))

@@ -48,11 +48,14 @@ void BM_ImageToPose(benchmark::State& state) {
 }
 BENCHMARK(BM_ImageToPose)->Arg(0)->Arg(6)->Unit(benchmark::kMillisecond);
 
+// Arg: 1 with the faint-spot pass (the default), 0 without it.
 void BM_Detect(benchmark::State& state) {
-  const fsw_vision::LedPoseEstimator est;
+  fsw_vision::LedPoseConfig cfg;
+  if (state.range(0) == 0) cfg.faint_sigma_px = 0.0;
+  const fsw_vision::LedPoseEstimator est(cfg);
   const cv::Mat img = make_frame(est, 0);
   for (auto _ : state) benchmark::DoNotOptimize(est.detect(img));
 }
-BENCHMARK(BM_Detect)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Detect)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace

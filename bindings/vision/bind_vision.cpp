@@ -112,6 +112,10 @@ void bind_vision(py::module_& m) {
       .def_readwrite("background_kernel_px", &LedPoseConfig::background_kernel_px)
       .def_readwrite("threshold_counts", &LedPoseConfig::threshold_counts,
                      "Detection threshold above the local background [counts].")
+      .def_readwrite("faint_sigma_px", &LedPoseConfig::faint_sigma_px,
+                     "Matched-filter width for faint spots [px]; 0 turns the faint pass off.")
+      .def_readwrite("faint_threshold_counts", &LedPoseConfig::faint_threshold_counts,
+                     "Faint-spot threshold on the smoothed background-subtracted image [counts].")
       .def_readwrite("min_area_px", &LedPoseConfig::min_area_px)
       .def_readwrite("max_area_px", &LedPoseConfig::max_area_px)
       .def_readwrite("max_extent_px", &LedPoseConfig::max_extent_px)

@@ -56,6 +56,117 @@ Eigen::Quaterniond exp_q(const Eigen::Vector3d& phi) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(a, phi / a));
 }
 
+// Faint spots (a blurred or distant LED whose peak stays under the plain
+// threshold): the background-subtracted image smoothed by a Gaussian about
+// as wide as a spot, a matched filter whose pixel noise is 1 / (2 sqrt(pi)
+// sigma) of the raw image's, thresholded lower. Its components that touch
+// none of the plain threshold's are split between their local maxima (two
+// blurred LEDs a few pixels apart, the identifier beside its corner, join
+// at a low threshold but keep two maxima), each pixel to the nearest, and
+// appended after the plain components (labels n, n+1, ...) with their stats
+// and centroids; detection then measures them alike (over-split fragments
+// of one spot refine to the same centre and are merged there).
+// Returns the new label count.
+int append_faint_components(const cv::Mat& diff, const cv::Mat& mask, double sigma_px, double threshold_counts,
+                            cv::Mat& labels, cv::Mat& stats, cv::Mat& cents, int n) {
+  thread_local cv::Mat diff_f, smooth, dil, fmask, flabels, fstats, fcents;  // see detect()
+  diff.convertTo(diff_f, CV_32F);
+  cv::GaussianBlur(diff_f, smooth, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
+  cv::compare(smooth, threshold_counts, fmask, cv::CMP_GT);
+  const int nf = cv::connectedComponentsWithStats(fmask, flabels, fstats, fcents, 8, CV_32S);
+  if (nf <= 1) return n;
+  std::vector<char> touches(static_cast<size_t>(nf), 0);
+  for (int r = 0; r < mask.rows; ++r) {
+    const uint8_t* m = mask.ptr<uint8_t>(r);
+    const int* fl = flabels.ptr<int>(r);
+    for (int c = 0; c < mask.cols; ++c)
+      if (m[c] != 0 && fl[c] != 0) touches[static_cast<size_t>(fl[c])] = 1;
+  }
+  // Local maxima (3 x 3) of the kept components; one per 2-pixel neighbourhood.
+  struct Peak {
+    int r, c, comp, label;
+  };
+  std::vector<Peak> peaks;
+  std::vector<std::vector<int>> peaks_of(static_cast<size_t>(nf));
+  cv::dilate(smooth, dil, cv::Mat(), cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+  for (int r = 0; r < smooth.rows; ++r) {
+    const float* sm = smooth.ptr<float>(r);
+    const float* dl = dil.ptr<float>(r);
+    const int* fl = flabels.ptr<int>(r);
+    for (int c = 0; c < smooth.cols; ++c) {
+      const int comp = fl[c];
+      if (comp == 0 || touches[static_cast<size_t>(comp)] || sm[c] < dl[c]) continue;
+      bool near = false;
+      for (int i : peaks_of[static_cast<size_t>(comp)]) {
+        const Peak& q = peaks[static_cast<size_t>(i)];
+        near = near || (std::abs(q.r - r) <= 2 && std::abs(q.c - c) <= 2);
+      }
+      if (near) continue;
+      peaks_of[static_cast<size_t>(comp)].push_back(static_cast<int>(peaks.size()));
+      peaks.push_back(Peak{r, c, comp, n + static_cast<int>(peaks.size())});
+    }
+  }
+  if (peaks.empty()) return n;
+  // Each pixel of a kept component to its nearest maximum; stats as OpenCV's.
+  const size_t np = peaks.size();
+  std::vector<int> left(np, labels.cols), top(np, labels.rows), right(np, -1), bottom(np, -1), area(np, 0);
+  std::vector<double> sum_c(np, 0.0), sum_r(np, 0.0);
+  for (int r = 0; r < labels.rows; ++r) {
+    int* lab = labels.ptr<int>(r);
+    const int* fl = flabels.ptr<int>(r);
+    for (int c = 0; c < labels.cols; ++c) {
+      const int comp = fl[c];
+      if (comp == 0 || peaks_of[static_cast<size_t>(comp)].empty()) continue;
+      int best = -1;
+      long best_d2 = 0;
+      for (int i : peaks_of[static_cast<size_t>(comp)]) {
+        const long dr = peaks[static_cast<size_t>(i)].r - r, dc = peaks[static_cast<size_t>(i)].c - c;
+        if (best < 0 || dr * dr + dc * dc < best_d2) best = i, best_d2 = dr * dr + dc * dc;
+      }
+      const size_t k = static_cast<size_t>(best);
+      lab[c] = peaks[k].label;
+      left[k] = std::min(left[k], c), right[k] = std::max(right[k], c);
+      top[k] = std::min(top[k], r), bottom[k] = std::max(bottom[k], r);
+      ++area[k];
+      sum_c[k] += c, sum_r[k] += r;
+    }
+  }
+  for (size_t k = 0; k < np; ++k) {
+    const cv::Mat st =
+        (cv::Mat_<int>(1, 5) << left[k], top[k], right[k] - left[k] + 1, bottom[k] - top[k] + 1, area[k]);
+    stats.push_back(st);
+    const cv::Mat ce = (cv::Mat_<double>(1, 2) << sum_c[k] / area[k], sum_r[k] / area[k]);
+    cents.push_back(ce);
+  }
+  return n + static_cast<int>(np);
+}
+
+// A faint-pass spot beside another (two blurred LEDs a few widths apart) is
+// pulled towards it: the neighbour's tail inside the Gaussian weight. For
+// Gaussian spots (own weight width w, neighbour width s_j, flux ratio rho_j,
+// distance d_j) the weighted centroid moves by about
+// rho_j d_j (2 w^2 / (w^2 + s_j^2)) exp(-d_j^2 / (2 (w^2 + s_j^2))), the
+// factor 2 being the refinement's step; added in quadrature to the spot's
+// sigma, since its direction is not corrected.
+void add_crowding_sigma(std::vector<Blob>& blobs, const std::vector<char>& faint, double w_min, double w_max) {
+  std::vector<double> extra(blobs.size(), 0.0);
+  for (size_t i = 0; i < blobs.size(); ++i) {
+    if (!faint[i] || !(blobs[i].flux > 0.0)) continue;
+    const double w = std::clamp(blobs[i].width_px, w_min, w_max);
+    for (size_t j = 0; j < blobs.size(); ++j) {
+      if (j == i || !(blobs[j].flux > 0.0)) continue;
+      const double sj = std::max(blobs[j].width_px, 0.5);
+      const double s2 = w * w + sj * sj;
+      const double d = std::hypot(blobs[j].u_px - blobs[i].u_px, blobs[j].v_px - blobs[i].v_px);
+      if (d * d > 25.0 * s2) continue;  // beyond 5 combined widths: under 1e-5 rho d
+      const double shift = blobs[j].flux / blobs[i].flux * d * (2.0 * w * w / s2) * std::exp(-0.5 * d * d / s2);
+      extra[i] += shift * shift;
+    }
+  }
+  for (size_t i = 0; i < blobs.size(); ++i)
+    blobs[i].sigma_px = std::sqrt(blobs[i].sigma_px * blobs[i].sigma_px + extra[i]);
+}
+
 // Twice the signed area of the quadrilateral q0 q1 q2 q3 if it is convex
 // (all turns of one sign), else 0.
 double convex_quad_area2(const cv::Point2d* q[4]) {
@@ -208,7 +319,8 @@ bool LedPoseEstimator::jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Qu
 // the image, the ring has too few pixels, the iteration does not settle
 // within 1.5 px of the first estimate, or a denominator is not positive.
 bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int l,
-                                       double u0, double v0, double width_px, double sigma_w, Blob& out) const {
+                                       int first_faint, double u0, double v0, double width_px, double sigma_w,
+                                       Blob& out) const {
   constexpr int kRing = 2, kMinRing = 12, kMaxIter = 20;
   const int half = static_cast<int>(std::ceil(3.0 * sigma_w)) + 1;
   const int outer = half + kRing;
@@ -274,6 +386,7 @@ bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& label
   // spot that the threshold broke into fragments); other objects are left out.
   auto own = [&](int lab) {
     if (lab == 0 || lab == l) return true;
+    if (lab >= first_faint) return false;  // another maximum: a distinct spot
     const double dx = cents.at<double>(lab, 0) - u0, dy = cents.at<double>(lab, 1) - v0;
     return dx * dx + dy * dy < (2.0 * sigma_w + 1.5) * (2.0 * sigma_w + 1.5);
   };
@@ -369,15 +482,21 @@ bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& label
   return std::isfinite(out.sigma_px) && out.sigma_px > 0.0 && std::isfinite(mu) && std::isfinite(mv);
 }
 
-std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
+std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray, bool faint_pass) const {
   std::vector<Blob> out;
   if (gray.empty() || gray.type() != CV_8UC1) return out;
-  cv::Mat bg, diff, mask, labels, stats, cents;
+  // Frame-sized buffers kept per thread: a fresh one per frame is mostly
+  // page faults (docs/perf/vision.md).
+  thread_local cv::Mat bg, diff, mask, labels, stats, cents;
   const int k = std::max(3, cfg_.background_kernel_px | 1);
   cv::blur(gray, bg, cv::Size(k, k), cv::Point(-1, -1), cv::BORDER_REPLICATE);
   cv::subtract(gray, bg, diff);  // saturates at 0
   cv::threshold(diff, mask, cfg_.threshold_counts, 255, cv::THRESH_BINARY);
-  const int n = cv::connectedComponentsWithStats(mask, labels, stats, cents, 8, CV_32S);
+  int n = cv::connectedComponentsWithStats(mask, labels, stats, cents, 8, CV_32S);
+  const int first_faint = n;
+  std::vector<char> faint;  // per blob in out: found by the faint pass
+  if (faint_pass && cfg_.faint_sigma_px > 0.0)
+    n = append_faint_components(diff, mask, cfg_.faint_sigma_px, cfg_.faint_threshold_counts, labels, stats, cents, n);
   for (int l = 1; l < n; ++l) {
     const int area = stats.at<int>(l, cv::CC_STAT_AREA);
     const int x0 = stats.at<int>(l, cv::CC_STAT_LEFT), y0 = stats.at<int>(l, cv::CC_STAT_TOP);
@@ -436,9 +555,10 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
     const double sigma_w = std::clamp(width * (any_sat ? cfg_.centroid_weight_sat_scale : 1.0),
                                       cfg_.centroid_weight_min_px, cfg_.centroid_weight_max_px);
     blob.width_px = width;
-    if (cfg_.refine_centroid && refine_centroid(gray, labels, cents, l, mu, mv, width, sigma_w, blob)) {
+    if (cfg_.refine_centroid && refine_centroid(gray, labels, cents, l, first_faint, mu, mv, width, sigma_w, blob)) {
       blob.area_px = area;
       out.push_back(blob);
+      faint.push_back(l >= first_faint);
       continue;
     }
     // Fallback (window or ring cut by the image border; or refinement off):
@@ -447,7 +567,9 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray) const {
     const double var_v = (snvv - 2.0 * mv * snv + mv * mv * sn) / (s * s);
     const double sig = std::sqrt(std::max(var_u, var_v) + cfg_.centroid_floor_px * cfg_.centroid_floor_px);
     out.push_back(Blob{mu, mv, s, area, sig, 0, sig, width});
+    faint.push_back(l >= first_faint);
   }
+  add_crowding_sigma(out, faint, cfg_.centroid_weight_min_px, cfg_.centroid_weight_max_px);
   std::sort(out.begin(), out.end(), [](const Blob& x, const Blob& y) { return x.flux > y.flux; });
   // Fragments of one spot refine to the same centre: keep the brightest.
   std::vector<Blob> kept;
@@ -469,14 +591,22 @@ LedPoseMeasurement LedPoseEstimator::estimate(const cv::Mat& gray, double t_capt
     m.status = PoseStatus::BadInput;
     return m;
   }
-  const std::vector<Blob> blobs = detect(gray);
-  std::vector<cv::Point2d> pts;
-  std::vector<double> sig;
-  for (const Blob& b : blobs) {
-    pts.emplace_back(b.u_px, b.v_px);
-    sig.push_back(b.sigma_px);
+  auto from_blobs = [&](const std::vector<Blob>& blobs) {
+    std::vector<cv::Point2d> pts;
+    std::vector<double> sig;
+    for (const Blob& b : blobs) {
+      pts.emplace_back(b.u_px, b.v_px);
+      sig.push_back(b.sigma_px);
+    }
+    return estimate_from_points(pts, t_capture_s, q_h_host, sig);
+  };
+  const std::vector<Blob> plain = detect(gray, false);
+  LedPoseMeasurement m = from_blobs(plain);
+  if (cfg_.faint_sigma_px > 0.0 && (m.status == PoseStatus::TooFewLeds || m.status == PoseStatus::AmbiguousIdentity)) {
+    const std::vector<Blob> all = detect(gray, true);
+    if (all.size() > plain.size()) return from_blobs(all);  // Ok, or why not with every spot seen
   }
-  return estimate_from_points(pts, t_capture_s, q_h_host, sig);
+  return m;
 }
 
 // ---------------------------------------------------------------------------

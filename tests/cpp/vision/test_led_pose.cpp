@@ -413,3 +413,103 @@ TEST_F(LedPoseTest, FullySaturatedImageGivesNoBlobsAndTooFewLeds) {
   EXPECT_TRUE(est.detect(img).empty());
   EXPECT_EQ(est.estimate(img, 0.0).status, PoseStatus::TooFewLeds);
 }
+
+namespace {
+
+// Blurred spots of one flux on the bench's background (6 counts) with read
+// noise 1.5 counts and shot variance 0.05 per count of signal, seeded, 8-bit.
+cv::Mat faint_image(const std::vector<cv::Point2d>& centres, double sigma, double flux, uint64_t seed) {
+  cv::Mat img(480, 640, CV_64F, cv::Scalar(6.0));
+  const double s = std::sqrt(2.0) * sigma;
+  for (const auto& p : centres)
+    for (int r = int(p.y) - 14; r <= int(p.y) + 14; ++r)
+      for (int c = int(p.x) - 14; c <= int(p.x) + 14; ++c) {
+        const double gx = 0.5 * (std::erf((c + 0.5 - p.x) / s) - std::erf((c - 0.5 - p.x) / s));
+        const double gy = 0.5 * (std::erf((r + 0.5 - p.y) / s) - std::erf((r - 0.5 - p.y) / s));
+        img.at<double>(r, c) += flux * gx * gy;
+      }
+  cv::RNG rng(seed);
+  for (int r = 0; r < img.rows; ++r)
+    for (int c = 0; c < img.cols; ++c) {
+      double& v = img.at<double>(r, c);
+      v += rng.gaussian(std::sqrt(1.5 * 1.5 + 0.05 * std::max(v - 6.0, 0.0)));
+    }
+  cv::Mat img8;
+  img.convertTo(img8, CV_8U);
+  return img8;
+}
+
+}  // namespace
+
+// A blurred LED far away (2.15 px, peak about 9 counts over the background,
+// under the 20-count threshold): only the matched-filter pass finds it, and
+// its centroid is within 4 sigma of the truth.
+TEST_F(LedPoseTest, FaintBlurredSpotIsFoundByTheFaintPassOnly) {
+  const LedPoseEstimator est(cfg);
+  LedPoseConfig plain_cfg = cfg;
+  plain_cfg.faint_sigma_px = 0.0;
+  const LedPoseEstimator plain(plain_cfg);
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    const cv::Point2d p(310.3 + seed, 200.6);
+    const cv::Mat img = faint_image({p}, 2.15, 250.0, seed);
+    EXPECT_TRUE(plain.detect(img).empty());
+    const auto blobs = est.detect(img);
+    ASSERT_EQ(blobs.size(), 1u) << "seed " << seed;
+    EXPECT_LT(blobs[0].sigma_px, 0.5);
+    EXPECT_LT(std::hypot(blobs[0].u_px - p.x, blobs[0].v_px - p.y), 4.0 * blobs[0].sigma_px) << "seed " << seed;
+  }
+}
+
+// The faint pass's threshold is over 10 sigma of the smoothed noise: plain
+// noisy frames give no blob.
+TEST_F(LedPoseTest, FaintPassFindsNothingInNoise) {
+  const LedPoseEstimator est(cfg);
+  for (uint64_t seed = 1; seed <= 10; ++seed) EXPECT_TRUE(est.detect(faint_image({}, 2.0, 0.0, seed)).empty());
+}
+
+// The identifier beside its corner, blurred at long range (6.4 px apart,
+// 2.15 px wide): one component at the faint threshold, split at its two
+// maxima; each centroid within 4 sigma of its truth, each sigma larger than
+// the same spot's alone (the neighbour's pull, "crowding").
+TEST_F(LedPoseTest, TwoFaintSpotsAFewPixelsApartAreSplitAndCarryTheCrowdingTerm) {
+  const LedPoseEstimator est(cfg);
+  int checked = 0;
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    const cv::Point2d a(300.2, 220.4), b(306.6, 220.4);
+    const auto blobs = est.detect(faint_image({a, b}, 2.15, 300.0, seed));
+    ASSERT_EQ(blobs.size(), 2u) << "seed " << seed;
+    const auto alone = est.detect(faint_image({a}, 2.15, 300.0, seed));
+    ASSERT_EQ(alone.size(), 1u);
+    for (const cv::Point2d& p : {a, b}) {
+      const fsw_vision::Blob& k = std::hypot(blobs[0].u_px - p.x, blobs[0].v_px - p.y) <
+                              std::hypot(blobs[1].u_px - p.x, blobs[1].v_px - p.y)
+                          ? blobs[0]
+                          : blobs[1];
+      EXPECT_LT(std::hypot(k.u_px - p.x, k.v_px - p.y), 4.0 * k.sigma_px) << "seed " << seed;
+      EXPECT_GT(k.sigma_px, 1.5 * alone[0].sigma_px);
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 10);
+}
+
+// The pattern's five LEDs blurred and faint (2.15 px, about 10 counts at the
+// peak): the plain threshold sees none and the pose is TooFewLeds without the
+// faint pass; estimate() escalates to it and the pose is Ok, within 5 sigma.
+TEST_F(LedPoseTest, EstimateEscalatesToTheFaintPassForAFaintPattern) {
+  const auto q_host = host_attitude();
+  const auto px = cv_project(cfg, truth);
+  const cv::Mat img = faint_image(px, 2.15, 300.0, 7);
+  LedPoseConfig plain_cfg = cfg;
+  plain_cfg.faint_sigma_px = 0.0;
+  EXPECT_EQ(LedPoseEstimator(plain_cfg).estimate(img, 1.0, q_host).status, PoseStatus::TooFewLeds);
+  const LedPoseEstimator est(cfg);
+  const LedPoseMeasurement m = est.estimate(img, 1.0, q_host);
+  ASSERT_EQ(m.status, PoseStatus::Ok) << fsw_vision::to_string(m.status);
+  EXPECT_EQ(m.n_blobs, kN);
+  Eigen::Vector3d r;
+  Eigen::Quaterniond q;
+  est.nav_from_camera(truth.R_cp, truth.t_cp, q_host, r, q);
+  EXPECT_LT((m.r_hill_m - r).norm(), 5.0 * std::sqrt(m.R.topLeftCorner<3, 3>().trace()));
+  EXPECT_LT(angle_between(m.q_hb, q), 5.0 * std::sqrt(m.R.bottomRightCorner<3, 3>().trace()));
+}

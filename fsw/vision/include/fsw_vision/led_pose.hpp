@@ -89,6 +89,14 @@ struct LedPoseConfig {
   // Detection.
   int background_kernel_px = 31;   // box filter for the local background
   int threshold_counts = 20;       // above local background
+  // Faint spots: the background-subtracted image smoothed by a Gaussian of
+  // faint_sigma_px (0: off), split at its local maxima above
+  // faint_threshold_counts where it touches no component of the plain
+  // threshold (docs/VISION.md "Faint spots"). Smoothed pixel noise is about
+  // 0.2 counts over a 0.6-count floor (the clipped difference), so 3 counts
+  // is over 10 sigma.
+  double faint_sigma_px = 1.5;
+  double faint_threshold_counts = 3.0;
   int min_area_px = 2;
   int max_area_px = 2500;
   int max_extent_px = 80;          // bounding-box side
@@ -164,10 +172,15 @@ class LedPoseEstimator {
 
   const LedPoseConfig& config() const { return cfg_; }
 
-  // Blobs of an 8-bit single-channel image, brightest first.
-  std::vector<Blob> detect(const cv::Mat& gray) const;
+  // Blobs of an 8-bit single-channel image, brightest first; with the
+  // faint-spot pass when faint_sigma_px > 0 (the two-argument form chooses).
+  std::vector<Blob> detect(const cv::Mat& gray) const { return detect(gray, cfg_.faint_sigma_px > 0.0); }
+  std::vector<Blob> detect(const cv::Mat& gray, bool faint_pass) const;
 
-  // Full pipeline. q_h_host: host attitude (host body -> Hill).
+  // Full pipeline. q_h_host: host attitude (host body -> Hill). The faint
+  // pass (a matched filter over the frame) runs only when the plain
+  // threshold's blobs give no pose for want of an LED (TooFewLeds or
+  // AmbiguousIdentity); when it finds more blobs, its result is the answer.
   LedPoseMeasurement estimate(const cv::Mat& gray, double t_capture_s,
                               const Eigen::Quaterniond& q_h_host = Eigen::Quaterniond::Identity()) const;
 
@@ -197,8 +210,10 @@ class LedPoseEstimator {
                 Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const;
 
  private:
-  bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, double u0,
-                       double v0, double width_px, double sigma_w, Blob& out) const;
+  // first_faint: labels from here on are faint-pass spots (distinct maxima,
+  // never absorbed as fragments of another spot).
+  bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, int first_faint,
+                       double u0, double v0, double width_px, double sigma_w, Blob& out) const;
 
   LedPoseConfig cfg_;
   cv::Mat K_;
