@@ -35,6 +35,8 @@ def register(sub):
     p.add_argument("--filter", choices=["bank", "joint"], default="bank")
     p.add_argument("--images", type=int, default=None, help="images per trial (default: structure 180, pendulum 150)")
     p.add_argument("--dt", type=float, default=None, help="image interval [s] (default: structure 60, pendulum 1/15)")
+    p.add_argument("--range-noise", type=float, default=0.03, metavar="FRAC",
+                   help="structure: range noise as a fraction of the range (default 0.03, the seed's)")
     p.add_argument("--batch-ml-at", type=float, nargs="+", default=(), metavar="PERIODS",
                    help="structure: also fit the batch maximum-likelihood reference to every coarse estimate up to "
                         "these times [lowest-mode periods] and compare its shape error with the filter's")
@@ -85,12 +87,15 @@ def main(args):
         if args.plots:
             _plot_pendulum(trials[0], report_dir(args.plots))
     else:
+        if not 0.0 < args.range_noise < 1.0:
+            raise ValueError(f"--range-noise must be a fraction of the range in (0, 1), got {args.range_noise}")
         n_img = args.images or 180
         for k in range(args.trials):
             trials.append(mc.plate_trial(args.seed + k, n_modes=args.modes, kind=args.filter, n_images=n_img,
                                          dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots),
-                                         batch_ml_periods=args.batch_ml_at))
-        out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "trials": []}
+                                         noise_frac=args.range_noise, batch_ml_periods=args.batch_ml_at))
+        out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "range_noise": args.range_noise,
+               "trials": []}
         for tr in trials:
             out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
             print(f"seed {tr['seed']}: all freqs within 1 % after {tr['measurements_to_converge_1pct']} images "

@@ -63,3 +63,20 @@ def test_plate_run_compares_filter_with_batch_ml():
     assert row["freq_rel_err_max_excited_batch_ml"] < 0.05
     with pytest.raises(ValueError, match="needs 81 images; the run has 41"):
         mc.plate_trial(0, n_modes=10, kind="joint", n_images=41, batch_ml_periods=(2.0,))
+
+
+def test_cli_structure_with_range_noise_and_batch_ml(tmp_path, capsys):
+    import json
+
+    from bench import cli
+
+    out = tmp_path / "s.json"
+    assert cli.main(["modal", "--scenario", "structure", "--modes", "10", "--trials", "1", "--images", "41",
+                     "--filter", "joint", "--range-noise", "0.01", "--batch-ml-at", "1", "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    assert d["range_noise"] == 0.01
+    (row,) = d["batch_ml_summary"]
+    assert row["trials"] == 1 and row["images"] == 41
+    assert "filter / batch ML" in capsys.readouterr().out
+    assert cli.main(["modal", "--scenario", "structure", "--range-noise", "0"]) == 2
+    assert "--range-noise must be a fraction" in capsys.readouterr().err
