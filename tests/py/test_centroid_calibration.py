@@ -76,6 +76,21 @@ def test_faint_pass_detects_more_faint_blurred_spots_with_an_honest_sigma():
     assert 0.7 <= np.mean((e / s) ** 2) <= 1.45
 
 
+def test_fragment_whose_refinement_drifts_gets_a_wide_sigma():
+    # This seeded sample (seed 2, 60 images per blur, the calibration's check)
+    # holds a faint blurred spot that the plain threshold sees only as a
+    # 2-pixel noise fragment 1.5 px from its centre: the refinement drifts
+    # from it and the first estimate is kept. Its sigma must say it is that
+    # far off (z was 38 with the fragment's pixel-noise sigma).
+    d = cc.measure(cc.estimator(), seed=2, images=60)
+    det = d["detected"] > 0
+    z = np.hypot(d["err_u"], d["err_v"]) / d["sigma_model"]
+    wide = det & (d["sigma_model"] >= 1.5)
+    assert wide.sum() >= 1
+    assert np.all(d["sigma_noise"][wide] < 0.5)  # what their sigma was
+    assert np.max(z[det & (d["blur"] == 2.0)]) < 15.0
+
+
 def test_calibration_fit_recovers_the_flight_constants(spots):
     # Fitting the model to these spots gives the flight defaults back within
     # the fit's spread on this sample size (seeds 11 to 13: k 0.95 to 0.99,

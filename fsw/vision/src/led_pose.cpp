@@ -320,7 +320,8 @@ bool LedPoseEstimator::jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Qu
 // within 1.5 px of the first estimate, or a denominator is not positive.
 bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int l,
                                        int first_faint, double u0, double v0, double width_px, double sigma_w,
-                                       Blob& out) const {
+                                       Blob& out, bool& drifted) const {
+  drifted = false;
   constexpr int kRing = 2, kMinRing = 12, kMaxIter = 20;
   const int half = static_cast<int>(std::ceil(3.0 * sigma_w)) + 1;
   const int outer = half + kRing;
@@ -421,7 +422,10 @@ bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& label
     const double dv = hv > 0.1 * sw ? swv / hv : 2.0 * swv / sw;
     mu += du;
     mv += dv;
-    if (!(std::abs(mu - u0) < 1.5 && std::abs(mv - v0) < 1.5)) return false;
+    if (!(std::abs(mu - u0) < 1.5 && std::abs(mv - v0) < 1.5)) {
+      drifted = true;
+      return false;
+    }
     const int ncu = static_cast<int>(std::lround(mu)), ncv = static_cast<int>(std::lround(mv));
     if (ncu != cu || ncv != cv0) {
       cu = ncu;
@@ -555,18 +559,25 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray, bool faint_pass)
     const double sigma_w = std::clamp(width * (any_sat ? cfg_.centroid_weight_sat_scale : 1.0),
                                       cfg_.centroid_weight_min_px, cfg_.centroid_weight_max_px);
     blob.width_px = width;
-    if (cfg_.refine_centroid && refine_centroid(gray, labels, cents, l, first_faint, mu, mv, width, sigma_w, blob)) {
+    bool drifted = false;
+    if (cfg_.refine_centroid &&
+        refine_centroid(gray, labels, cents, l, first_faint, mu, mv, width, sigma_w, blob, drifted)) {
       blob.area_px = area;
       out.push_back(blob);
       faint.push_back(l >= first_faint);
       continue;
     }
-    // Fallback (window or ring cut by the image border; or refinement off):
+    // Fallback (window or ring cut by the image border, the refinement not
+    // settling or drifting; or refinement off):
     // the first estimate with its pixel-noise sigma.
     const double var_u = (snuu - 2.0 * mu * snu + mu * mu * sn) / (s * s);
     const double var_v = (snvv - 2.0 * mv * snv + mv * mv * sn) / (s * s);
-    const double sig = std::sqrt(std::max(var_u, var_v) + cfg_.centroid_floor_px * cfg_.centroid_floor_px);
-    out.push_back(Blob{mu, mv, s, area, sig, 0, sig, width});
+    const double sig_noise = std::sqrt(std::max(var_u, var_v) + cfg_.centroid_floor_px * cfg_.centroid_floor_px);
+    // A refinement that drifted 1.5 px away says the first estimate is off
+    // by that much (a fragment of a wider spot, its window cut): its pixel
+    // noise does not.
+    const double sig = drifted ? std::max(sig_noise, 1.5) : sig_noise;
+    out.push_back(Blob{mu, mv, s, area, sig, 0, sig_noise, width});
     faint.push_back(l >= first_faint);
   }
   add_crowding_sigma(out, faint, cfg_.centroid_weight_min_px, cfg_.centroid_weight_max_px);

@@ -212,8 +212,10 @@ class LedPoseEstimator {
  private:
   // first_faint: labels from here on are faint-pass spots (distinct maxima,
   // never absorbed as fragments of another spot).
+  // drifted: set when it failed because the iteration left the first
+  // estimate by 1.5 px or more (the first estimate is then that far off).
   bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, int first_faint,
-                       double u0, double v0, double width_px, double sigma_w, Blob& out) const;
+                       double u0, double v0, double width_px, double sigma_w, Blob& out, bool& drifted) const;
 
   LedPoseConfig cfg_;
   cv::Mat K_;
