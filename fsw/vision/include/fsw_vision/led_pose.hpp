@@ -2,7 +2,8 @@
 // host's LED pattern (docs/VISION.md).
 //
 // Pipeline: blob detection (local-background subtraction, threshold,
-// connected components, shape gates) -> identification of the five pattern
+// connected components, shape gates; a matched-filter pass for faint spots
+// when those blobs give no pose) -> identification of the five pattern
 // LEDs (four square corners plus an identifier on one edge, a quarter of the
 // way from corner 0 to corner 1; collinearity survives projection, so the
 // identifier marks the edge and its off-centre position the direction) ->
