@@ -56,6 +56,11 @@ Eigen::Quaterniond exp_q(const Eigen::Vector3d& phi) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(a, phi / a));
 }
 
+// The refined centroid may move this far from the first estimate [px]; a
+// refinement that goes further gives up, and the first estimate is then
+// known to be at least this far off.
+constexpr double kMaxRefineShiftPx = 1.5;
+
 // Faint spots (a blurred or distant LED whose peak stays under the plain
 // threshold): the background-subtracted image smoothed by a Gaussian about
 // as wide as a spot, a matched filter whose pixel noise is 1 / (2 sqrt(pi)
@@ -422,7 +427,7 @@ bool LedPoseEstimator::refine_centroid(const cv::Mat& gray, const cv::Mat& label
     const double dv = hv > 0.1 * sw ? swv / hv : 2.0 * swv / sw;
     mu += du;
     mv += dv;
-    if (!(std::abs(mu - u0) < 1.5 && std::abs(mv - v0) < 1.5)) {
+    if (!(std::abs(mu - u0) < kMaxRefineShiftPx && std::abs(mv - v0) < kMaxRefineShiftPx)) {
       drifted = true;
       return false;
     }
@@ -573,10 +578,10 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray, bool faint_pass)
     const double var_u = (snuu - 2.0 * mu * snu + mu * mu * sn) / (s * s);
     const double var_v = (snvv - 2.0 * mv * snv + mv * mv * sn) / (s * s);
     const double sig_noise = std::sqrt(std::max(var_u, var_v) + cfg_.centroid_floor_px * cfg_.centroid_floor_px);
-    // A refinement that drifted 1.5 px away says the first estimate is off
-    // by that much (a fragment of a wider spot, its window cut): its pixel
-    // noise does not.
-    const double sig = drifted ? std::max(sig_noise, 1.5) : sig_noise;
+    // A refinement that drifted away says the first estimate is off by that
+    // much (a fragment of a wider spot, its window cut): its pixel noise
+    // does not.
+    const double sig = drifted ? std::max(sig_noise, kMaxRefineShiftPx) : sig_noise;
     out.push_back(Blob{mu, mv, s, area, sig, 0, sig_noise, width});
     faint.push_back(l >= first_faint);
   }
