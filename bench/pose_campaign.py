@@ -25,6 +25,7 @@ from bench.plant import boxminus
 STATUSES = ["Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "DegenerateGeometry", "SolverFailed",
             "BadInput"]
 GROSS_NEES = float(chi2.ppf(0.9999, 6))  # beyond this an "Ok" pose is a gross error
+RANGE_BINS_M = (0.3, 1.0, 2.0, 3.0, 4.0, 5.0)  # camera to pattern, for the per-range summary
 
 
 def make_estimator(cam: cm.Camera | None = None, model_distortion: bool = True, pixel_sigma_px: float | None = None,
@@ -93,7 +94,24 @@ def summarise(cases: list[dict]) -> dict:
         )
         lo, hi = s["nees_mean_band95"]
         s["nees_in_band"] = bool(lo <= (s["nees_mean_without_gross"] or 0.0) <= hi)
+    s["by_range"] = by_range(cases)
     return s
+
+
+def by_range(cases: list[dict], edges=RANGE_BINS_M) -> list[dict]:
+    """Per range bin [lo, hi): cases, Ok poses, failures by reason and the
+    mean NEES of the Ok poses without gross errors."""
+    rows = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = [c for c in cases if lo <= c["range_m"] < hi]
+        ok = [c["nees"] for c in sel if c["status"] == "Ok" and c["nees"] <= GROSS_NEES]
+        fails = {}
+        for c in sel:
+            if c["status"] != "Ok":
+                fails[c["status"]] = fails.get(c["status"], 0) + 1
+        rows.append({"range_m": [lo, hi], "cases": len(sel), "ok": sum(c["status"] == "Ok" for c in sel),
+                     "failures_by_reason": fails, "nees_mean_without_gross": float(np.mean(ok)) if ok else None})
+    return rows
 
 
 def image_campaign(seed: int, runs: int, conditions: dict | None = None, cam: cm.Camera | None = None,

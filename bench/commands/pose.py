@@ -35,6 +35,12 @@ def _print(result):
                   f"{s['nees_mean_without_gross']:>9.2f} {band:>13} {s['gross_errors']:>5}  {s['failures_by_reason']}")
         else:
             print(f"{name:<9} {0:>4} {100 * s['failure_rate']:>6.1f}  {s['failures_by_reason']}")
+    print("Ok poses by range [m] (mean NEES without gross errors):")
+    for name, s in result["images"]["summary"].items():
+        cells = [f"{r['range_m'][0]:g}-{r['range_m'][1]:g} {r['ok']}/{r['cases']}"
+                 + (f" ({r['nees_mean_without_gross']:.2f})" if r["nees_mean_without_gross"] is not None else "")
+                 for r in s["by_range"]]
+        print(f"  {name:<9} " + ", ".join(cells))
     if "distortion" in result:
         print("unmodelled distortion: k1, median position error measured / predicted [mm], slope, corr")
         for r in result["distortion"]["rows"]:
