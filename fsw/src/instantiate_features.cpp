@@ -23,6 +23,8 @@ template bool line_model<float>(const DualQuat<float>&, const CameraMount<float>
                                 const Vec3<float>&, Vec2<float>&, Mat26<float>*);
 template struct LeaderOrbit<double>;
 template struct LeaderOrbit<float>;
+template class FeatureFilterBase<double, 4, 4, 2>;
+template class FeatureFilterBase<float, 4, 4, 2>;
 template class FeatureEkf<double, 4, 4, 2>;
 template class FeatureEkf<float, 4, 4, 2>;
 template class FeatureUkf<double, 4, 4, 2>;

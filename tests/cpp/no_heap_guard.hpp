@@ -1,55 +1,87 @@
 // Heap detector for the no-heap test builds. Include from exactly one
-// translation unit per test executable (it defines global operator new).
+// translation unit per test executable: it defines the C allocation
+// functions.
+//
+// The flight code under test is compiled once, in fsw_core (explicit
+// instantiations), not in the test's own translation unit, so a check that
+// lives in headers (Eigen's EIGEN_RUNTIME_NO_MALLOC) would not see it.
+// Instead the executable interposes malloc and its siblings (glibc resolves
+// every call to them, its own and other libraries' included, to the
+// executable's definitions) and counts each one made while a guard is
+// armed, then hands it to glibc's allocator. operator new, Eigen's aligned
+// allocations and std containers all come through here.
 #pragma once
 
 #include <atomic>
+#include <cerrno>
+#include <cstddef>
 #include <cstdlib>
-#include <new>
 
 #ifndef EIGEN_RUNTIME_NO_MALLOC
 #error "no_heap_guard.hpp needs EIGEN_RUNTIME_NO_MALLOC (name the test test_no_heap*.cpp)"
 #endif
 
 namespace no_heap_detail {
-inline std::atomic<long>& counter() {
-  static std::atomic<long> c{0};
-  return c;
-}
-inline std::atomic<bool>& armed() {
-  static std::atomic<bool> a{false};
-  return a;
+// Constant-initialised: safe to touch from malloc before main.
+inline std::atomic<long> g_count{0};
+inline std::atomic<bool> g_armed{false};
+inline void note() {
+  if (g_armed.load(std::memory_order_relaxed)) g_count.fetch_add(1, std::memory_order_relaxed);
 }
 }  // namespace no_heap_detail
 
-void* operator new(std::size_t n) {
-  if (no_heap_detail::armed().load()) no_heap_detail::counter().fetch_add(1);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void* operator new[](std::size_t n) {
-  if (no_heap_detail::armed().load()) no_heap_detail::counter().fetch_add(1);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+// glibc's allocator under its own names.
+extern "C" void* __libc_malloc(std::size_t n);
+extern "C" void* __libc_calloc(std::size_t count, std::size_t n);
+extern "C" void* __libc_realloc(void* p, std::size_t n);
+extern "C" void* __libc_memalign(std::size_t alignment, std::size_t n);
 
-// While alive: Eigen allocations abort (EIGEN_RUNTIME_NO_MALLOC) and any
-// operator new is counted.
+extern "C" void* malloc(std::size_t n) noexcept {
+  no_heap_detail::note();
+  return __libc_malloc(n);
+}
+extern "C" void* calloc(std::size_t count, std::size_t n) noexcept {
+  no_heap_detail::note();
+  return __libc_calloc(count, n);
+}
+extern "C" void* realloc(void* p, std::size_t n) noexcept {
+  no_heap_detail::note();
+  return __libc_realloc(p, n);
+}
+extern "C" void* aligned_alloc(std::size_t alignment, std::size_t n) noexcept {
+  no_heap_detail::note();
+  return __libc_memalign(alignment, n);
+}
+extern "C" void* memalign(std::size_t alignment, std::size_t n) noexcept {
+  no_heap_detail::note();
+  return __libc_memalign(alignment, n);
+}
+extern "C" int posix_memalign(void** out, std::size_t alignment, std::size_t n) noexcept {
+  no_heap_detail::note();
+  if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
+  void* p = __libc_memalign(alignment, n);
+  if (p == nullptr) return ENOMEM;
+  *out = p;
+  return 0;
+}
+
+// While alive: every allocation in the process is counted, and Eigen code
+// compiled in the test's own translation unit aborts on allocation
+// (EIGEN_RUNTIME_NO_MALLOC), which names the expression that allocated.
 class NoHeapGuard {
  public:
   explicit NoHeapGuard(bool eigen_forbid = true) : eigen_forbid_(eigen_forbid) {
-    start_ = no_heap_detail::counter().load();
-    no_heap_detail::armed().store(true);
+    start_ = no_heap_detail::g_count.load();
+    no_heap_detail::g_armed.store(true);
     if (eigen_forbid_) Eigen::internal::set_is_malloc_allowed(false);
   }
   ~NoHeapGuard() {
     if (eigen_forbid_) Eigen::internal::set_is_malloc_allowed(true);
-    no_heap_detail::armed().store(false);
+    no_heap_detail::g_armed.store(false);
   }
-  long allocations() const { return no_heap_detail::counter().load() - start_; }
+  NoHeapGuard(const NoHeapGuard&) = delete;
+  NoHeapGuard& operator=(const NoHeapGuard&) = delete;
+  long allocations() const { return no_heap_detail::g_count.load() - start_; }
 
  private:
   bool eigen_forbid_;

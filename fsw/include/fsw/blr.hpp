@@ -133,140 +133,27 @@ class BayesLinReg {
     reset();
   }
 
-  void reset() {
-    run_.clear();
-    fresh_.clear();
-    head_ = 0;
-    count_ = 0;
-    pre_epoch_ = 0;
-    refresh_count_ = 0;
-    dirty_ = true;
-    factor_ok_ = false;
-    theta_.setZero();
-    theta_stale_ = false;
-    l_.setIdentity();
-    inv_diag_.setOnes();
-    ct_.setZero();
-    sigma2_ = cfg_.noise_var;
-    xs_.setZero();
-    ys_.setZero();
-  }
+  void reset();
 
   // Enter one sample (x, y); evicts the oldest sample first if the window is full.
-  AddRecord add(const VecX& x, const VecY& y) {
-    AddRecord rec;
-    if (!x.allFinite() || !y.allFinite()) {
-      rec.status = BlrStatus::BadInput;
-      rec.count = count_;
-      return rec;
-    }
-    if (count_ == W) {
-      rec.refreshed = remove_oldest_impl();
-      rec.evicted = true;
-    }
-    const int slot = (head_ + count_) % W;
-    xs_.col(slot) = x;
-    ys_.col(slot) = y;
-    ++count_;
-    run_.add(x, y);
-    fresh_.add(x, y);
-    dirty_ = true;
-    rec.entered = true;
-    rec.count = count_;
-    return rec;
-  }
+  AddRecord add(const VecX& x, const VecY& y);
 
   // Remove the oldest sample (eqs. 19-20 with a minus sign). BadInput if empty.
-  BlrStatus remove_oldest() {
-    if (count_ == 0) return BlrStatus::BadInput;
-    remove_oldest_impl();
-    return BlrStatus::Ok;
-  }
+  BlrStatus remove_oldest();
 
   // Posterior predictive at x. Re-factors A only if the window changed.
-  Prediction predict(const VecX& x) {
-    Prediction p;
-    p.count = count_;
-    if (!x.allFinite()) {
-      p.status = BlrStatus::BadInput;
-      return p;
-    }
-    p.status = refresh_posterior();
-    if (!factor_ok_) {
-      // Never had a positive-definite A: no information about theta.
-      p.mean.setZero();
-      p.variance.setConstant(std::numeric_limits<S>::infinity());
-      p.noise_var = sigma2_;
-      p.leverage = std::numeric_limits<S>::infinity();
-      return p;
-    }
-    // On NotPosDef the last good posterior is used and the status says so.
-    // u = L^-1 x; mean = theta^T x = C^T u with C = L^-1 B; leverage = |u|^2.
-    VecX u;
-    forward_solve(l_, inv_diag_, x, u);
-    p.leverage = u.squaredNorm();
-    p.mean.noalias() = ct_ * u;
-    p.noise_var = sigma2_;
-    p.variance = sigma2_ * (S(1) + p.leverage);
-    return p;
-  }
+  Prediction predict(const VecX& x);
 
   // Factor A = L L^T and form C = L^-1 B if the window changed since the last
   // call (O(D^3 / 6 + D^2 K / 2)). On failure the previous posterior is kept
   // and NotPosDef returned.
-  BlrStatus refresh_posterior() {
-    if (!dirty_) return last_status_;
-    dirty_ = false;
-    MatA l;
-    VecX inv_diag;
-    if (!cholesky(run_.xx, cfg_.prior_precision, l, inv_diag)) {
-      last_status_ = BlrStatus::NotPosDef;
-      return last_status_;
-    }
-    l_ = l;
-    inv_diag_ = inv_diag;
-    // C^T = (L^-1 B)^T column by column: all K outputs at once per row of L.
-    for (int i = 0; i < D; ++i) {
-      VecY v = run_.xy.row(i).transpose();
-      for (int k = 0; k < i; ++k) v -= l_(i, k) * ct_.col(k);
-      ct_.col(i) = v * inv_diag_(i);
-    }
-    theta_stale_ = true;
-    factor_ok_ = true;
-    if (cfg_.estimate_noise && count_ > D) {
-      for (int k = 0; k < K; ++k) {
-        // Residual sum of squares plus the prior term: sum y^2 - B_k^T A^-1 B_k >= 0.
-        const S rss = run_.yy(k) - ct_.row(k).squaredNorm();
-        sigma2_(k) = rss > S(0) ? rss / S(count_ - D) : S(0);
-      }
-    } else {
-      sigma2_ = cfg_.noise_var;
-    }
-    last_status_ = BlrStatus::Ok;
-    return last_status_;
-  }
+  BlrStatus refresh_posterior();
 
   // Posterior mean of the weights theta = A^-1 B (D x K, column k = theta_k),
   // of the last successful refresh_posterior() (back substitution on demand).
-  const MatB& theta() const {
-    if (theta_stale_) {
-      for (int k = 0; k < K; ++k) {
-        for (int i = D - 1; i >= 0; --i) {
-          S v = ct_(k, i);
-          for (int j = i + 1; j < D; ++j) v -= l_(j, i) * theta_(j, k);
-          theta_(i, k) = v * inv_diag_(i);
-        }
-      }
-      theta_stale_ = false;
-    }
-    return theta_;
-  }
+  const MatB& theta() const;
   // The shared unscaled information matrix A = lambda I + sum x x^T.
-  MatA information() const {
-    MatA a = run_.xx;
-    a.diagonal().array() += cfg_.prior_precision;
-    return a;
-  }
+  MatA information() const;
   // The shared unscaled information vectors B = sum x y^T (D x K).
   const MatB& information_vectors() const { return run_.xy; }
   // Noise variances s_k^2 of the last refresh.
@@ -307,26 +194,7 @@ class BayesLinReg {
   // one column and updates the trailing block with contiguous inner loops;
   // D is small and fixed, so the loops unroll). False if a pivot is not
   // positive and finite.
-  static bool cholesky(const MatA& xx, S lambda, MatA& l, VecX& inv_diag) {
-    l = xx;
-    l.diagonal().array() += lambda;
-    for (int j = 0; j < D; ++j) {
-      const S d = l(j, j);
-      if (!(d > S(0)) || !std::isfinite(d)) return false;
-      const S ljj = std::sqrt(d);
-      const S inv = S(1) / ljj;
-      l(j, j) = ljj;
-      inv_diag(j) = inv;
-      for (int i = j + 1; i < D; ++i) l(i, j) *= inv;
-      for (int k = j + 1; k < D; ++k) {
-        const S lkj = l(k, j);
-        for (int i = k; i < D; ++i) l(i, k) -= l(i, j) * lkj;
-      }
-    }
-    for (int k = 1; k < D; ++k)
-      for (int i = 0; i < k; ++i) l(i, k) = S(0);
-    return true;
-  }
+  static bool cholesky(const MatA& xx, S lambda, MatA& l, VecX& inv_diag);
 
   // Solve L u = b (L lower triangular with reciprocal diagonal inv_diag).
   template <typename Vb>
@@ -339,36 +207,7 @@ class BayesLinReg {
   }
 
   // Returns true if the running sums were replaced by the fresh sums.
-  bool remove_oldest_impl() {
-    const int slot = head_;
-    head_ = (head_ + 1) % W;
-    --count_;
-    dirty_ = true;
-    if (count_ == 0) {
-      // Empty window: the sums are exactly zero.
-      run_.clear();
-      fresh_.clear();
-      pre_epoch_ = 0;
-      return false;
-    }
-    run_.sub(xs_.col(slot), ys_.col(slot));
-    if (pre_epoch_ == 0) {
-      // The removed sample was in the fresh sums: start a new epoch now; the
-      // running sums carry this one subtraction until the next refresh.
-      fresh_.clear();
-      pre_epoch_ = count_;
-      return false;
-    }
-    if (--pre_epoch_ == 0) {
-      // Every sample older than the epoch has left: fresh == window sums.
-      run_ = fresh_;
-      fresh_.clear();
-      pre_epoch_ = count_;
-      ++refresh_count_;
-      return true;
-    }
-    return false;
-  }
+  bool remove_oldest_impl();
 
   Config cfg_;
   Sums run_;    // running window sums (adds and subtractions)
@@ -390,11 +229,207 @@ class BayesLinReg {
   VecY sigma2_;
 };
 
+template <typename S, int D, int K, int W>
+void BayesLinReg<S, D, K, W>::reset() {
+  run_.clear();
+  fresh_.clear();
+  head_ = 0;
+  count_ = 0;
+  pre_epoch_ = 0;
+  refresh_count_ = 0;
+  dirty_ = true;
+  factor_ok_ = false;
+  theta_.setZero();
+  theta_stale_ = false;
+  l_.setIdentity();
+  inv_diag_.setOnes();
+  ct_.setZero();
+  sigma2_ = cfg_.noise_var;
+  xs_.setZero();
+  ys_.setZero();
+}
+
+template <typename S, int D, int K, int W>
+auto BayesLinReg<S, D, K, W>::add(const VecX& x, const VecY& y) -> AddRecord {
+  AddRecord rec;
+  if (!x.allFinite() || !y.allFinite()) {
+    rec.status = BlrStatus::BadInput;
+    rec.count = count_;
+    return rec;
+  }
+  if (count_ == W) {
+    rec.refreshed = remove_oldest_impl();
+    rec.evicted = true;
+  }
+  const int slot = (head_ + count_) % W;
+  xs_.col(slot) = x;
+  ys_.col(slot) = y;
+  ++count_;
+  run_.add(x, y);
+  fresh_.add(x, y);
+  dirty_ = true;
+  rec.entered = true;
+  rec.count = count_;
+  return rec;
+}
+
+template <typename S, int D, int K, int W>
+auto BayesLinReg<S, D, K, W>::remove_oldest() -> BlrStatus {
+  if (count_ == 0) return BlrStatus::BadInput;
+  remove_oldest_impl();
+  return BlrStatus::Ok;
+}
+
+template <typename S, int D, int K, int W>
+auto BayesLinReg<S, D, K, W>::predict(const VecX& x) -> Prediction {
+  Prediction p;
+  p.count = count_;
+  if (!x.allFinite()) {
+    p.status = BlrStatus::BadInput;
+    return p;
+  }
+  p.status = refresh_posterior();
+  if (!factor_ok_) {
+    // Never had a positive-definite A: no information about theta.
+    p.mean.setZero();
+    p.variance.setConstant(std::numeric_limits<S>::infinity());
+    p.noise_var = sigma2_;
+    p.leverage = std::numeric_limits<S>::infinity();
+    return p;
+  }
+  // On NotPosDef the last good posterior is used and the status says so.
+  // u = L^-1 x; mean = theta^T x = C^T u with C = L^-1 B; leverage = |u|^2.
+  VecX u;
+  forward_solve(l_, inv_diag_, x, u);
+  p.leverage = u.squaredNorm();
+  p.mean.noalias() = ct_ * u;
+  p.noise_var = sigma2_;
+  p.variance = sigma2_ * (S(1) + p.leverage);
+  return p;
+}
+
+template <typename S, int D, int K, int W>
+auto BayesLinReg<S, D, K, W>::refresh_posterior() -> BlrStatus {
+  if (!dirty_) return last_status_;
+  dirty_ = false;
+  MatA l;
+  VecX inv_diag;
+  if (!cholesky(run_.xx, cfg_.prior_precision, l, inv_diag)) {
+    last_status_ = BlrStatus::NotPosDef;
+    return last_status_;
+  }
+  l_ = l;
+  inv_diag_ = inv_diag;
+  // C^T = (L^-1 B)^T column by column: all K outputs at once per row of L.
+  for (int i = 0; i < D; ++i) {
+    VecY v = run_.xy.row(i).transpose();
+    for (int k = 0; k < i; ++k) v -= l_(i, k) * ct_.col(k);
+    ct_.col(i) = v * inv_diag_(i);
+  }
+  theta_stale_ = true;
+  factor_ok_ = true;
+  if (cfg_.estimate_noise && count_ > D) {
+    for (int k = 0; k < K; ++k) {
+      // Residual sum of squares plus the prior term: sum y^2 - B_k^T A^-1 B_k >= 0.
+      const S rss = run_.yy(k) - ct_.row(k).squaredNorm();
+      sigma2_(k) = rss > S(0) ? rss / S(count_ - D) : S(0);
+    }
+  } else {
+    sigma2_ = cfg_.noise_var;
+  }
+  last_status_ = BlrStatus::Ok;
+  return last_status_;
+}
+
+template <typename S, int D, int K, int W>
+auto BayesLinReg<S, D, K, W>::theta() const -> const MatB& {
+  if (theta_stale_) {
+    for (int k = 0; k < K; ++k) {
+      for (int i = D - 1; i >= 0; --i) {
+        S v = ct_(k, i);
+        for (int j = i + 1; j < D; ++j) v -= l_(j, i) * theta_(j, k);
+        theta_(i, k) = v * inv_diag_(i);
+      }
+    }
+    theta_stale_ = false;
+  }
+  return theta_;
+}
+
+template <typename S, int D, int K, int W>
+auto BayesLinReg<S, D, K, W>::information() const -> MatA {
+  MatA a = run_.xx;
+  a.diagonal().array() += cfg_.prior_precision;
+  return a;
+}
+
+template <typename S, int D, int K, int W>
+bool BayesLinReg<S, D, K, W>::cholesky(const MatA& xx, S lambda, MatA& l, VecX& inv_diag) {
+  l = xx;
+  l.diagonal().array() += lambda;
+  for (int j = 0; j < D; ++j) {
+    const S d = l(j, j);
+    if (!(d > S(0)) || !std::isfinite(d)) return false;
+    const S ljj = std::sqrt(d);
+    const S inv = S(1) / ljj;
+    l(j, j) = ljj;
+    inv_diag(j) = inv;
+    for (int i = j + 1; i < D; ++i) l(i, j) *= inv;
+    for (int k = j + 1; k < D; ++k) {
+      const S lkj = l(k, j);
+      for (int i = k; i < D; ++i) l(i, k) -= l(i, j) * lkj;
+    }
+  }
+  for (int k = 1; k < D; ++k)
+    for (int i = 0; i < k; ++i) l(i, k) = S(0);
+  return true;
+}
+
+template <typename S, int D, int K, int W>
+bool BayesLinReg<S, D, K, W>::remove_oldest_impl() {
+  const int slot = head_;
+  head_ = (head_ + 1) % W;
+  --count_;
+  dirty_ = true;
+  if (count_ == 0) {
+    // Empty window: the sums are exactly zero.
+    run_.clear();
+    fresh_.clear();
+    pre_epoch_ = 0;
+    return false;
+  }
+  run_.sub(xs_.col(slot), ys_.col(slot));
+  if (pre_epoch_ == 0) {
+    // The removed sample was in the fresh sums: start a new epoch now; the
+    // running sums carry this one subtraction until the next refresh.
+    fresh_.clear();
+    pre_epoch_ = count_;
+    return false;
+  }
+  if (--pre_epoch_ == 0) {
+    // Every sample older than the epoch has left: fresh == window sums.
+    run_ = fresh_;
+    fresh_.clear();
+    pre_epoch_ = count_;
+    ++refresh_count_;
+    return true;
+  }
+  return false;
+}
+
 // The thruster learner of seed 002: eight valves plus bias in, change in body
 // linear velocity [m/s] (3) and angular velocity [rad/s] (3) per firing out.
 template <typename S, int W = 30>
 using ThrusterBlr = BayesLinReg<S, ValveFeatures<S, false>::kDim, 6, W>;
 template <typename S, int W = 30>
 using ThrusterBlrPairs = BayesLinReg<S, ValveFeatures<S, true>::kDim, 6, W>;
+
+// Compiled once, in fsw_core (instantiate_blr.cpp); see nav_ukf.hpp.
+#ifndef FSW_IMPLICIT_INSTANTIATION
+extern template class BayesLinReg<double, 9, 6, 30>;
+extern template class BayesLinReg<float, 9, 6, 30>;
+extern template class BayesLinReg<double, 37, 6, 30>;
+extern template class BayesLinReg<float, 37, 6, 30>;
+#endif
 
 }  // namespace fsw

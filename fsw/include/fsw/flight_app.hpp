@@ -122,32 +122,14 @@ class FlightApp {
       : nav_cfg_(nav_cfg), nav_(nav_cfg), deframer_(Direction::ToFlight), framer_(Direction::FromFlight) {}
 
   // Consumes every byte; dispatches each accepted packet. Bounded by n.
-  void on_bytes(const std::uint8_t* data, std::size_t n) {
-    std::size_t used = 0;
-    while (used < n) {
-      DeframeResult res;
-      const std::size_t k = deframer_.feed(data + used, n - used, res);
-      used += k;
-      if (res.kind == DeframeResult::Kind::Packet) dispatch(res.packet);
-      if (k == 0) break;  // defensive: feed always consumes when bytes remain
-    }
-  }
+  void on_bytes(const std::uint8_t* data, std::size_t n);
 
   // Moves up to cap bytes of pending telemetry frames into out.
-  std::size_t take_tx(std::uint8_t* out, std::size_t cap) {
-    const std::size_t n = tx_len_ < cap ? tx_len_ : cap;
-    for (std::size_t i = 0; i < n; ++i) out[i] = tx_[i];
-    for (std::size_t i = n; i < tx_len_; ++i) tx_[i - n] = tx_[i];
-    tx_len_ -= n;
-    return n;
-  }
+  std::size_t take_tx(std::uint8_t* out, std::size_t cap);
   std::size_t tx_pending() const { return tx_len_; }
 
   // The platform reports how long the last on_bytes call took (housekeeping).
-  void note_step_cpu(double seconds) {
-    last_cpu_s_ = seconds;
-    if (seconds > max_cpu_s_) max_cpu_s_ = seconds;
-  }
+  void note_step_cpu(double seconds);
 
   const Nav& nav() const { return nav_; }
   const ThrusterBlr<S, 30>& learner() const { return learner_; }
@@ -156,223 +138,37 @@ class FlightApp {
   const Modal& modal() const { return modal_; }
 
  private:
-  void dispatch(const PacketView& p) {
-    switch (static_cast<Apid>(p.header.apid)) {
-      case Apid::ImuSample: return on_imu(p);
-      case Apid::LedPose: return on_pose(p);
-      case Apid::CmdReset: return on_reset(p);
-      case Apid::CmdConfig: return on_config(p);
-      case Apid::ThrusterValves: return on_valves(p);
-      case Apid::RangeImageSegment: return on_range_segment(p);
-      default: ++counters_.unhandled; return;
-    }
-  }
+  void dispatch(const PacketView& p);
 
-  void on_imu(const PacketView& p) {
-    ImuSampleMsg<S> m;
-    decode(p.payload, p.t_s, m);  // the deframer has checked finiteness
-    const typename Nav::Record rec = nav_.predict(p.t_s, m.accel_b_mps2, m.omega_bi_b_rps);
-    ++counters_.imu_steps;
-    report(StepKind::Predict, rec, p.t_s);
-    learn(p.t_s, m);
-    if (pending_.valid && nav_.initialized() && nav_.t_s() >= pending_.t_s - nav_cfg_.time_tol_s) {
-      pending_.valid = false;
-      typename Nav::Record prec;
-      const StepKind kind = apply_pose(pending_.t_s, pending_.r_hill_m, pending_.q_hb, pending_.R, prec);
-      report(kind, prec, nav_.t_s());
-    }
-    if (hk_every_ > 0 && counters_.imu_steps % hk_every_ == 0) housekeeping(p.t_s);
-  }
+  void on_imu(const PacketView& p);
 
-  void on_valves(const PacketView& p) {
-    ThrusterValvesMsg<S> m;
-    decode(p.payload, p.t_s, m);
-    ++counters_.valves;
-    valves_ = m;
-    valves_t_s_ = p.t_s;  // the double time tag (a float t_s loses the tick after hours)
-    valves_pending_ = true;
-  }
+  void on_valves(const PacketView& p);
 
   // The IMU sample whose interval is the held firing interval teaches the
   // learner that valve mask's effect; the gyro's change across the interval
   // is the dw (the previous sample is kept for it, and must be the one that
   // opened the interval: after a lost sample the dw would span two).
-  void learn(double t_s, const ImuSampleMsg<S>& m) {
-    const bool covers = valves_pending_ && valves_.valve_mask != 0 &&
-                        std::abs(t_s - valves_t_s_ - double(valves_.interval_s)) <= nav_cfg_.time_tol_s;
-    const bool prev_opens = have_prev_gyro_ && std::abs(prev_gyro_t_s_ - valves_t_s_) <= nav_cfg_.time_tol_s;
-    if (covers && prev_opens) {
-      valves_pending_ = false;
-      typename Learner::VecY y;
-      y.template head<3>() = m.accel_b_mps2 * valves_.interval_s;
-      y.template tail<3>() = m.omega_bi_b_rps - prev_gyro_;
-      const auto x = ValveFeatures<S>::from_mask(valves_.valve_mask);
-      const auto add = learner_.add(x, y);
-      if (add.status == StepStatus::Ok) ++counters_.learner_samples;
-      const auto pred = learner_.predict(x);
-      TmLearnerMsg<S> tm;
-      tm.n_samples = static_cast<std::uint32_t>(pred.count);
-      tm.status = static_cast<std::uint32_t>(pred.status);
-      tm.dv_b_mps = pred.mean.template head<3>();
-      tm.dw_b_rps = pred.mean.template tail<3>();
-      tm.variance = pred.variance;
-      send(Apid::TmLearner, tm, t_s);
-    } else if (valves_pending_ && t_s > valves_t_s_ + double(valves_.interval_s) + nav_cfg_.time_tol_s) {
-      valves_pending_ = false;  // its interval's IMU sample never came
-    }
-    prev_gyro_ = m.omega_bi_b_rps;
-    prev_gyro_t_s_ = t_s;
-    have_prev_gyro_ = true;
-  }
+  void learn(double t_s, const ImuSampleMsg<S>& m);
 
-  void on_pose(const PacketView& p) {
-    LedPoseMsg<S> m;
-    decode(p.payload, p.t_s, m);
-    const S r_sigma = m.r_sigma_m > S(0) ? m.r_sigma_m : pose_pos_fraction_ * m.r_hill_m.norm();
-    const S a_sigma = m.att_sigma_rad > S(0) ? m.att_sigma_rad : pose_att_sigma_;
-    typename Nav::MeasCov R = Nav::MeasCov::Zero();
-    R.diagonal().template head<3>().setConstant(r_sigma * r_sigma);
-    R.diagonal().template tail<3>().setConstant(a_sigma * a_sigma);
-    typename Nav::Record rec;
-    const StepKind kind = apply_pose(p.t_s, m.r_hill_m, m.q_hb, R, rec);
-    ++counters_.pose_updates;
-    // The pose and IMU streams are independent: a pose may arrive before the
-    // IMU sample of its capture tick (or that sample may be lost and bridged
-    // by the next one). Such a pose, up to max_dt_s ahead, waits in one slot
-    // (a newer one replaces it) and is fused after the predict that reaches
-    // its tick; this step answers with the from_future record.
-    if (rec.status == StepStatus::BadInput && rec.detail == StepDetail::FromFuture && nav_.initialized() &&
-        p.t_s - nav_.t_s() <= nav_cfg_.max_dt_s) {
-      pending_.valid = true;
-      pending_.t_s = p.t_s;
-      pending_.r_hill_m = m.r_hill_m;
-      pending_.q_hb = m.q_hb;
-      pending_.R = R;
-      ++counters_.poses_deferred;
-    }
-    report(kind, rec, nav_.initialized() ? nav_.t_s() : p.t_s);
-  }
+  void on_pose(const PacketView& p);
 
   // One pose into the filter: a correction, or a re-acquisition when the
   // filter is lost or has rejected enough agreeing poses in a row.
   StepKind apply_pose(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
-                      typename Nav::Record& rec) {
-    if (nav_.initialized() && lost()) return reacquire(t_s, r, q, R, rec);
-    rec = nav_.update_pose(t_s, r, q, R);
-    if (rec.fused) {
-      ++counters_.pose_fused;
-      rejected_.n = 0;
-      return StepKind::PoseUpdate;
-    }
-    if (rec.status == StepStatus::Gated || rec.status == StepStatus::NotPosDef) {
-      note_rejected(t_s, r, q, R);
-      if (reacquire_after_ > 0 && rejected_.n >= reacquire_after_) return reacquire(t_s, r, q, R, rec);
-    }
-    return StepKind::PoseUpdate;
-  }
+                      typename Nav::Record& rec);
 
   StepKind reacquire(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
-                     typename Nav::Record& rec) {
-    rec = nav_.reacquire(t_s, r, q, R);
-    if (rec.status == StepStatus::Ok) {
-      ++counters_.reacquisitions;
-      rejected_.n = 0;
-    }
-    return StepKind::Reacquire;
-  }
+                     typename Nav::Record& rec);
 
-  bool lost() const {
-    const auto d = nav_.P().diagonal();
-    const S pos_var = d.template segment<3>(0).maxCoeff();
-    const S att_var = d.template segment<3>(6).maxCoeff();
-    return (lost_pos_sigma_ > S(0) && pos_var > lost_pos_sigma_ * lost_pos_sigma_) ||
-           (lost_att_sigma_ > S(0) && att_var > lost_att_sigma_ * lost_att_sigma_);
-  }
+  bool lost() const;
 
   // A rejected pose extends the run of rejected poses when it agrees with
   // the previous one, else starts a new run.
-  void note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R) {
-    const S r_var = R.diagonal().template head<3>().maxCoeff();
-    const S a_var = R.diagonal().template tail<3>().maxCoeff();
-    bool agrees = false;
-    if (rejected_.n > 0) {
-      const S dt = S(std::abs(t_s - rejected_.t_s));
-      const S dr = (r - rejected_.r).norm();
-      const S da = boxminus(normalized(q), rejected_.q).norm();
-      agrees = dr <= S(4) * std::sqrt(r_var + rejected_.r_var) + S(kReacquireMaxSpeed) * dt &&
-               da <= S(4) * std::sqrt(a_var + rejected_.a_var) + S(kReacquireMaxRate) * dt;
-    }
-    rejected_.n = agrees ? rejected_.n + 1 : 1;
-    rejected_.t_s = t_s;
-    rejected_.r = r;
-    rejected_.q = normalized(q);
-    rejected_.r_var = r_var;
-    rejected_.a_var = a_var;
-  }
+  void note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R);
 
-  void on_reset(const PacketView& p) {
-    CmdResetMsg<S> m;
-    decode(p.payload, p.t_s, m);
-    ++counters_.resets;
-    if (m.target_mask & 0x8u) deframer_.reset_counters();
-    if (m.target_mask & 0x2u) {
-      learner_.reset();
-      valves_pending_ = false;
-      have_prev_gyro_ = false;
-    }
-    if (m.target_mask & 0x4u) modal_.configure(modal_cfg_);  // checked when set
-    if (!(m.target_mask & 0x1u)) return;
-    nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
-    pending_.valid = false;
-    rejected_.n = 0;
-    typename Nav::State x0;
-    x0.r_hill_m = m.r_hill_m;
-    x0.v_hill_mps = m.v_hill_mps;
-    x0.q_hb = m.q_hb;
-    typename Nav::Cov P0 = Nav::Cov::Zero();
-    P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
-    P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
-    P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
-    const typename Nav::Record rec = nav_.init(p.t_s, x0, P0);
-    report(StepKind::Reset, rec, p.t_s);
-  }
+  void on_reset(const PacketView& p);
 
-  void on_config(const PacketView& p) {
-    CmdConfigMsg<S> m;
-    decode(p.payload, p.t_s, m);
-    switch (static_cast<ConfigParam>(m.param_id)) {
-      case ConfigParam::PosePosFraction:
-        if (m.value > S(0)) { pose_pos_fraction_ = m.value; return; }
-        break;
-      case ConfigParam::PoseAttSigmaRad:
-        if (m.value > S(0)) { pose_att_sigma_ = m.value; return; }
-        break;
-      case ConfigParam::HousekeepingEvery:
-        if (m.value >= S(0) && m.value <= S(100000)) { hk_every_ = static_cast<std::uint32_t>(m.value); return; }
-        break;
-      case ConfigParam::NavAccelSigma: return set_nav(nav_cfg_.accel_sigma_mps2, m.value);
-      case ConfigParam::NavGyroSigma: return set_nav(nav_cfg_.gyro_sigma_rps, m.value);
-      case ConfigParam::NavGateChi2: nav_cfg_.gate_chi2 = m.value; return;
-      case ConfigParam::NavMaxDelay: return set_nav(nav_cfg_.max_delay_s, m.value);
-      case ConfigParam::NavOrbitRate: return set_nav(nav_cfg_.n_radps, m.value);
-      case ConfigParam::NavDtImu: return set_nav(nav_cfg_.dt_imu_s, m.value);
-      case ConfigParam::ReacquireAfterPoses:
-        if (m.value >= S(0) && m.value <= S(1000)) { reacquire_after_ = static_cast<std::uint32_t>(m.value); return; }
-        break;
-      case ConfigParam::ReacquireLostPosSigma:
-        if (m.value >= S(0)) { lost_pos_sigma_ = m.value; return; }
-        break;
-      case ConfigParam::ReacquireLostAttSigma:
-        if (m.value >= S(0)) { lost_att_sigma_ = m.value; return; }
-        break;
-      case ConfigParam::ModalPlateLx: return set_modal(modal_cfg_.plate.lx_m, m.value);
-      case ConfigParam::ModalPlateLy: return set_modal(modal_cfg_.plate.ly_m, m.value);
-      case ConfigParam::ModalPeriod1: return set_modal(modal_cfg_.plate.period1_s, m.value);
-      case ConfigParam::ModalPeak1: return set_modal(modal_cfg_.plate.peak1_m, m.value);
-      case ConfigParam::ModalPriorOmegaFrac: return set_modal(modal_cfg_.prior_omega_frac, m.value);
-    }
-    ++counters_.configs_rejected;
-  }
+  void on_config(const PacketView& p);
 
   // A setting that the filter would reject (checked again at reset) is
   // refused here and counted.
@@ -386,93 +182,18 @@ class FlightApp {
     }
   }
 
-  void set_modal(double& field, S value) {
-    const double old = field;
-    field = double(value);
-    if (modal_tracker_config_invalid_field(modal_cfg_) != nullptr) {
-      field = old;
-      ++counters_.configs_rejected;
-    }
-  }
+  void set_modal(double& field, S value);
 
-  void on_range_segment(const PacketView& p) {
-    RangeImageSegmentMsg<S> m;
-    decode(p.payload, p.t_s, p.header.seq_flags, m);  // the deframer has checked fields and finiteness
-    typename Modal::Report rep;
-    if (modal_.close_other(m.image_id, rep)) report_modal(rep);
-    if (modal_.add(m, p.t_s, rep)) report_modal(rep);
-  }
+  void on_range_segment(const PacketView& p);
 
-  void report_modal(const typename Modal::Report& r) {
-    TmModalMsg<S> tm;
-    tm.image_id = r.image_id;
-    tm.status = static_cast<std::uint8_t>(r.step.status);
-    tm.decomposition = static_cast<std::uint8_t>(r.decomposition.status);
-    tm.fused = r.step.fused ? 1 : 0;
-    tm.n_used = static_cast<std::uint32_t>(r.decomposition.n_used);
-    tm.n_skipped = static_cast<std::uint32_t>(r.decomposition.n_nonfinite + r.decomposition.n_bad_variance +
-                                              r.n_outside);
-    const S emax = r.decomposition.eig_max, emin = r.decomposition.eig_min;
-    tm.rcond = emax > S(0) && emin > S(0) && std::isfinite(emax) ? emin / emax : S(0);
-    tm.nis = r.step.nis;
-    const auto& filt = modal_.filter();
-    if (filt.initialized()) {
-      tm.n_modes = static_cast<std::uint8_t>(kModalModes);
-      for (int i = 0; i < kModalModes; ++i) {
-        const auto x = filt.mode_state(i);
-        tm.amplitude(i) = x(0);
-        tm.omega_radps(i) = x(2);
-        tm.alpha_ps(i) = x(3);
-        tm.amplitude_sigma(i) = std::sqrt(filt.mode_cov(i)(0, 0));
-      }
-    }
-    send(Apid::TmModal, tm, r.t_s);
-  }
+  void report_modal(const typename Modal::Report& r);
 
   // tm_innovation (the step record), then the estimate and the covariance
   // diagonal, all tagged with the filter time t_s (a late pose's capture
   // time would make the telemetry time tags run backwards).
-  void report(StepKind kind, const typename Nav::Record& rec, double t_s) {
-    TmInnovationMsg<S> inn;
-    inn.step_kind = static_cast<std::uint8_t>(kind);
-    inn.status = static_cast<std::uint8_t>(rec.status);
-    inn.fused = rec.fused ? 1 : 0;
-    inn.meas_dim = kind == StepKind::PoseUpdate ? 6 : 0;
-    inn.step_index = ++step_index_;
-    inn.innovation = rec.innovation;
-    inn.nis = rec.nis;
-    inn.log_likelihood = rec.log_likelihood;
-    send(Apid::TmInnovation, inn, t_s);
-    if (!nav_.initialized()) return;
-    TmEstimateMsg<S> est;
-    est.r_hill_m = nav_.state().r_hill_m;
-    est.v_hill_mps = nav_.state().v_hill_mps;
-    est.q_hb = nav_.state().q_hb;
-    send(Apid::TmEstimate, est, t_s);
-    TmCovarianceDiagMsg<S> cov;
-    cov.n_valid = Nav::kN;
-    cov.p_diag.template head<Nav::kN>() = nav_.P().diagonal();
-    send(Apid::TmCovarianceDiag, cov, t_s);
-  }
+  void report(StepKind kind, const typename Nav::Record& rec, double t_s);
 
-  void housekeeping(double t_s) {
-    const LinkCounters& c = deframer_.counters();
-    TmLinkCountersMsg lc;
-    lc.packets_accepted = c.packets_accepted;
-    lc.frames_total = c.frames_total;
-    lc.seq_gaps_total = c.gaps_total();
-    lc.duplicates_total = c.duplicates_total();
-    for (std::size_t i = 0; i < kRejectReasonCount; ++i) lc.rejected[i] = c.rejected[i];
-    send(Apid::TmLinkCounters, lc, t_s);
-    TmHousekeepingMsg<S> hk;
-    hk.uptime_s = S(t_s);
-    hk.last_step_cpu_s = S(last_cpu_s_);
-    hk.max_step_cpu_s = S(max_cpu_s_);
-    hk.cycle_count = counters_.imu_steps;
-    hk.mode = nav_.initialized() ? 1u : 0u;
-    hk.tx_packets = counters_.tx_packets;
-    send(Apid::TmHousekeeping, hk, t_s);
-  }
+  void housekeeping(double t_s);
 
   template <typename Msg>
   void send(Apid apid, const Msg& msg, double t_s) {
@@ -536,5 +257,349 @@ class FlightApp {
   double last_cpu_s_ = 0.0;
   double max_cpu_s_ = 0.0;
 };
+
+template <typename S>
+void FlightApp<S>::on_bytes(const std::uint8_t* data, std::size_t n) {
+  std::size_t used = 0;
+  while (used < n) {
+    DeframeResult res;
+    const std::size_t k = deframer_.feed(data + used, n - used, res);
+    used += k;
+    if (res.kind == DeframeResult::Kind::Packet) dispatch(res.packet);
+    if (k == 0) break;  // defensive: feed always consumes when bytes remain
+  }
+}
+
+template <typename S>
+std::size_t FlightApp<S>::take_tx(std::uint8_t* out, std::size_t cap) {
+  const std::size_t n = tx_len_ < cap ? tx_len_ : cap;
+  for (std::size_t i = 0; i < n; ++i) out[i] = tx_[i];
+  for (std::size_t i = n; i < tx_len_; ++i) tx_[i - n] = tx_[i];
+  tx_len_ -= n;
+  return n;
+}
+
+template <typename S>
+void FlightApp<S>::note_step_cpu(double seconds) {
+  last_cpu_s_ = seconds;
+  if (seconds > max_cpu_s_) max_cpu_s_ = seconds;
+}
+
+template <typename S>
+void FlightApp<S>::dispatch(const PacketView& p) {
+  switch (static_cast<Apid>(p.header.apid)) {
+    case Apid::ImuSample: return on_imu(p);
+    case Apid::LedPose: return on_pose(p);
+    case Apid::CmdReset: return on_reset(p);
+    case Apid::CmdConfig: return on_config(p);
+    case Apid::ThrusterValves: return on_valves(p);
+    case Apid::RangeImageSegment: return on_range_segment(p);
+    default: ++counters_.unhandled; return;
+  }
+}
+
+template <typename S>
+void FlightApp<S>::on_imu(const PacketView& p) {
+  ImuSampleMsg<S> m;
+  decode(p.payload, p.t_s, m);  // the deframer has checked finiteness
+  const typename Nav::Record rec = nav_.predict(p.t_s, m.accel_b_mps2, m.omega_bi_b_rps);
+  ++counters_.imu_steps;
+  report(StepKind::Predict, rec, p.t_s);
+  learn(p.t_s, m);
+  if (pending_.valid && nav_.initialized() && nav_.t_s() >= pending_.t_s - nav_cfg_.time_tol_s) {
+    pending_.valid = false;
+    typename Nav::Record prec;
+    const StepKind kind = apply_pose(pending_.t_s, pending_.r_hill_m, pending_.q_hb, pending_.R, prec);
+    report(kind, prec, nav_.t_s());
+  }
+  if (hk_every_ > 0 && counters_.imu_steps % hk_every_ == 0) housekeeping(p.t_s);
+}
+
+template <typename S>
+void FlightApp<S>::on_valves(const PacketView& p) {
+  ThrusterValvesMsg<S> m;
+  decode(p.payload, p.t_s, m);
+  ++counters_.valves;
+  valves_ = m;
+  valves_t_s_ = p.t_s;  // the double time tag (a float t_s loses the tick after hours)
+  valves_pending_ = true;
+}
+
+template <typename S>
+void FlightApp<S>::learn(double t_s, const ImuSampleMsg<S>& m) {
+  const bool covers = valves_pending_ && valves_.valve_mask != 0 &&
+                      std::abs(t_s - valves_t_s_ - double(valves_.interval_s)) <= nav_cfg_.time_tol_s;
+  const bool prev_opens = have_prev_gyro_ && std::abs(prev_gyro_t_s_ - valves_t_s_) <= nav_cfg_.time_tol_s;
+  if (covers && prev_opens) {
+    valves_pending_ = false;
+    typename Learner::VecY y;
+    y.template head<3>() = m.accel_b_mps2 * valves_.interval_s;
+    y.template tail<3>() = m.omega_bi_b_rps - prev_gyro_;
+    const auto x = ValveFeatures<S>::from_mask(valves_.valve_mask);
+    const auto add = learner_.add(x, y);
+    if (add.status == StepStatus::Ok) ++counters_.learner_samples;
+    const auto pred = learner_.predict(x);
+    TmLearnerMsg<S> tm;
+    tm.n_samples = static_cast<std::uint32_t>(pred.count);
+    tm.status = static_cast<std::uint32_t>(pred.status);
+    tm.dv_b_mps = pred.mean.template head<3>();
+    tm.dw_b_rps = pred.mean.template tail<3>();
+    tm.variance = pred.variance;
+    send(Apid::TmLearner, tm, t_s);
+  } else if (valves_pending_ && t_s > valves_t_s_ + double(valves_.interval_s) + nav_cfg_.time_tol_s) {
+    valves_pending_ = false;  // its interval's IMU sample never came
+  }
+  prev_gyro_ = m.omega_bi_b_rps;
+  prev_gyro_t_s_ = t_s;
+  have_prev_gyro_ = true;
+}
+
+template <typename S>
+void FlightApp<S>::on_pose(const PacketView& p) {
+  LedPoseMsg<S> m;
+  decode(p.payload, p.t_s, m);
+  const S r_sigma = m.r_sigma_m > S(0) ? m.r_sigma_m : pose_pos_fraction_ * m.r_hill_m.norm();
+  const S a_sigma = m.att_sigma_rad > S(0) ? m.att_sigma_rad : pose_att_sigma_;
+  typename Nav::MeasCov R = Nav::MeasCov::Zero();
+  R.diagonal().template head<3>().setConstant(r_sigma * r_sigma);
+  R.diagonal().template tail<3>().setConstant(a_sigma * a_sigma);
+  typename Nav::Record rec;
+  const StepKind kind = apply_pose(p.t_s, m.r_hill_m, m.q_hb, R, rec);
+  ++counters_.pose_updates;
+  // The pose and IMU streams are independent: a pose may arrive before the
+  // IMU sample of its capture tick (or that sample may be lost and bridged
+  // by the next one). Such a pose, up to max_dt_s ahead, waits in one slot
+  // (a newer one replaces it) and is fused after the predict that reaches
+  // its tick; this step answers with the from_future record.
+  if (rec.status == StepStatus::BadInput && rec.detail == StepDetail::FromFuture && nav_.initialized() &&
+      p.t_s - nav_.t_s() <= nav_cfg_.max_dt_s) {
+    pending_.valid = true;
+    pending_.t_s = p.t_s;
+    pending_.r_hill_m = m.r_hill_m;
+    pending_.q_hb = m.q_hb;
+    pending_.R = R;
+    ++counters_.poses_deferred;
+  }
+  report(kind, rec, nav_.initialized() ? nav_.t_s() : p.t_s);
+}
+
+template <typename S>
+auto FlightApp<S>::apply_pose(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
+                              typename Nav::Record& rec) -> StepKind {
+  if (nav_.initialized() && lost()) return reacquire(t_s, r, q, R, rec);
+  rec = nav_.update_pose(t_s, r, q, R);
+  if (rec.fused) {
+    ++counters_.pose_fused;
+    rejected_.n = 0;
+    return StepKind::PoseUpdate;
+  }
+  if (rec.status == StepStatus::Gated || rec.status == StepStatus::NotPosDef) {
+    note_rejected(t_s, r, q, R);
+    if (reacquire_after_ > 0 && rejected_.n >= reacquire_after_) return reacquire(t_s, r, q, R, rec);
+  }
+  return StepKind::PoseUpdate;
+}
+
+template <typename S>
+auto FlightApp<S>::reacquire(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
+                             typename Nav::Record& rec) -> StepKind {
+  rec = nav_.reacquire(t_s, r, q, R);
+  if (rec.status == StepStatus::Ok) {
+    ++counters_.reacquisitions;
+    rejected_.n = 0;
+  }
+  return StepKind::Reacquire;
+}
+
+template <typename S>
+bool FlightApp<S>::lost() const {
+  const auto d = nav_.P().diagonal();
+  const S pos_var = d.template segment<3>(0).maxCoeff();
+  const S att_var = d.template segment<3>(6).maxCoeff();
+  return (lost_pos_sigma_ > S(0) && pos_var > lost_pos_sigma_ * lost_pos_sigma_) ||
+         (lost_att_sigma_ > S(0) && att_var > lost_att_sigma_ * lost_att_sigma_);
+}
+
+template <typename S>
+void FlightApp<S>::note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R) {
+  const S r_var = R.diagonal().template head<3>().maxCoeff();
+  const S a_var = R.diagonal().template tail<3>().maxCoeff();
+  bool agrees = false;
+  if (rejected_.n > 0) {
+    const S dt = S(std::abs(t_s - rejected_.t_s));
+    const S dr = (r - rejected_.r).norm();
+    const S da = boxminus(normalized(q), rejected_.q).norm();
+    agrees = dr <= S(4) * std::sqrt(r_var + rejected_.r_var) + S(kReacquireMaxSpeed) * dt &&
+             da <= S(4) * std::sqrt(a_var + rejected_.a_var) + S(kReacquireMaxRate) * dt;
+  }
+  rejected_.n = agrees ? rejected_.n + 1 : 1;
+  rejected_.t_s = t_s;
+  rejected_.r = r;
+  rejected_.q = normalized(q);
+  rejected_.r_var = r_var;
+  rejected_.a_var = a_var;
+}
+
+template <typename S>
+void FlightApp<S>::on_reset(const PacketView& p) {
+  CmdResetMsg<S> m;
+  decode(p.payload, p.t_s, m);
+  ++counters_.resets;
+  if (m.target_mask & 0x8u) deframer_.reset_counters();
+  if (m.target_mask & 0x2u) {
+    learner_.reset();
+    valves_pending_ = false;
+    have_prev_gyro_ = false;
+  }
+  if (m.target_mask & 0x4u) modal_.configure(modal_cfg_);  // checked when set
+  if (!(m.target_mask & 0x1u)) return;
+  nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
+  pending_.valid = false;
+  rejected_.n = 0;
+  typename Nav::State x0;
+  x0.r_hill_m = m.r_hill_m;
+  x0.v_hill_mps = m.v_hill_mps;
+  x0.q_hb = m.q_hb;
+  typename Nav::Cov P0 = Nav::Cov::Zero();
+  P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
+  P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
+  P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
+  const typename Nav::Record rec = nav_.init(p.t_s, x0, P0);
+  report(StepKind::Reset, rec, p.t_s);
+}
+
+template <typename S>
+void FlightApp<S>::on_config(const PacketView& p) {
+  CmdConfigMsg<S> m;
+  decode(p.payload, p.t_s, m);
+  switch (static_cast<ConfigParam>(m.param_id)) {
+    case ConfigParam::PosePosFraction:
+      if (m.value > S(0)) { pose_pos_fraction_ = m.value; return; }
+      break;
+    case ConfigParam::PoseAttSigmaRad:
+      if (m.value > S(0)) { pose_att_sigma_ = m.value; return; }
+      break;
+    case ConfigParam::HousekeepingEvery:
+      if (m.value >= S(0) && m.value <= S(100000)) { hk_every_ = static_cast<std::uint32_t>(m.value); return; }
+      break;
+    case ConfigParam::NavAccelSigma: return set_nav(nav_cfg_.accel_sigma_mps2, m.value);
+    case ConfigParam::NavGyroSigma: return set_nav(nav_cfg_.gyro_sigma_rps, m.value);
+    case ConfigParam::NavGateChi2: nav_cfg_.gate_chi2 = m.value; return;
+    case ConfigParam::NavMaxDelay: return set_nav(nav_cfg_.max_delay_s, m.value);
+    case ConfigParam::NavOrbitRate: return set_nav(nav_cfg_.n_radps, m.value);
+    case ConfigParam::NavDtImu: return set_nav(nav_cfg_.dt_imu_s, m.value);
+    case ConfigParam::ReacquireAfterPoses:
+      if (m.value >= S(0) && m.value <= S(1000)) { reacquire_after_ = static_cast<std::uint32_t>(m.value); return; }
+      break;
+    case ConfigParam::ReacquireLostPosSigma:
+      if (m.value >= S(0)) { lost_pos_sigma_ = m.value; return; }
+      break;
+    case ConfigParam::ReacquireLostAttSigma:
+      if (m.value >= S(0)) { lost_att_sigma_ = m.value; return; }
+      break;
+    case ConfigParam::ModalPlateLx: return set_modal(modal_cfg_.plate.lx_m, m.value);
+    case ConfigParam::ModalPlateLy: return set_modal(modal_cfg_.plate.ly_m, m.value);
+    case ConfigParam::ModalPeriod1: return set_modal(modal_cfg_.plate.period1_s, m.value);
+    case ConfigParam::ModalPeak1: return set_modal(modal_cfg_.plate.peak1_m, m.value);
+    case ConfigParam::ModalPriorOmegaFrac: return set_modal(modal_cfg_.prior_omega_frac, m.value);
+  }
+  ++counters_.configs_rejected;
+}
+
+template <typename S>
+void FlightApp<S>::set_modal(double& field, S value) {
+  const double old = field;
+  field = double(value);
+  if (modal_tracker_config_invalid_field(modal_cfg_) != nullptr) {
+    field = old;
+    ++counters_.configs_rejected;
+  }
+}
+
+template <typename S>
+void FlightApp<S>::on_range_segment(const PacketView& p) {
+  RangeImageSegmentMsg<S> m;
+  decode(p.payload, p.t_s, p.header.seq_flags, m);  // the deframer has checked fields and finiteness
+  typename Modal::Report rep;
+  if (modal_.close_other(m.image_id, rep)) report_modal(rep);
+  if (modal_.add(m, p.t_s, rep)) report_modal(rep);
+}
+
+template <typename S>
+void FlightApp<S>::report_modal(const typename Modal::Report& r) {
+  TmModalMsg<S> tm;
+  tm.image_id = r.image_id;
+  tm.status = static_cast<std::uint8_t>(r.step.status);
+  tm.decomposition = static_cast<std::uint8_t>(r.decomposition.status);
+  tm.fused = r.step.fused ? 1 : 0;
+  tm.n_used = static_cast<std::uint32_t>(r.decomposition.n_used);
+  tm.n_skipped = static_cast<std::uint32_t>(r.decomposition.n_nonfinite + r.decomposition.n_bad_variance +
+                                            r.n_outside);
+  const S emax = r.decomposition.eig_max, emin = r.decomposition.eig_min;
+  tm.rcond = emax > S(0) && emin > S(0) && std::isfinite(emax) ? emin / emax : S(0);
+  tm.nis = r.step.nis;
+  const auto& filt = modal_.filter();
+  if (filt.initialized()) {
+    tm.n_modes = static_cast<std::uint8_t>(kModalModes);
+    for (int i = 0; i < kModalModes; ++i) {
+      const auto x = filt.mode_state(i);
+      tm.amplitude(i) = x(0);
+      tm.omega_radps(i) = x(2);
+      tm.alpha_ps(i) = x(3);
+      tm.amplitude_sigma(i) = std::sqrt(filt.mode_cov(i)(0, 0));
+    }
+  }
+  send(Apid::TmModal, tm, r.t_s);
+}
+
+template <typename S>
+void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec, double t_s) {
+  TmInnovationMsg<S> inn;
+  inn.step_kind = static_cast<std::uint8_t>(kind);
+  inn.status = static_cast<std::uint8_t>(rec.status);
+  inn.fused = rec.fused ? 1 : 0;
+  inn.meas_dim = kind == StepKind::PoseUpdate ? 6 : 0;
+  inn.step_index = ++step_index_;
+  inn.innovation = rec.innovation;
+  inn.nis = rec.nis;
+  inn.log_likelihood = rec.log_likelihood;
+  send(Apid::TmInnovation, inn, t_s);
+  if (!nav_.initialized()) return;
+  TmEstimateMsg<S> est;
+  est.r_hill_m = nav_.state().r_hill_m;
+  est.v_hill_mps = nav_.state().v_hill_mps;
+  est.q_hb = nav_.state().q_hb;
+  send(Apid::TmEstimate, est, t_s);
+  TmCovarianceDiagMsg<S> cov;
+  cov.n_valid = Nav::kN;
+  cov.p_diag.template head<Nav::kN>() = nav_.P().diagonal();
+  send(Apid::TmCovarianceDiag, cov, t_s);
+}
+
+template <typename S>
+void FlightApp<S>::housekeeping(double t_s) {
+  const LinkCounters& c = deframer_.counters();
+  TmLinkCountersMsg lc;
+  lc.packets_accepted = c.packets_accepted;
+  lc.frames_total = c.frames_total;
+  lc.seq_gaps_total = c.gaps_total();
+  lc.duplicates_total = c.duplicates_total();
+  for (std::size_t i = 0; i < kRejectReasonCount; ++i) lc.rejected[i] = c.rejected[i];
+  send(Apid::TmLinkCounters, lc, t_s);
+  TmHousekeepingMsg<S> hk;
+  hk.uptime_s = S(t_s);
+  hk.last_step_cpu_s = S(last_cpu_s_);
+  hk.max_step_cpu_s = S(max_cpu_s_);
+  hk.cycle_count = counters_.imu_steps;
+  hk.mode = nav_.initialized() ? 1u : 0u;
+  hk.tx_packets = counters_.tx_packets;
+  send(Apid::TmHousekeeping, hk, t_s);
+}
+
+// Compiled once, in fsw_core (instantiate_flight_app.cpp); see nav_ukf.hpp.
+#ifndef FSW_IMPLICIT_INSTANTIATION
+extern template class FlightApp<double>;
+extern template class FlightApp<float>;
+#endif
 
 }  // namespace fsw

@@ -107,38 +107,12 @@ class ModalDecomposition {
   void set_config(const Config& cfg) { cfg_ = cfg; }
 
   // Starts a new image.
-  void reset() {
-    my_.setZero();
-    g_.setZero();
-    b_.setZero();
-    zz_ = S(0);
-    fill_ = 0;
-    n_used_ = n_nonfinite_ = n_bad_var_ = n_with_var_ = 0;
-  }
+  void reset();
 
   // One point: phi[0..M) mode-shape values at the point, z measured deflection
   // [m], var its variance [m^2] (pass a negative value for "not given": eq. 4b).
   // Returns true if the point was used.
-  bool add_point(const S* phi, S z, S var = S(-1)) {
-    if (!std::isfinite(z)) return skip_nonfinite();
-    // Gather first, then test the gathered column: x * 0 is 0 for finite x and
-    // NaN for NaN or Inf, so the sum is 0 exactly when every value is finite.
-    // Both passes vectorise (no per-value branch); a skipped point's column is
-    // overwritten by the next point, since fill_ does not advance.
-    chunk_.col(fill_) = Eigen::Map<const VecM>(phi);
-    if (!((chunk_.col(fill_).array() * S(0)).sum() == S(0))) return skip_nonfinite();
-    const bool has_var = !(var < S(0));  // NaN counts as given (and bad)
-    if (has_var && !(std::isfinite(var) && var > S(0))) {
-      ++n_bad_var_;
-      return false;
-    }
-    zc_(fill_) = z;
-    wc_(fill_) = has_var ? std::sqrt(var) : S(0);
-    if (has_var) ++n_with_var_;
-    ++n_used_;
-    if (++fill_ == K) flush();
-    return true;
-  }
+  bool add_point(const S* phi, S z, S var = S(-1));
 
   template <typename Derived>
   bool add_point(const Eigen::MatrixBase<Derived>& phi, S z, S var = S(-1)) {
@@ -151,110 +125,23 @@ class ModalDecomposition {
   // n points: phi row-major n x M (row k = mode-shape values at point k),
   // z[n] deflections [m], var[n] variances [m^2] or nullptr (eq. 4b).
   // Returns the number of points used. n <= 0 or null pointers add nothing.
-  int add_points(const S* phi, const S* z, const S* var, int n) {
-    if (phi == nullptr || z == nullptr || n <= 0) return 0;
-    int used = 0;
-    for (int k = 0; k < n; ++k) {
-      used += add_point(phi + static_cast<long>(k) * M, z[k], var ? var[k] : S(-1)) ? 1 : 0;
-    }
-    return used;
-  }
+  int add_points(const S* phi, const S* z, const S* var, int n);
 
   int n_used() const { return n_used_; }
   int n_nonfinite() const { return n_nonfinite_; }
 
   // Eqs. 3-4 for the points entered since reset(). Fills out; returns its status.
-  ModalStatus solve(Record& out) {
-    flush();
-    out.a_coarse.setZero();
-    out.cov_a.setZero();
-    out.n_used = n_used_;
-    out.n_nonfinite = n_nonfinite_;
-    out.n_bad_variance = n_bad_var_;
-    out.per_point_variance = n_used_ > 0 && n_with_var_ == n_used_;
-    out.condition_number = std::numeric_limits<S>::infinity();
-    out.eig_min = out.eig_max = S(0);
-    out.sigma2_residual_m2 = S(0);
-    const int min_pts = cfg_.min_points > M + 1 ? cfg_.min_points : M + 1;
-    if (!(cfg_.max_condition >= S(1)) || !(cfg_.sigma_e_m >= S(0)) ||
-        (n_with_var_ > 0 && n_with_var_ != n_used_)) {
-      return out.status = ModalStatus::BadInput;
-    }
-    if (n_used_ < min_pts) return out.status = ModalStatus::TooFewPoints;
-
-    // M_Y is accumulated in its lower triangle; complete it.
-    for (int j = 0; j < M; ++j)
-      for (int i = j + 1; i < M; ++i) my_(j, i) = my_(i, j);
-
-    eig_.compute(my_, Eigen::EigenvaluesOnly);
-    if (eig_.info() != Eigen::Success) return out.status = ModalStatus::IllConditioned;
-    out.eig_min = eig_.eigenvalues()(0);
-    out.eig_max = eig_.eigenvalues()(M - 1);
-    if (!(out.eig_min > S(0)) || !(out.eig_max > S(0)) || !std::isfinite(out.eig_max)) {
-      return out.status = ModalStatus::IllConditioned;
-    }
-    out.condition_number = out.eig_max / out.eig_min;
-    if (!(out.condition_number <= cfg_.max_condition)) return out.status = ModalStatus::IllConditioned;
-
-    llt_.compute(my_);
-    if (llt_.info() != Eigen::Success) return out.status = ModalStatus::IllConditioned;
-
-    out.a_coarse = b_;
-    llt_.solveInPlace(out.a_coarse);  // eq. 3
-    const S rss = zz_ - b_.dot(out.a_coarse);
-    out.sigma2_residual_m2 = rss > S(0) ? rss / S(n_used_ - M) : S(0);
-
-    inv_.setIdentity();
-    llt_.solveInPlace(inv_);  // M_Y^-1
-    if (out.per_point_variance) {
-      for (int j = 0; j < M; ++j)
-        for (int i = j + 1; i < M; ++i) g_(j, i) = g_(i, j);
-      tmp_.noalias() = inv_ * g_;
-      out.cov_a.noalias() = tmp_ * inv_;  // eq. 4a
-    } else {
-      const S s2 = cfg_.sigma_e_m > S(0) ? cfg_.sigma_e_m * cfg_.sigma_e_m : out.sigma2_residual_m2;
-      out.cov_a = s2 * inv_;  // eq. 4b
-    }
-    for (int j = 0; j < M; ++j)
-      for (int i = j + 1; i < M; ++i) {
-        const S m = S(0.5) * (out.cov_a(i, j) + out.cov_a(j, i));
-        out.cov_a(i, j) = out.cov_a(j, i) = m;
-      }
-    if (!out.a_coarse.allFinite() || !out.cov_a.allFinite()) {
-      out.a_coarse.setZero();
-      out.cov_a.setZero();
-      return out.status = ModalStatus::IllConditioned;
-    }
-    return out.status = ModalStatus::Ok;
-  }
+  ModalStatus solve(Record& out);
 
   // M_Y (lower triangle complete after solve(); the full matrix then).
   const MatM& modal_correlation() const { return my_; }
   const VecM& projection() const { return b_; }
 
  private:
-  bool skip_nonfinite() {
-    ++n_nonfinite_;
-    return false;
-  }
+  bool skip_nonfinite();
 
   // Folds the gathered chunk into M_Y, b, G and sum z^2.
-  void flush() {
-    if (fill_ == 0) return;
-    for (int k = fill_; k < K; ++k) {  // unused columns contribute nothing
-      chunk_.col(k).setZero();
-      zc_(k) = S(0);
-      wc_(k) = S(0);
-    }
-    my_.template selfadjointView<Eigen::Lower>().rankUpdate(chunk_);
-    b_.noalias() += chunk_ * zc_;
-    zz_ += zc_.squaredNorm();
-    if (n_with_var_ > 0) {
-      for (int k = 0; k < K; ++k) chunk_.col(k) *= wc_(k);
-      g_.template selfadjointView<Eigen::Lower>().rankUpdate(chunk_);
-    }
-    fill_ = 0;
-  }
+  void flush();
 
   Config cfg_;
   MatM my_;   // M_Y, lower triangle while accumulating
@@ -271,5 +158,146 @@ class ModalDecomposition {
   MatM inv_;
   MatM tmp_;
 };
+
+template <typename S, int M, int K>
+void ModalDecomposition<S, M, K>::reset() {
+  my_.setZero();
+  g_.setZero();
+  b_.setZero();
+  zz_ = S(0);
+  fill_ = 0;
+  n_used_ = n_nonfinite_ = n_bad_var_ = n_with_var_ = 0;
+}
+
+template <typename S, int M, int K>
+bool ModalDecomposition<S, M, K>::add_point(const S* phi, S z, S var) {
+  if (!std::isfinite(z)) return skip_nonfinite();
+  // Gather first, then test the gathered column: x * 0 is 0 for finite x and
+  // NaN for NaN or Inf, so the sum is 0 exactly when every value is finite.
+  // Both passes vectorise (no per-value branch); a skipped point's column is
+  // overwritten by the next point, since fill_ does not advance.
+  chunk_.col(fill_) = Eigen::Map<const VecM>(phi);
+  if (!((chunk_.col(fill_).array() * S(0)).sum() == S(0))) return skip_nonfinite();
+  const bool has_var = !(var < S(0));  // NaN counts as given (and bad)
+  if (has_var && !(std::isfinite(var) && var > S(0))) {
+    ++n_bad_var_;
+    return false;
+  }
+  zc_(fill_) = z;
+  wc_(fill_) = has_var ? std::sqrt(var) : S(0);
+  if (has_var) ++n_with_var_;
+  ++n_used_;
+  if (++fill_ == K) flush();
+  return true;
+}
+
+template <typename S, int M, int K>
+int ModalDecomposition<S, M, K>::add_points(const S* phi, const S* z, const S* var, int n) {
+  if (phi == nullptr || z == nullptr || n <= 0) return 0;
+  int used = 0;
+  for (int k = 0; k < n; ++k) {
+    used += add_point(phi + static_cast<long>(k) * M, z[k], var ? var[k] : S(-1)) ? 1 : 0;
+  }
+  return used;
+}
+
+template <typename S, int M, int K>
+auto ModalDecomposition<S, M, K>::solve(Record& out) -> ModalStatus {
+  flush();
+  out.a_coarse.setZero();
+  out.cov_a.setZero();
+  out.n_used = n_used_;
+  out.n_nonfinite = n_nonfinite_;
+  out.n_bad_variance = n_bad_var_;
+  out.per_point_variance = n_used_ > 0 && n_with_var_ == n_used_;
+  out.condition_number = std::numeric_limits<S>::infinity();
+  out.eig_min = out.eig_max = S(0);
+  out.sigma2_residual_m2 = S(0);
+  const int min_pts = cfg_.min_points > M + 1 ? cfg_.min_points : M + 1;
+  if (!(cfg_.max_condition >= S(1)) || !(cfg_.sigma_e_m >= S(0)) ||
+      (n_with_var_ > 0 && n_with_var_ != n_used_)) {
+    return out.status = ModalStatus::BadInput;
+  }
+  if (n_used_ < min_pts) return out.status = ModalStatus::TooFewPoints;
+
+  // M_Y is accumulated in its lower triangle; complete it.
+  for (int j = 0; j < M; ++j)
+    for (int i = j + 1; i < M; ++i) my_(j, i) = my_(i, j);
+
+  eig_.compute(my_, Eigen::EigenvaluesOnly);
+  if (eig_.info() != Eigen::Success) return out.status = ModalStatus::IllConditioned;
+  out.eig_min = eig_.eigenvalues()(0);
+  out.eig_max = eig_.eigenvalues()(M - 1);
+  if (!(out.eig_min > S(0)) || !(out.eig_max > S(0)) || !std::isfinite(out.eig_max)) {
+    return out.status = ModalStatus::IllConditioned;
+  }
+  out.condition_number = out.eig_max / out.eig_min;
+  if (!(out.condition_number <= cfg_.max_condition)) return out.status = ModalStatus::IllConditioned;
+
+  llt_.compute(my_);
+  if (llt_.info() != Eigen::Success) return out.status = ModalStatus::IllConditioned;
+
+  out.a_coarse = b_;
+  llt_.solveInPlace(out.a_coarse);  // eq. 3
+  const S rss = zz_ - b_.dot(out.a_coarse);
+  out.sigma2_residual_m2 = rss > S(0) ? rss / S(n_used_ - M) : S(0);
+
+  inv_.setIdentity();
+  llt_.solveInPlace(inv_);  // M_Y^-1
+  if (out.per_point_variance) {
+    for (int j = 0; j < M; ++j)
+      for (int i = j + 1; i < M; ++i) g_(j, i) = g_(i, j);
+    tmp_.noalias() = inv_ * g_;
+    out.cov_a.noalias() = tmp_ * inv_;  // eq. 4a
+  } else {
+    const S s2 = cfg_.sigma_e_m > S(0) ? cfg_.sigma_e_m * cfg_.sigma_e_m : out.sigma2_residual_m2;
+    out.cov_a = s2 * inv_;  // eq. 4b
+  }
+  for (int j = 0; j < M; ++j)
+    for (int i = j + 1; i < M; ++i) {
+      const S m = S(0.5) * (out.cov_a(i, j) + out.cov_a(j, i));
+      out.cov_a(i, j) = out.cov_a(j, i) = m;
+    }
+  if (!out.a_coarse.allFinite() || !out.cov_a.allFinite()) {
+    out.a_coarse.setZero();
+    out.cov_a.setZero();
+    return out.status = ModalStatus::IllConditioned;
+  }
+  return out.status = ModalStatus::Ok;
+}
+
+template <typename S, int M, int K>
+bool ModalDecomposition<S, M, K>::skip_nonfinite() {
+  ++n_nonfinite_;
+  return false;
+}
+
+template <typename S, int M, int K>
+void ModalDecomposition<S, M, K>::flush() {
+  if (fill_ == 0) return;
+  for (int k = fill_; k < K; ++k) {  // unused columns contribute nothing
+    chunk_.col(k).setZero();
+    zc_(k) = S(0);
+    wc_(k) = S(0);
+  }
+  my_.template selfadjointView<Eigen::Lower>().rankUpdate(chunk_);
+  b_.noalias() += chunk_ * zc_;
+  zz_ += zc_.squaredNorm();
+  if (n_with_var_ > 0) {
+    for (int k = 0; k < K; ++k) chunk_.col(k) *= wc_(k);
+    g_.template selfadjointView<Eigen::Lower>().rankUpdate(chunk_);
+  }
+  fill_ = 0;
+}
+
+// Compiled once, in fsw_core (instantiate_modal.cpp); see nav_ukf.hpp.
+#ifndef FSW_IMPLICIT_INSTANTIATION
+extern template class ModalDecomposition<double, 3>;
+extern template class ModalDecomposition<float, 3>;
+extern template class ModalDecomposition<double, 10>;
+extern template class ModalDecomposition<float, 10>;
+extern template class ModalDecomposition<double, 50>;
+extern template class ModalDecomposition<float, 50>;
+#endif
 
 }  // namespace fsw

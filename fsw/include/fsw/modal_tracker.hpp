@@ -85,79 +85,23 @@ class ModalTracker {
 
   // Applies a configuration and restarts the filter; false (nothing changed)
   // for an invalid one.
-  bool configure(const ModalTrackerConfig& cfg) {
-    if (modal_tracker_config_invalid_field(cfg) != nullptr) return false;
-    cfg_ = cfg;
-    model_.configure(cfg.plate);
-    reset();
-    return true;
-  }
+  bool configure(const ModalTrackerConfig& cfg);
 
   // The filter's a priori knowledge (eq. 7) from the model: expected
   // frequencies the model's, no damping (a space structure's is tiny and
   // unknown), no process noise (the model is exact but for its parameters).
-  static ModalFilterConfig<S, M> filter_config(const PlateModes<S, M>& model, const ModalTrackerConfig& cfg) {
-    ModalFilterConfig<S, M> f;
-    for (int i = 0; i < M; ++i) {
-      ModalModeConfig<S>& m = f.mode[i];
-      const S w = model.omega_radps(i);
-      m.omega_radps = w;
-      m.alpha_ps = S(0);
-      m.sigma_v0_ps = S(cfg.prior_rate_frac) * w;
-      m.sigma_omega0_radps = S(cfg.prior_omega_frac) * w;
-      m.sigma_alpha0_ps = S(1e-6);
-    }
-    return f;
-  }
+  static ModalFilterConfig<S, M> filter_config(const PlateModes<S, M>& model, const ModalTrackerConfig& cfg);
 
   // Forgets the filter and any open image (cmd_reset bit 2); the counters
   // run on, as the app's do across resets.
-  void reset() {
-    filter_.reset(filter_config(model_, cfg_));
-    open_ = false;
-    have_last_ = false;
-  }
+  void reset();
 
   // Closes the open image if seg_image_id is another image's; true with
   // its report in out.
-  bool close_other(std::uint32_t seg_image_id, Report& out) {
-    if (!open_ || seg_image_id == image_id_) return false;
-    ++counters_.images_incomplete;
-    close(out);
-    return true;
-  }
+  bool close_other(std::uint32_t seg_image_id, Report& out);
 
   // One segment. True when it completes its image (the report in out).
-  bool add(const RangeImageSegmentMsg<S>& m, double t_s, Report& out) {
-    ++counters_.segments;
-    if (!open_) {
-      if (have_last_ && !(t_s > last_t_s_)) {
-        ++counters_.segments_stale;
-        return false;
-      }
-      open_ = true;
-      image_id_ = m.image_id;
-      image_t_s_ = t_s;
-      n_outside_ = 0;
-      dec_.reset();
-    }
-    S phi[M];
-    const int n = m.n_points < kRangePointsPerSegment ? int(m.n_points) : int(kRangePointsPerSegment);
-    for (int k = 0; k < n; ++k) {
-      const RangePoint<S>& pt = m.points[std::size_t(k)];
-      if (!model_.phi(pt.p_m.x(), pt.p_m.y(), phi)) {
-        ++n_outside_;
-        continue;
-      }
-      const S var = pt.sigma_m > S(0) ? pt.sigma_m * pt.sigma_m : S(-1);
-      dec_.add_point(phi, pt.p_m.z(), var);
-    }
-    if (m.seq_flags == SeqFlags::Last || m.seq_flags == SeqFlags::Unsegmented) {
-      close(out);
-      return true;
-    }
-    return false;
-  }
+  bool add(const RangeImageSegmentMsg<S>& m, double t_s, Report& out);
 
   const Filter& filter() const { return filter_; }
   const PlateModes<S, M>& model() const { return model_; }
@@ -167,37 +111,7 @@ class ModalTracker {
 
  private:
   // Solves the open image and steps the filter to its time.
-  void close(Report& out) {
-    open_ = false;
-    out = Report();
-    out.image_id = image_id_;
-    out.t_s = image_t_s_;
-    out.n_outside = n_outside_;
-    counters_.points_outside += std::uint32_t(n_outside_);
-    ++counters_.images;
-    dec_.solve(out.decomposition);
-    out.step.decomposition = out.decomposition.status;
-    bool moved = false;  // the filter's time is the image's once it initialised or predicted
-    if (!filter_.initialized()) {
-      out.step.status = filter_.initialize(out.decomposition);
-      out.step.fused = out.step.status == StepStatus::Ok;
-      moved = out.step.fused;
-    } else {
-      const StepStatus sp = filter_.predict(S(image_t_s_ - last_t_s_));
-      if (sp != StepStatus::Ok) {
-        out.step.status = sp;
-        out.step.detail = sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None;
-      } else {
-        moved = true;
-        filter_.update(out.decomposition, out.step);
-      }
-    }
-    if (moved) {
-      last_t_s_ = image_t_s_;
-      have_last_ = true;
-    }
-    if (out.step.fused) ++counters_.images_fused;
-  }
+  void close(Report& out);
 
   ModalTrackerConfig cfg_;
   PlateModes<S, M> model_;
@@ -211,5 +125,116 @@ class ModalTracker {
   bool have_last_ = false;
   double last_t_s_ = 0.0;
 };
+
+template <typename S, int M, typename F>
+bool ModalTracker<S, M, F>::configure(const ModalTrackerConfig& cfg) {
+  if (modal_tracker_config_invalid_field(cfg) != nullptr) return false;
+  cfg_ = cfg;
+  model_.configure(cfg.plate);
+  reset();
+  return true;
+}
+
+template <typename S, int M, typename F>
+auto ModalTracker<S, M, F>::filter_config(const PlateModes<S, M>& model, const ModalTrackerConfig& cfg)
+    -> ModalFilterConfig<S, M> {
+  ModalFilterConfig<S, M> f;
+  for (int i = 0; i < M; ++i) {
+    ModalModeConfig<S>& m = f.mode[i];
+    const S w = model.omega_radps(i);
+    m.omega_radps = w;
+    m.alpha_ps = S(0);
+    m.sigma_v0_ps = S(cfg.prior_rate_frac) * w;
+    m.sigma_omega0_radps = S(cfg.prior_omega_frac) * w;
+    m.sigma_alpha0_ps = S(1e-6);
+  }
+  return f;
+}
+
+template <typename S, int M, typename F>
+void ModalTracker<S, M, F>::reset() {
+  filter_.reset(filter_config(model_, cfg_));
+  open_ = false;
+  have_last_ = false;
+}
+
+template <typename S, int M, typename F>
+bool ModalTracker<S, M, F>::close_other(std::uint32_t seg_image_id, Report& out) {
+  if (!open_ || seg_image_id == image_id_) return false;
+  ++counters_.images_incomplete;
+  close(out);
+  return true;
+}
+
+template <typename S, int M, typename F>
+bool ModalTracker<S, M, F>::add(const RangeImageSegmentMsg<S>& m, double t_s, Report& out) {
+  ++counters_.segments;
+  if (!open_) {
+    if (have_last_ && !(t_s > last_t_s_)) {
+      ++counters_.segments_stale;
+      return false;
+    }
+    open_ = true;
+    image_id_ = m.image_id;
+    image_t_s_ = t_s;
+    n_outside_ = 0;
+    dec_.reset();
+  }
+  S phi[M];
+  const int n = m.n_points < kRangePointsPerSegment ? int(m.n_points) : int(kRangePointsPerSegment);
+  for (int k = 0; k < n; ++k) {
+    const RangePoint<S>& pt = m.points[std::size_t(k)];
+    if (!model_.phi(pt.p_m.x(), pt.p_m.y(), phi)) {
+      ++n_outside_;
+      continue;
+    }
+    const S var = pt.sigma_m > S(0) ? pt.sigma_m * pt.sigma_m : S(-1);
+    dec_.add_point(phi, pt.p_m.z(), var);
+  }
+  if (m.seq_flags == SeqFlags::Last || m.seq_flags == SeqFlags::Unsegmented) {
+    close(out);
+    return true;
+  }
+  return false;
+}
+
+template <typename S, int M, typename F>
+void ModalTracker<S, M, F>::close(Report& out) {
+  open_ = false;
+  out = Report();
+  out.image_id = image_id_;
+  out.t_s = image_t_s_;
+  out.n_outside = n_outside_;
+  counters_.points_outside += std::uint32_t(n_outside_);
+  ++counters_.images;
+  dec_.solve(out.decomposition);
+  out.step.decomposition = out.decomposition.status;
+  bool moved = false;  // the filter's time is the image's once it initialised or predicted
+  if (!filter_.initialized()) {
+    out.step.status = filter_.initialize(out.decomposition);
+    out.step.fused = out.step.status == StepStatus::Ok;
+    moved = out.step.fused;
+  } else {
+    const StepStatus sp = filter_.predict(S(image_t_s_ - last_t_s_));
+    if (sp != StepStatus::Ok) {
+      out.step.status = sp;
+      out.step.detail = sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None;
+    } else {
+      moved = true;
+      filter_.update(out.decomposition, out.step);
+    }
+  }
+  if (moved) {
+    last_t_s_ = image_t_s_;
+    have_last_ = true;
+  }
+  if (out.step.fused) ++counters_.images_fused;
+}
+
+// Compiled once, in fsw_core (instantiate_modal_tracker.cpp); see nav_ukf.hpp.
+#ifndef FSW_IMPLICIT_INSTANTIATION
+extern template class ModalTracker<double, 10>;
+extern template class ModalTracker<float, 10>;
+#endif
 
 }  // namespace fsw

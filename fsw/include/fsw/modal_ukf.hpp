@@ -161,60 +161,18 @@ class ModeUkf {
   using Mat4 = Eigen::Matrix<S, 4, 4>;
 
   // Eq. 7.
-  void init(S a0, S var_a0, const ModalModeConfig<S>& cfg) {
-    x_ << a0, S(0), cfg.omega_radps, cfg.alpha_ps;
-    P_.setZero();
-    P_(0, 0) = var_a0;
-    P_(1, 1) = cfg.sigma_v0_ps * cfg.sigma_v0_ps;
-    P_(2, 2) = cfg.sigma_omega0_radps * cfg.sigma_omega0_radps;
-    P_(3, 3) = cfg.sigma_alpha0_ps * cfg.sigma_alpha0_ps;
-    q_ << cfg.q_a, cfg.q_v, cfg.q_omega, cfg.q_alpha;
-  }
+  void init(S a0, S var_a0, const ModalModeConfig<S>& cfg);
 
   // Unscented predict over dt into (x_out, P_out); the filter is unchanged.
-  bool predict_into(S dt, const UtWeights<S>& w, Vec4& x_out, Mat4& P_out) const {
-    Eigen::LLT<Mat4> llt(P_);
-    if (llt.info() != Eigen::Success) return false;
-    const Mat4 Lg = w.gamma * llt.matrixL().toDenseMatrix();
-    Eigen::Matrix<S, 4, 9> X;
-    X.col(0) = x_;
-    for (int j = 0; j < 4; ++j) {
-      X.col(1 + j) = x_ + Lg.col(j);
-      X.col(5 + j) = x_ - Lg.col(j);
-    }
-    for (int k = 0; k < 9; ++k) modal_detail::propagate_mode(X.col(k).data(), X.col(k).data(), dt);
-    x_out = w.wm0 * X.col(0);
-    for (int k = 1; k < 9; ++k) x_out += w.wi * X.col(k);
-    for (int k = 0; k < 9; ++k) X.col(k) -= x_out;
-    P_out.noalias() = w.wc0 * X.col(0) * X.col(0).transpose();
-    for (int k = 1; k < 9; ++k) P_out.noalias() += w.wi * X.col(k) * X.col(k).transpose();
-    P_out.diagonal() += q_ * dt;
-    P_out = S(0.5) * (P_out + P_out.transpose()).eval();
-    return x_out.allFinite() && P_out.allFinite();
-  }
+  bool predict_into(S dt, const UtWeights<S>& w, Vec4& x_out, Mat4& P_out) const;
 
-  void set(const Vec4& x, const Mat4& P) {
-    x_ = x;
-    P_ = P;
-  }
+  void set(const Vec4& x, const Mat4& P);
 
   // Exact update with the scalar measurement A~ of variance r. Returns the NIS
   // through nis; does nothing and returns false if the innovation variance is
   // not positive or the gate (if > 0) rejects it.
   enum class Update { Fused, Gated, NotPosDef };
-  Update update(S a_meas, S r, S gate_nis, S& innov, S& innov_var, S& nis) {
-    innov = a_meas - x_(0);
-    innov_var = P_(0, 0) + r;
-    if (!(innov_var > S(0)) || !std::isfinite(innov_var)) return Update::NotPosDef;
-    nis = innov * innov / innov_var;
-    if (gate_nis > S(0) && nis > gate_nis) return Update::Gated;
-    const Vec4 k = P_.col(0) / innov_var;
-    const Vec4 pc0 = P_.col(0);
-    x_ += k * innov;
-    P_.noalias() -= k * pc0.transpose();
-    P_ = S(0.5) * (P_ + P_.transpose()).eval();
-    return Update::Fused;
-  }
+  Update update(S a_meas, S r, S gate_nis, S& innov, S& innov_var, S& nis);
 
   const Vec4& state() const { return x_; }
   const Mat4& cov() const { return P_; }
@@ -224,6 +182,60 @@ class ModeUkf {
   Mat4 P_ = Mat4::Identity();
   Vec4 q_ = Vec4::Zero();
 };
+
+template <typename S>
+void ModeUkf<S>::init(S a0, S var_a0, const ModalModeConfig<S>& cfg) {
+  x_ << a0, S(0), cfg.omega_radps, cfg.alpha_ps;
+  P_.setZero();
+  P_(0, 0) = var_a0;
+  P_(1, 1) = cfg.sigma_v0_ps * cfg.sigma_v0_ps;
+  P_(2, 2) = cfg.sigma_omega0_radps * cfg.sigma_omega0_radps;
+  P_(3, 3) = cfg.sigma_alpha0_ps * cfg.sigma_alpha0_ps;
+  q_ << cfg.q_a, cfg.q_v, cfg.q_omega, cfg.q_alpha;
+}
+
+template <typename S>
+bool ModeUkf<S>::predict_into(S dt, const UtWeights<S>& w, Vec4& x_out, Mat4& P_out) const {
+  Eigen::LLT<Mat4> llt(P_);
+  if (llt.info() != Eigen::Success) return false;
+  const Mat4 Lg = w.gamma * llt.matrixL().toDenseMatrix();
+  Eigen::Matrix<S, 4, 9> X;
+  X.col(0) = x_;
+  for (int j = 0; j < 4; ++j) {
+    X.col(1 + j) = x_ + Lg.col(j);
+    X.col(5 + j) = x_ - Lg.col(j);
+  }
+  for (int k = 0; k < 9; ++k) modal_detail::propagate_mode(X.col(k).data(), X.col(k).data(), dt);
+  x_out = w.wm0 * X.col(0);
+  for (int k = 1; k < 9; ++k) x_out += w.wi * X.col(k);
+  for (int k = 0; k < 9; ++k) X.col(k) -= x_out;
+  P_out.noalias() = w.wc0 * X.col(0) * X.col(0).transpose();
+  for (int k = 1; k < 9; ++k) P_out.noalias() += w.wi * X.col(k) * X.col(k).transpose();
+  P_out.diagonal() += q_ * dt;
+  P_out = S(0.5) * (P_out + P_out.transpose()).eval();
+  return x_out.allFinite() && P_out.allFinite();
+}
+
+template <typename S>
+void ModeUkf<S>::set(const Vec4& x, const Mat4& P) {
+  x_ = x;
+  P_ = P;
+}
+
+template <typename S>
+auto ModeUkf<S>::update(S a_meas, S r, S gate_nis, S& innov, S& innov_var, S& nis) -> Update {
+  innov = a_meas - x_(0);
+  innov_var = P_(0, 0) + r;
+  if (!(innov_var > S(0)) || !std::isfinite(innov_var)) return Update::NotPosDef;
+  nis = innov * innov / innov_var;
+  if (gate_nis > S(0) && nis > gate_nis) return Update::Gated;
+  const Vec4 k = P_.col(0) / innov_var;
+  const Vec4 pc0 = P_.col(0);
+  x_ += k * innov;
+  P_.noalias() -= k * pc0.transpose();
+  P_ = S(0.5) * (P_ + P_.transpose()).eval();
+  return Update::Fused;
+}
 
 // Bank of M decoupled per-mode filters.
 template <typename S, int M>
@@ -239,91 +251,31 @@ class ModalUkfBank {
   explicit ModalUkfBank(const Config& cfg = Config()) { reset(cfg); }
 
   // Back to uninitialised with a new configuration, in place.
-  void reset(const Config& cfg) {
-    cfg_ = cfg;
-    w_ = UtWeights<S>::make(4, cfg.ut);
-    initialized_ = false;
-  }
+  void reset(const Config& cfg);
 
   bool initialized() const { return initialized_; }
 
   // Eq. 7 from the first well-conditioned image.
-  StepStatus initialize(const Decomp& meas) {
-    if (meas.status != ModalStatus::Ok) return StepStatus::BadInput;
-    for (int i = 0; i < M; ++i) f_[i].init(meas.a_coarse(i), meas.cov_a(i, i), cfg_.mode[i]);
-    initialized_ = true;
-    return StepStatus::Ok;
-  }
+  StepStatus initialize(const Decomp& meas);
 
-  StepStatus predict(S dt) {
-    if (!initialized_ || !(dt > S(0)) || !std::isfinite(dt)) return StepStatus::BadInput;
-    for (int i = 0; i < M; ++i)
-      if (!f_[i].predict_into(dt, w_, xs_[i], Ps_[i])) return StepStatus::NotPosDef;
-    for (int i = 0; i < M; ++i) f_[i].set(xs_[i], Ps_[i]);
-    return StepStatus::Ok;
-  }
+  StepStatus predict(S dt);
 
-  StepStatus update(const Decomp& meas, Record& rec) {
-    rec = Record();
-    rec.decomposition = meas.status;
-    if (!initialized_) return fail(rec, StepStatus::BadInput, StepDetail::NotInitialized);
-    if (meas.status != ModalStatus::Ok) return fail(rec, StepStatus::BadInput, StepDetail::None);
-    if (!meas.a_coarse.allFinite()) return fail(rec, StepStatus::BadInput, StepDetail::NonFinite);
-    for (int i = 0; i < M; ++i)  // all innovation variances checked before any mode changes
-      if (!(f_[i].cov()(0, 0) + meas.cov_a(i, i) > S(0)))
-        return fail(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
-    int fused = 0;
-    for (int i = 0; i < M; ++i) {
-      S nu, s, nis = S(0);
-      const auto r = f_[i].update(meas.a_coarse(i), meas.cov_a(i, i), cfg_.gate_nis, nu, s, nis);
-      rec.innovation(i) = nu;
-      rec.innovation_var(i) = s;
-      rec.nis += nis;
-      if (r == ModeUkf<S>::Update::Fused) ++fused;
-      if (r == ModeUkf<S>::Update::Gated) ++rec.n_gated;
-    }
-    rec.fused = fused > 0;
-    rec.status = fused > 0 ? StepStatus::Ok : StepStatus::Gated;
-    return rec.status;
-  }
+  StepStatus update(const Decomp& meas, Record& rec);
 
   // Predict over dt then update with the image (the first Ok image initialises).
-  StepStatus step(S dt, const Decomp& meas, Record& rec) {
-    if (!initialized_) {
-      rec = Record();
-      rec.decomposition = meas.status;
-      rec.status = initialize(meas);
-      rec.fused = rec.status == StepStatus::Ok;
-      return rec.status;
-    }
-    const StepStatus sp = predict(dt);
-    if (sp != StepStatus::Ok) {
-      rec = Record();
-      rec.decomposition = meas.status;
-      return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
-    }
-    return update(meas, rec);
-  }
+  StepStatus step(S dt, const Decomp& meas, Record& rec);
 
   void amplitudes(VecM& a) const {
     for (int i = 0; i < M; ++i) a(i) = f_[i].state()(0);
   }
   // Amplitude covariance: diagonal (the bank carries no cross-mode terms).
-  void amplitude_cov(MatM& P) const {
-    P.setZero();
-    for (int i = 0; i < M; ++i) P(i, i) = f_[i].cov()(0, 0);
-  }
+  void amplitude_cov(MatM& P) const;
   Eigen::Matrix<S, 4, 1> mode_state(int i) const { return f_[i].state(); }
   Eigen::Matrix<S, 4, 4> mode_cov(int i) const { return f_[i].cov(); }
   const Config& config() const { return cfg_; }
 
  private:
-  static StepStatus fail(Record& rec, StepStatus s, StepDetail d) {
-    rec.status = s;
-    rec.detail = d;
-    rec.fused = false;
-    return s;
-  }
+  static StepStatus fail(Record& rec, StepStatus s, StepDetail d);
 
   Config cfg_;
   UtWeights<S> w_;
@@ -332,6 +284,87 @@ class ModalUkfBank {
   Eigen::Matrix<S, 4, 1> xs_[M];
   Eigen::Matrix<S, 4, 4> Ps_[M];
 };
+
+template <typename S, int M>
+void ModalUkfBank<S, M>::reset(const Config& cfg) {
+  cfg_ = cfg;
+  w_ = UtWeights<S>::make(4, cfg.ut);
+  initialized_ = false;
+}
+
+template <typename S, int M>
+auto ModalUkfBank<S, M>::initialize(const Decomp& meas) -> StepStatus {
+  if (meas.status != ModalStatus::Ok) return StepStatus::BadInput;
+  for (int i = 0; i < M; ++i) f_[i].init(meas.a_coarse(i), meas.cov_a(i, i), cfg_.mode[i]);
+  initialized_ = true;
+  return StepStatus::Ok;
+}
+
+template <typename S, int M>
+auto ModalUkfBank<S, M>::predict(S dt) -> StepStatus {
+  if (!initialized_ || !(dt > S(0)) || !std::isfinite(dt)) return StepStatus::BadInput;
+  for (int i = 0; i < M; ++i)
+    if (!f_[i].predict_into(dt, w_, xs_[i], Ps_[i])) return StepStatus::NotPosDef;
+  for (int i = 0; i < M; ++i) f_[i].set(xs_[i], Ps_[i]);
+  return StepStatus::Ok;
+}
+
+template <typename S, int M>
+auto ModalUkfBank<S, M>::update(const Decomp& meas, Record& rec) -> StepStatus {
+  rec = Record();
+  rec.decomposition = meas.status;
+  if (!initialized_) return fail(rec, StepStatus::BadInput, StepDetail::NotInitialized);
+  if (meas.status != ModalStatus::Ok) return fail(rec, StepStatus::BadInput, StepDetail::None);
+  if (!meas.a_coarse.allFinite()) return fail(rec, StepStatus::BadInput, StepDetail::NonFinite);
+  for (int i = 0; i < M; ++i)  // all innovation variances checked before any mode changes
+    if (!(f_[i].cov()(0, 0) + meas.cov_a(i, i) > S(0)))
+      return fail(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
+  int fused = 0;
+  for (int i = 0; i < M; ++i) {
+    S nu, s, nis = S(0);
+    const auto r = f_[i].update(meas.a_coarse(i), meas.cov_a(i, i), cfg_.gate_nis, nu, s, nis);
+    rec.innovation(i) = nu;
+    rec.innovation_var(i) = s;
+    rec.nis += nis;
+    if (r == ModeUkf<S>::Update::Fused) ++fused;
+    if (r == ModeUkf<S>::Update::Gated) ++rec.n_gated;
+  }
+  rec.fused = fused > 0;
+  rec.status = fused > 0 ? StepStatus::Ok : StepStatus::Gated;
+  return rec.status;
+}
+
+template <typename S, int M>
+auto ModalUkfBank<S, M>::step(S dt, const Decomp& meas, Record& rec) -> StepStatus {
+  if (!initialized_) {
+    rec = Record();
+    rec.decomposition = meas.status;
+    rec.status = initialize(meas);
+    rec.fused = rec.status == StepStatus::Ok;
+    return rec.status;
+  }
+  const StepStatus sp = predict(dt);
+  if (sp != StepStatus::Ok) {
+    rec = Record();
+    rec.decomposition = meas.status;
+    return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
+  }
+  return update(meas, rec);
+}
+
+template <typename S, int M>
+void ModalUkfBank<S, M>::amplitude_cov(MatM& P) const {
+  P.setZero();
+  for (int i = 0; i < M; ++i) P(i, i) = f_[i].cov()(0, 0);
+}
+
+template <typename S, int M>
+auto ModalUkfBank<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
+  rec.status = s;
+  rec.detail = d;
+  rec.fused = false;
+  return s;
+}
 
 // One joint filter over all M modes (N = 4M states).
 template <typename S, int M>
@@ -352,162 +385,23 @@ class ModalUkfJoint {
 
   // Back to uninitialised with a new configuration, in place (the filter
   // is too large to rebuild through a stack temporary).
-  void reset(const Config& cfg) {
-    cfg_ = cfg;
-    w_ = UtWeights<S>::make(N, cfg.ut);
-    initialized_ = false;
-    P_.m().setIdentity();
-    x_.m().setZero();
-    for (int i = 0; i < M; ++i) {
-      const ModalModeConfig<S>& c = cfg_.mode[i];
-      q_.m().template segment<4>(4 * i) << c.q_a, c.q_v, c.q_omega, c.q_alpha;
-    }
-  }
+  void reset(const Config& cfg);
 
   bool initialized() const { return initialized_; }
 
   // Eq. 7, with the full coupled amplitude covariance of eq. 4.
-  StepStatus initialize(const Decomp& meas) {
-    if (meas.status != ModalStatus::Ok) return StepStatus::BadInput;
-    auto x = x_.m();
-    auto P = P_.m();
-    P.setZero();
-    for (int i = 0; i < M; ++i) {
-      const ModalModeConfig<S>& c = cfg_.mode[i];
-      x.template segment<4>(4 * i) << meas.a_coarse(i), S(0), c.omega_radps, c.alpha_ps;
-      for (int j = 0; j < M; ++j) P(4 * i, 4 * j) = meas.cov_a(i, j);
-      P(4 * i + 1, 4 * i + 1) = c.sigma_v0_ps * c.sigma_v0_ps;
-      P(4 * i + 2, 4 * i + 2) = c.sigma_omega0_radps * c.sigma_omega0_radps;
-      P(4 * i + 3, 4 * i + 3) = c.sigma_alpha0_ps * c.sigma_alpha0_ps;
-    }
-    initialized_ = true;
-    return StepStatus::Ok;
-  }
+  StepStatus initialize(const Decomp& meas);
 
-  StepStatus predict(S dt) {
-    if (!initialized_ || !(dt > S(0)) || !std::isfinite(dt)) return StepStatus::BadInput;
-    auto Lc = L_.m();
-    auto X = X_.m();
-    auto x = x_.m();
-    auto P = P_.m();
-    Lc = P;
-    {
-      Eigen::LLT<Eigen::Ref<MatN>> llt(Lc);  // in place, lower triangle
-      if (llt.info() != Eigen::Success) return StepStatus::NotPosDef;
-    }
-    // Sigma points x +- gamma L_j. Column j of L is zero above row j, so a
-    // mode block above j is not perturbed and maps to f(x_block).
-    X.col(0) = x;
-    for (int j = 0; j < N; ++j) {
-      X.col(1 + j) = x;
-      X.col(1 + N + j) = x;
-      X.col(1 + j).tail(N - j) += w_.gamma * Lc.col(j).tail(N - j);
-      X.col(1 + N + j).tail(N - j) -= w_.gamma * Lc.col(j).tail(N - j);
-    }
-    S* xd = X_.v;
-    for (int i = 0; i < M; ++i) {
-      S f0[4];
-      modal_detail::propagate_mode(xd + 4 * i, f0, dt);
-      for (int r = 0; r < 4; ++r) xd[4 * i + r] = f0[r];
-      const int last = 4 * i + 3;  // columns j > last leave block i at the mean
-      for (int j = 0; j < N; ++j) {
-        S* a = xd + static_cast<long>(1 + j) * N + 4 * i;
-        S* b = xd + static_cast<long>(1 + N + j) * N + 4 * i;
-        if (j <= last) {
-          modal_detail::propagate_mode(a, a, dt);
-          modal_detail::propagate_mode(b, b, dt);
-        } else {
-          for (int r = 0; r < 4; ++r) a[r] = b[r] = f0[r];
-        }
-      }
-    }
-    auto xp = xp_.m();
-    xp.setZero();
-    for (int k = 1; k < L; ++k) xp += X.col(k);
-    xp *= w_.wi;
-    xp += w_.wm0 * X.col(0);
-    for (int k = 0; k < L; ++k) X.col(k) -= xp;
-    // Lower triangle of sum_k w_k d_k d_k^T, in chunks of C sigma points.
-    auto Pp = L_.m();  // the factor is no longer needed: reuse its storage
-    Pp.setZero();
-    for (int c = 0; c < (L - 1) / C; ++c) {
-      Pp.template selfadjointView<Eigen::Lower>().rankUpdate(X.template middleCols<C>(1 + c * C), w_.wi);
-    }
-    Pp.template selfadjointView<Eigen::Lower>().rankUpdate(X.col(0), w_.wc0);
-    for (int j = 0; j < N; ++j) {
-      Pp(j, j) += q_.m()(j) * dt;
-      for (int i = j + 1; i < N; ++i) Pp(j, i) = Pp(i, j);
-    }
-    if (!xp.allFinite() || !Pp.allFinite()) return StepStatus::NotPosDef;
-    x = xp;
-    P = Pp;
-    return StepStatus::Ok;
-  }
+  StepStatus predict(S dt);
 
-  StepStatus update(const Decomp& meas, Record& rec) {
-    rec = Record();
-    rec.decomposition = meas.status;
-    if (!initialized_) return fail(rec, StepStatus::BadInput, StepDetail::NotInitialized);
-    if (meas.status != ModalStatus::Ok) return fail(rec, StepStatus::BadInput, StepDetail::None);
-    if (!meas.a_coarse.allFinite() || !meas.cov_a.allFinite())
-      return fail(rec, StepStatus::BadInput, StepDetail::NonFinite);
-    auto P = P_.m();
-    auto x = x_.m();
-    auto PxA = pxa_.m();
-    for (int i = 0; i < M; ++i) {
-      PxA.col(i) = P.col(4 * i);
-      for (int j = 0; j < M; ++j) s_(i, j) = P(4 * i, 4 * j) + meas.cov_a(i, j);
-      nu_(i) = meas.a_coarse(i) - x(4 * i);
-    }
-    llt_s_.compute(s_);
-    if (llt_s_.info() != Eigen::Success) return fail(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
-    y_ = nu_;
-    llt_s_.solveInPlace(y_);
-    rec.innovation = nu_;
-    rec.innovation_var = s_.diagonal();
-    rec.nis = nu_.dot(y_);
-    if (cfg_.gate_nis > S(0) && rec.nis > cfg_.gate_nis) return fail(rec, StepStatus::Gated, StepDetail::None);
-    auto Kt = kt_.m();
-    Kt = PxA.transpose();
-    llt_s_.solveInPlace(Kt);  // S^-1 P_Ax
-    x.noalias() += PxA * y_;
-    for (int c = 0; c < N / C2; ++c) {
-      P.template middleCols<C2>(c * C2).noalias() -= PxA * Kt.template middleCols<C2>(c * C2);
-    }
-    for (int j = 0; j < N; ++j)
-      for (int i = j + 1; i < N; ++i) {
-        const S m = S(0.5) * (P(i, j) + P(j, i));
-        P(i, j) = P(j, i) = m;
-      }
-    rec.fused = true;
-    rec.status = StepStatus::Ok;
-    return rec.status;
-  }
+  StepStatus update(const Decomp& meas, Record& rec);
 
-  StepStatus step(S dt, const Decomp& meas, Record& rec) {
-    if (!initialized_) {
-      rec = Record();
-      rec.decomposition = meas.status;
-      rec.status = initialize(meas);
-      rec.fused = rec.status == StepStatus::Ok;
-      return rec.status;
-    }
-    const StepStatus sp = predict(dt);
-    if (sp != StepStatus::Ok) {
-      rec = Record();
-      rec.decomposition = meas.status;
-      return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
-    }
-    return update(meas, rec);
-  }
+  StepStatus step(S dt, const Decomp& meas, Record& rec);
 
   void amplitudes(VecM& a) const {
     for (int i = 0; i < M; ++i) a(i) = x_.m()(4 * i);
   }
-  void amplitude_cov(MatM& Pa) const {
-    for (int i = 0; i < M; ++i)
-      for (int j = 0; j < M; ++j) Pa(i, j) = P_.m()(4 * i, 4 * j);
-  }
+  void amplitude_cov(MatM& Pa) const;
   Eigen::Matrix<S, 4, 1> mode_state(int i) const { return x_.m().template segment<4>(4 * i); }
   Eigen::Matrix<S, 4, 4> mode_cov(int i) const { return P_.m().template block<4, 4>(4 * i, 4 * i); }
   S cov_entry(int r, int c) const { return P_.m()(r, c); }
@@ -517,12 +411,7 @@ class ModalUkfJoint {
   static constexpr int C = modal_detail::chunk_width(L - 1, 32);
   static constexpr int C2 = modal_detail::chunk_width(N, 32);
 
-  static StepStatus fail(Record& rec, StepStatus s, StepDetail d) {
-    rec.status = s;
-    rec.detail = d;
-    rec.fused = false;
-    return s;
-  }
+  static StepStatus fail(Record& rec, StepStatus s, StepDetail d);
 
   Config cfg_;
   UtWeights<S> w_;
@@ -536,5 +425,188 @@ class ModalUkfJoint {
   VecM nu_, y_;
   Eigen::LLT<MatM> llt_s_;
 };
+
+template <typename S, int M>
+void ModalUkfJoint<S, M>::reset(const Config& cfg) {
+  cfg_ = cfg;
+  w_ = UtWeights<S>::make(N, cfg.ut);
+  initialized_ = false;
+  P_.m().setIdentity();
+  x_.m().setZero();
+  for (int i = 0; i < M; ++i) {
+    const ModalModeConfig<S>& c = cfg_.mode[i];
+    q_.m().template segment<4>(4 * i) << c.q_a, c.q_v, c.q_omega, c.q_alpha;
+  }
+}
+
+template <typename S, int M>
+auto ModalUkfJoint<S, M>::initialize(const Decomp& meas) -> StepStatus {
+  if (meas.status != ModalStatus::Ok) return StepStatus::BadInput;
+  auto x = x_.m();
+  auto P = P_.m();
+  P.setZero();
+  for (int i = 0; i < M; ++i) {
+    const ModalModeConfig<S>& c = cfg_.mode[i];
+    x.template segment<4>(4 * i) << meas.a_coarse(i), S(0), c.omega_radps, c.alpha_ps;
+    for (int j = 0; j < M; ++j) P(4 * i, 4 * j) = meas.cov_a(i, j);
+    P(4 * i + 1, 4 * i + 1) = c.sigma_v0_ps * c.sigma_v0_ps;
+    P(4 * i + 2, 4 * i + 2) = c.sigma_omega0_radps * c.sigma_omega0_radps;
+    P(4 * i + 3, 4 * i + 3) = c.sigma_alpha0_ps * c.sigma_alpha0_ps;
+  }
+  initialized_ = true;
+  return StepStatus::Ok;
+}
+
+template <typename S, int M>
+auto ModalUkfJoint<S, M>::predict(S dt) -> StepStatus {
+  if (!initialized_ || !(dt > S(0)) || !std::isfinite(dt)) return StepStatus::BadInput;
+  auto Lc = L_.m();
+  auto X = X_.m();
+  auto x = x_.m();
+  auto P = P_.m();
+  Lc = P;
+  {
+    Eigen::LLT<Eigen::Ref<MatN>> llt(Lc);  // in place, lower triangle
+    if (llt.info() != Eigen::Success) return StepStatus::NotPosDef;
+  }
+  // Sigma points x +- gamma L_j. Column j of L is zero above row j, so a
+  // mode block above j is not perturbed and maps to f(x_block).
+  X.col(0) = x;
+  for (int j = 0; j < N; ++j) {
+    X.col(1 + j) = x;
+    X.col(1 + N + j) = x;
+    X.col(1 + j).tail(N - j) += w_.gamma * Lc.col(j).tail(N - j);
+    X.col(1 + N + j).tail(N - j) -= w_.gamma * Lc.col(j).tail(N - j);
+  }
+  S* xd = X_.v;
+  for (int i = 0; i < M; ++i) {
+    S f0[4];
+    modal_detail::propagate_mode(xd + 4 * i, f0, dt);
+    for (int r = 0; r < 4; ++r) xd[4 * i + r] = f0[r];
+    const int last = 4 * i + 3;  // columns j > last leave block i at the mean
+    for (int j = 0; j < N; ++j) {
+      S* a = xd + static_cast<long>(1 + j) * N + 4 * i;
+      S* b = xd + static_cast<long>(1 + N + j) * N + 4 * i;
+      if (j <= last) {
+        modal_detail::propagate_mode(a, a, dt);
+        modal_detail::propagate_mode(b, b, dt);
+      } else {
+        for (int r = 0; r < 4; ++r) a[r] = b[r] = f0[r];
+      }
+    }
+  }
+  auto xp = xp_.m();
+  xp.setZero();
+  for (int k = 1; k < L; ++k) xp += X.col(k);
+  xp *= w_.wi;
+  xp += w_.wm0 * X.col(0);
+  for (int k = 0; k < L; ++k) X.col(k) -= xp;
+  // Lower triangle of sum_k w_k d_k d_k^T, in chunks of C sigma points.
+  auto Pp = L_.m();  // the factor is no longer needed: reuse its storage
+  Pp.setZero();
+  for (int c = 0; c < (L - 1) / C; ++c) {
+    Pp.template selfadjointView<Eigen::Lower>().rankUpdate(X.template middleCols<C>(1 + c * C), w_.wi);
+  }
+  Pp.template selfadjointView<Eigen::Lower>().rankUpdate(X.col(0), w_.wc0);
+  for (int j = 0; j < N; ++j) {
+    Pp(j, j) += q_.m()(j) * dt;
+    for (int i = j + 1; i < N; ++i) Pp(j, i) = Pp(i, j);
+  }
+  if (!xp.allFinite() || !Pp.allFinite()) return StepStatus::NotPosDef;
+  x = xp;
+  P = Pp;
+  return StepStatus::Ok;
+}
+
+template <typename S, int M>
+auto ModalUkfJoint<S, M>::update(const Decomp& meas, Record& rec) -> StepStatus {
+  rec = Record();
+  rec.decomposition = meas.status;
+  if (!initialized_) return fail(rec, StepStatus::BadInput, StepDetail::NotInitialized);
+  if (meas.status != ModalStatus::Ok) return fail(rec, StepStatus::BadInput, StepDetail::None);
+  if (!meas.a_coarse.allFinite() || !meas.cov_a.allFinite())
+    return fail(rec, StepStatus::BadInput, StepDetail::NonFinite);
+  auto P = P_.m();
+  auto x = x_.m();
+  auto PxA = pxa_.m();
+  for (int i = 0; i < M; ++i) {
+    PxA.col(i) = P.col(4 * i);
+    for (int j = 0; j < M; ++j) s_(i, j) = P(4 * i, 4 * j) + meas.cov_a(i, j);
+    nu_(i) = meas.a_coarse(i) - x(4 * i);
+  }
+  llt_s_.compute(s_);
+  if (llt_s_.info() != Eigen::Success) return fail(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
+  y_ = nu_;
+  llt_s_.solveInPlace(y_);
+  rec.innovation = nu_;
+  rec.innovation_var = s_.diagonal();
+  rec.nis = nu_.dot(y_);
+  if (cfg_.gate_nis > S(0) && rec.nis > cfg_.gate_nis) return fail(rec, StepStatus::Gated, StepDetail::None);
+  auto Kt = kt_.m();
+  Kt = PxA.transpose();
+  llt_s_.solveInPlace(Kt);  // S^-1 P_Ax
+  x.noalias() += PxA * y_;
+  for (int c = 0; c < N / C2; ++c) {
+    P.template middleCols<C2>(c * C2).noalias() -= PxA * Kt.template middleCols<C2>(c * C2);
+  }
+  for (int j = 0; j < N; ++j)
+    for (int i = j + 1; i < N; ++i) {
+      const S m = S(0.5) * (P(i, j) + P(j, i));
+      P(i, j) = P(j, i) = m;
+    }
+  rec.fused = true;
+  rec.status = StepStatus::Ok;
+  return rec.status;
+}
+
+template <typename S, int M>
+auto ModalUkfJoint<S, M>::step(S dt, const Decomp& meas, Record& rec) -> StepStatus {
+  if (!initialized_) {
+    rec = Record();
+    rec.decomposition = meas.status;
+    rec.status = initialize(meas);
+    rec.fused = rec.status == StepStatus::Ok;
+    return rec.status;
+  }
+  const StepStatus sp = predict(dt);
+  if (sp != StepStatus::Ok) {
+    rec = Record();
+    rec.decomposition = meas.status;
+    return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
+  }
+  return update(meas, rec);
+}
+
+template <typename S, int M>
+void ModalUkfJoint<S, M>::amplitude_cov(MatM& Pa) const {
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < M; ++j) Pa(i, j) = P_.m()(4 * i, 4 * j);
+}
+
+template <typename S, int M>
+auto ModalUkfJoint<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
+  rec.status = s;
+  rec.detail = d;
+  rec.fused = false;
+  return s;
+}
+
+// Compiled once, in fsw_core (instantiate_modal.cpp); see nav_ukf.hpp.
+#ifndef FSW_IMPLICIT_INSTANTIATION
+extern template class ModeUkf<double>;
+extern template class ModeUkf<float>;
+extern template class ModalUkfBank<double, 3>;
+extern template class ModalUkfBank<float, 3>;
+extern template class ModalUkfBank<double, 10>;
+extern template class ModalUkfBank<float, 10>;
+extern template class ModalUkfBank<double, 50>;
+extern template class ModalUkfBank<float, 50>;
+extern template class ModalUkfJoint<double, 3>;
+extern template class ModalUkfJoint<float, 3>;
+extern template class ModalUkfJoint<double, 10>;
+extern template class ModalUkfJoint<float, 10>;
+extern template class ModalUkfJoint<double, 50>;
+extern template class ModalUkfJoint<float, 50>;
+#endif
 
 }  // namespace fsw

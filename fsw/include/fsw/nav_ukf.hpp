@@ -173,36 +173,7 @@ class NavUkf {
 
   // Sets the state at t_s. P0 over the error state; it is conditioned and
   // must factor. On failure the filter keeps its previous state.
-  Record init(double t_s, const State& x0, const Cov& P0) {
-    Record rec;
-    rec.t_s = t_s;
-    if (!config_ok()) return reject(rec, StepStatus::BadInput, StepDetail::BadConfig);
-    if (!std::isfinite(t_s) || !x0.all_finite() || !P0.allFinite())
-      return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
-    if (!quat_unit(x0.q_hb)) return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
-    Cov P = P0;
-    Cov L;
-    if (!condition_covariance(P, var_min_, var_max_) || !cholesky_lower(P, L))
-      return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-    Entry& e = hist_[0];
-    e.t_s = t_s;
-    e.x = x0;
-    e.x.q_hb = normalized(x0.q_hb);
-    if constexpr (!kWithBias) {
-      e.x.gyro_bias_rps.setZero();
-      e.x.accel_bias_mps2.setZero();
-    }
-    e.P = P;
-    e.accel_b_mps2.setZero();
-    e.omega_bi_b_rps.setZero();
-    e.dt_s = S(0);
-    head_ = 0;
-    count_ = 1;
-    initialized_ = true;
-    last_fused_t_s_ = -std::numeric_limits<double>::infinity();
-    rec.status = StepStatus::Ok;
-    return rec;
-  }
+  Record init(double t_s, const State& x0, const Cov& P0);
 
   // Re-acquisition from a pose when the filter is lost (an outage left it
   // too uncertain for a pose to be a correction, or it keeps rejecting poses
@@ -213,132 +184,16 @@ class NavUkf {
   // The pose may be up to max_delay_s old; it is taken as of now (the motion
   // in that time is far inside a lost filter's error). On failure the filter
   // keeps its state.
-  Record reacquire(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R) {
-    Record rec;
-    rec.t_s = t_capture_s;
-    if (!pose_input_ok(t_capture_s, r_hill_m, q_hb, R, rec)) return rec;
-    State x = hist_[head_].x;
-    x.r_hill_m = r_hill_m;
-    x.q_hb = q_hb;
-    Cov P = hist_[head_].P;
-    constexpr int ip = Layout::kDPos.index, ia = Layout::kDTheta.index;
-    P.template middleRows<3>(ip).setZero();
-    P.template middleCols<3>(ip).setZero();
-    P.template middleRows<3>(ia).setZero();
-    P.template middleCols<3>(ia).setZero();
-    P.template block<3, 3>(ip, ip) = R.template block<3, 3>(0, 0);
-    P.template block<3, 3>(ia, ia) = R.template block<3, 3>(3, 3);
-    P.template block<3, 3>(ip, ia) = R.template block<3, 3>(0, 3);
-    P.template block<3, 3>(ia, ip) = R.template block<3, 3>(3, 0);
-    const Record r = init(hist_[head_].t_s, x, P);  // taken as of now
-    rec.status = r.status;
-    rec.detail = r.detail;
-    return rec;
-  }
+  Record reacquire(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R);
 
   // IMU sample (specific force in body [m/s^2], omega_BI_B [rad/s]) held
   // over (t_current, t_s]; moves the filter to t_s. A step of m whole IMU
   // periods (samples lost) is taken as m stored ticks.
-  Record predict(double t_s, const Vec3<S>& accel_b_mps2, const Vec3<S>& omega_bi_b_rps) {
-    Record rec;
-    rec.t_s = t_s;
-    if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized);
-    if (!std::isfinite(t_s) || !accel_b_mps2.allFinite() || !omega_bi_b_rps.allFinite())
-      return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
-    const Entry& cur = hist_[head_];
-    const double dt = t_s - cur.t_s;
-    if (!(dt > cfg_.time_tol_s)) return reject(rec, StepStatus::BadInput, StepDetail::TimeNotIncreasing);
-    // Missed ticks (IMU samples lost on the way): when dt spans m >= 2 whole
-    // IMU periods, this sample is held over each of them (with the gap noise)
-    // and the last kHistory - 1 ticks are stored, so a pose captured at a
-    // missed tick still lands on a stored tick. Earlier ticks of a long gap
-    // are coasted through in two temporaries; the stored ones go to scratch_
-    // first: a failure leaves everything untouched. Bounded by max_gap_s.
-    const long m = std::lround(dt / cfg_.dt_imu_s);
-    const bool on_grid = m >= 2 && std::abs(dt - double(m) * cfg_.dt_imu_s) <= cfg_.time_tol_s;
-    if (on_grid ? dt > cfg_.max_gap_s : dt > cfg_.max_dt_s)
-      return reject(rec, StepStatus::BadInput, StepDetail::StepTooLong);
-    const int steps = on_grid ? int(m) : 1;
-    const int kept = steps < kHistory - 1 ? steps : kHistory - 1;
-    const int coast = steps - kept;
-    bool repaired = false;
-    Entry coast_a, coast_b;
-    const Entry* prev = &cur;
-    for (int i = 0; i < steps; ++i) {  // bounded: max_gap_s / dt_imu_s
-      Entry& next = i < coast ? ((i % 2) ? coast_b : coast_a) : scratch_[i - coast];
-      next.t_s = (i + 1 == steps) ? t_s : cur.t_s + double(i + 1) * cfg_.dt_imu_s;
-      next.accel_b_mps2 = accel_b_mps2;
-      next.omega_bi_b_rps = omega_bi_b_rps;
-      next.dt_s = S(next.t_s - prev->t_s);
-      next.bridged = i + 1 < steps;
-      if (!propagate(prev->x, prev->P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.bridged, next.x,
-                     next.P, &repaired))
-        return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-      prev = &next;
-    }
-    for (int i = 0; i < kept; ++i) {
-      head_ = (head_ + 1) % kHistory;
-      if (count_ < kHistory) ++count_;
-      hist_[head_] = scratch_[i];
-    }
-    rec.status = StepStatus::Ok;
-    if (repaired) rec.detail = StepDetail::CovarianceRepaired;
-    return rec;
-  }
+  Record predict(double t_s, const Vec3<S>& accel_b_mps2, const Vec3<S>& omega_bi_b_rps);
 
   // Pose captured at t_capture_s: r_hill_m, q_hb, R over [position m^2,
   // attitude rad^2 (body-frame boxminus)]. May be up to max_delay_s late.
-  Record update_pose(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R) {
-    Record rec;
-    rec.t_s = t_capture_s;
-    if (!pose_input_ok(t_capture_s, r_hill_m, q_hb, R, rec)) return rec;
-    if (t_capture_s < last_fused_t_s_ - cfg_.time_tol_s)
-      return reject(rec, StepStatus::BadInput, StepDetail::OutOfSequence);
-    // Find the stored tick at the capture time, newest first.
-    int back = -1;
-    for (int k = 0; k < count_; ++k) {
-      const double te = hist_[index_back(k)].t_s;
-      if (std::abs(te - t_capture_s) <= cfg_.time_tol_s) {
-        back = k;
-        break;
-      }
-      if (te < t_capture_s) break;  // passed it: capture time between two ticks
-    }
-    if (back < 0) {
-      const double t_oldest = hist_[index_back(count_ - 1)].t_s;
-      return reject(rec, StepStatus::BadInput,
-                    t_capture_s < t_oldest ? StepDetail::TooOld : StepDetail::OffTick);
-    }
-    const Entry& at = hist_[index_back(back)];
-    Entry* out = scratch_;
-    out[0] = at;
-    const Vec3<S> r_meas = r_hill_m;
-    const Quat<S> q_meas = normalized(q_hb);
-    const StepStatus st = fuse(at.x, at.P, r_meas, q_meas, R, rec, out[0].x, out[0].P);
-    if (st != StepStatus::Ok) return rec;  // state untouched; rec says why
-    bool repaired = rec.detail == StepDetail::CovarianceRepaired;
-    // Re-apply the stored IMU samples from the capture tick to now.
-    for (int k = back - 1, j = 1; k >= 0; --k, ++j) {
-      const Entry& src = hist_[index_back(k)];
-      out[j].t_s = src.t_s;
-      out[j].accel_b_mps2 = src.accel_b_mps2;
-      out[j].omega_bi_b_rps = src.omega_bi_b_rps;
-      out[j].dt_s = src.dt_s;
-      out[j].bridged = src.bridged;
-      if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, src.bridged,
-                     out[j].x, out[j].P, &repaired)) {
-        rec.fused = false;
-        return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-      }
-    }
-    // Commit.
-    for (int k = back, j = 0; k >= 0; --k, ++j) hist_[index_back(k)] = out[j];
-    last_fused_t_s_ = at.t_s;
-    rec.status = StepStatus::Ok;
-    rec.fused = true;
-    if (repaired) rec.detail = StepDetail::CovarianceRepaired;
-    return rec;
-  }
+  Record update_pose(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R);
 
   bool initialized() const { return initialized_; }
   double t_s() const { return hist_[head_].t_s; }
@@ -366,192 +221,40 @@ class NavUkf {
     Cov Q;
   };
 
-  StepModel make_step(S dt) const {
-    StepModel m;
-    m.phi = cw_stm(cfg_.n_radps, dt);
-    m.gamma = cw_accel_response(cfg_.n_radps, dt);
-    m.hill_step = hill_frame_step(cfg_.n_radps, dt);
-    m.Q.setZero();
-    const S sa2 = cfg_.accel_sigma_mps2 * cfg_.accel_sigma_mps2;
-    m.Q.template block<6, 6>(0, 0) = sa2 * (m.gamma * m.gamma.transpose());
-    const S sg = cfg_.gyro_sigma_rps * dt;
-    m.Q.template block<3, 3>(Layout::kDTheta.index, Layout::kDTheta.index) = (sg * sg) * Mat3<S>::Identity();
-    if constexpr (kWithBias) {
-      const S qg = cfg_.gyro_bias_walk * cfg_.gyro_bias_walk * dt;
-      const S qa = cfg_.accel_bias_walk * cfg_.accel_bias_walk * dt;
-      m.Q.template block<3, 3>(Layout::kDGyroBias.index, Layout::kDGyroBias.index) = qg * Mat3<S>::Identity();
-      m.Q.template block<3, 3>(Layout::kDAccelBias.index, Layout::kDAccelBias.index) = qa * Mat3<S>::Identity();
-    }
-    return m;
-  }
+  StepModel make_step(S dt) const;
 
   // One sigma point through the dynamics.
-  State dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, const StepModel& m) const {
-    Vec3<S> w = omega_b;
-    Vec3<S> a = accel_b;
-    if constexpr (kWithBias) {
-      w -= x.gyro_bias_rps;
-      a -= x.accel_bias_mps2;
-    }
-    // Body acceleration at mid-step, into the Hill frame at mid-step.
-    const Vec3<S> a_mid_b = a + (S(0.5) * dt) * w.cross(a);
-    const Vec3<S> v = x.q_hb._transformVector(a_mid_b);
-    const S th = S(0.5) * cfg_.n_radps * dt;  // Hill frame turns by -n dt / 2 about z
-    const Vec3<S> a_hill(v.x() + th * v.y(), v.y() - th * v.x(), v.z());
-    Vec6<S> rv;
-    rv << x.r_hill_m, x.v_hill_mps;
-    const Vec6<S> rv1 = m.phi * rv + m.gamma * a_hill;
-    State out = x;
-    out.r_hill_m = rv1.template head<3>();
-    out.v_hill_mps = rv1.template tail<3>();
-    out.q_hb = propagate_attitude(x.q_hb, w, dt, m.hill_step);
-    return out;
-  }
+  State dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, const StepModel& m) const;
 
   // Sigma-point offsets: column i of gamma * L, i in [0, 2n], 0 the centre.
-  ErrVec sigma_offset(const Cov& L, int i) const {
-    if (i == 0) return ErrVec::Zero();
-    if (i <= kN) return gamma_ * L.col(i - 1);
-    return -gamma_ * L.col(i - 1 - kN);
-  }
+  ErrVec sigma_offset(const Cov& L, int i) const;
 
   S wm(int i) const { return i == 0 ? wm0_ : wi_; }
   S wc(int i) const { return i == 0 ? wc0_ : wi_; }
 
   // Weighted tangent-space mean of sigma states (single step around the
   // centre) and deviations from it.
-  void sigma_mean(const State* X, State& mean, Eigen::Matrix<S, kN, kSigma>& D) const {
-    const State& c = X[0];
-    ErrVec acc = ErrVec::Zero();
-    for (int i = 0; i < kSigma; ++i) acc += wm(i) * X[i].minus(c);
-    mean = c.plus(acc);
-    for (int i = 0; i < kSigma; ++i) D.col(i) = X[i].minus(mean);
-  }
+  void sigma_mean(const State* X, State& mean, Eigen::Matrix<S, kN, kSigma>& D) const;
 
   // Pure predict: no member written. Returns false if P does not factor,
   // even with the jitter of cholesky_lower_repaired.
   // *repaired is set when P factored only with a jitter (cholesky_lower_repaired).
   bool propagate(const State& x, const Cov& P, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, bool bridged,
-                 State& x_out, Cov& P_out, bool* repaired = nullptr) const {
-    Cov L;
-    const int rep = cholesky_lower_repaired(P, L);
-    if (rep < 0) return false;
-    if (rep > 0 && repaired != nullptr) *repaired = true;
-    const bool nominal = std::abs(dt - dt_nom_) <= S(1e-6) * dt_nom_;
-    StepModel other;
-    if (!nominal) other = make_step(dt);
-    const StepModel& m = nominal ? prop_nom_ : other;
-    State X[kSigma];
-    for (int i = 0; i < kSigma; ++i) X[i] = dynamics(x.plus(sigma_offset(L, i)), accel_b, omega_b, dt, m);
-    State mean;
-    Eigen::Matrix<S, kN, kSigma> D;
-    sigma_mean(X, mean, D);
-    Cov Pn = wc0_ * D.col(0) * D.col(0).transpose();
-    Pn.noalias() += wi_ * D.template rightCols<kSigma - 1>() * D.template rightCols<kSigma - 1>().transpose();
-    Pn += m.Q;
-    if (bridged) {  // the held sample stands in for an unknown one
-      const S ga = cfg_.gap_accel_sigma_mps2, gg = cfg_.gap_gyro_sigma_rps * dt;
-      Pn.template block<6, 6>(0, 0).noalias() += (ga * ga) * (m.gamma * m.gamma.transpose());
-      Pn.template block<3, 3>(Layout::kDTheta.index, Layout::kDTheta.index) += (gg * gg) * Mat3<S>::Identity();
-    }
-    if (!condition_covariance(Pn, var_min_, var_max_)) return false;
-    if (!mean.all_finite() || !Pn.allFinite()) return false;
-    x_out = mean;
-    P_out = Pn;
-    return true;
-  }
+                 State& x_out, Cov& P_out, bool* repaired = nullptr) const;
 
   // Pose fusion into (x, P); fills rec. Outputs written only on Ok.
   StepStatus fuse(const State& x, const Cov& P, const Vec3<S>& r_meas, const Quat<S>& q_meas, const MeasCov& R,
-                  Record& rec, State& x_out, Cov& P_out) const {
-    Cov L;
-    const int rep = cholesky_lower_repaired(P, L);
-    if (rep < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-    Eigen::Matrix<S, kN, kSigma> DX;
-    Vec3<S> r_sig[kSigma];
-    Quat<S> q_sig[kSigma];
-    for (int i = 0; i < kSigma; ++i) {
-      DX.col(i) = sigma_offset(L, i);
-      r_sig[i] = x.r_hill_m + DX.col(i).template segment<3>(Layout::kDPos.index);
-      q_sig[i] = boxplus(x.q_hb, Vec3<S>(DX.col(i).template segment<3>(Layout::kDTheta.index)));
-    }
-    // Predicted measurement: weighted mean, attitude in the tangent space
-    // around the central point.
-    Vec3<S> r_hat = Vec3<S>::Zero();
-    Vec3<S> dq = Vec3<S>::Zero();
-    for (int i = 0; i < kSigma; ++i) {
-      r_hat += wm(i) * r_sig[i];
-      dq += wm(i) * boxminus(q_sig[i], q_sig[0]);
-    }
-    const Quat<S> q_hat = boxplus(q_sig[0], dq);
-    Eigen::Matrix<S, kMeas, kSigma> DZ;
-    for (int i = 0; i < kSigma; ++i) {
-      DZ.col(i).template head<3>() = r_sig[i] - r_hat;
-      DZ.col(i).template tail<3>() = boxminus(q_sig[i], q_hat);
-    }
-    MeasCov Szz = wc0_ * DZ.col(0) * DZ.col(0).transpose();
-    Szz.noalias() += wi_ * DZ.template rightCols<kSigma - 1>() * DZ.template rightCols<kSigma - 1>().transpose();
-    Szz += R;
-    symmetrize(Szz);
-    Eigen::Matrix<S, kN, kMeas> Pxz = wc0_ * DX.col(0) * DZ.col(0).transpose();
-    Pxz.noalias() += wi_ * DX.template rightCols<kSigma - 1>() * DZ.template rightCols<kSigma - 1>().transpose();
-    MeasVec y;
-    y.template head<3>() = r_meas - r_hat;
-    y.template tail<3>() = boxminus(q_meas, q_hat);
-    rec.innovation = y;
-    rec.innovation_cov = Szz;
-    Eigen::LLT<MeasCov> llt;
-    if (!factor(Szz, llt)) return set(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
-    const MeasVec Siy = llt.solve(y);
-    rec.nis = y.dot(Siy);
-    const S log_2pi = S(1.8378770664093454836);
-    rec.log_likelihood = S(-0.5) * (rec.nis + S(kMeas) * log_2pi + log_det(llt));
-    if (cfg_.gate_chi2 > S(0) && !(rec.nis <= cfg_.gate_chi2)) return set(rec, StepStatus::Gated, StepDetail::None);
-    // K = Pxz S^-1, via S K^T = Pxz^T.
-    const Eigen::Matrix<S, kN, kMeas> K = llt.solve(Pxz.transpose()).transpose();
-    const ErrVec dx = K * y;
-    Cov Pn = P;
-    Pn.noalias() -= K * Szz * K.transpose();
-    Cov Ln;
-    if (!condition_covariance(Pn, var_min_, var_max_)) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
-    const int rep_n = cholesky_lower_repaired(Pn, Ln);
-    if (rep_n < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
-    const State xn = x.plus(dx);
-    if (!xn.all_finite()) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
-    x_out = xn;
-    P_out = Pn;
-    return set(rec, StepStatus::Ok, (rep > 0 || rep_n > 0) ? StepDetail::CovarianceRepaired : StepDetail::None);
-  }
+                  Record& rec, State& x_out, Cov& P_out) const;
 
-  static StepStatus set(Record& rec, StepStatus s, StepDetail d) {
-    rec.status = s;
-    rec.detail = d;
-    rec.fused = false;
-    return s;
-  }
-  static Record reject(Record& rec, StepStatus s, StepDetail d) {
-    set(rec, s, d);
-    return rec;
-  }
+  static StepStatus set(Record& rec, StepStatus s, StepDetail d);
+  static Record reject(Record& rec, StepStatus s, StepDetail d);
 
   // What a pose must be before either use (update or re-acquisition):
   // filter initialised, values finite, unit quaternion, captured neither
   // after the filter time nor more than max_delay_s before it. False with
   // the reason in rec.
   bool pose_input_ok(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb, const MeasCov& R,
-                     Record& rec) const {
-    StepDetail d = StepDetail::None;
-    const double t_now = hist_[head_].t_s;
-    if (!initialized_) d = StepDetail::NotInitialized;
-    else if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
-      d = StepDetail::NonFinite;
-    else if (!quat_unit(q_hb)) d = StepDetail::NonUnitQuaternion;
-    else if (t_capture_s > t_now + cfg_.time_tol_s) d = StepDetail::FromFuture;
-    else if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s) d = StepDetail::TooOld;
-    if (d == StepDetail::None) return true;
-    set(rec, StepStatus::BadInput, d);
-    return false;
-  }
+                     Record& rec) const;
 
   bool quat_unit(const Quat<S>& q) const { return std::abs(q.norm() - S(1)) <= cfg_.quat_unit_tol; }
 
@@ -572,5 +275,360 @@ class NavUkf {
   bool initialized_ = false;
   double last_fused_t_s_ = 0.0;
 };
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::init(double t_s, const State& x0, const Cov& P0) -> Record {
+  Record rec;
+  rec.t_s = t_s;
+  if (!config_ok()) return reject(rec, StepStatus::BadInput, StepDetail::BadConfig);
+  if (!std::isfinite(t_s) || !x0.all_finite() || !P0.allFinite())
+    return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
+  if (!quat_unit(x0.q_hb)) return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
+  Cov P = P0;
+  Cov L;
+  if (!condition_covariance(P, var_min_, var_max_) || !cholesky_lower(P, L))
+    return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+  Entry& e = hist_[0];
+  e.t_s = t_s;
+  e.x = x0;
+  e.x.q_hb = normalized(x0.q_hb);
+  if constexpr (!kWithBias) {
+    e.x.gyro_bias_rps.setZero();
+    e.x.accel_bias_mps2.setZero();
+  }
+  e.P = P;
+  e.accel_b_mps2.setZero();
+  e.omega_bi_b_rps.setZero();
+  e.dt_s = S(0);
+  head_ = 0;
+  count_ = 1;
+  initialized_ = true;
+  last_fused_t_s_ = -std::numeric_limits<double>::infinity();
+  rec.status = StepStatus::Ok;
+  return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::reacquire(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb,
+                                               const MeasCov& R) -> Record {
+  Record rec;
+  rec.t_s = t_capture_s;
+  if (!pose_input_ok(t_capture_s, r_hill_m, q_hb, R, rec)) return rec;
+  State x = hist_[head_].x;
+  x.r_hill_m = r_hill_m;
+  x.q_hb = q_hb;
+  Cov P = hist_[head_].P;
+  constexpr int ip = Layout::kDPos.index, ia = Layout::kDTheta.index;
+  P.template middleRows<3>(ip).setZero();
+  P.template middleCols<3>(ip).setZero();
+  P.template middleRows<3>(ia).setZero();
+  P.template middleCols<3>(ia).setZero();
+  P.template block<3, 3>(ip, ip) = R.template block<3, 3>(0, 0);
+  P.template block<3, 3>(ia, ia) = R.template block<3, 3>(3, 3);
+  P.template block<3, 3>(ip, ia) = R.template block<3, 3>(0, 3);
+  P.template block<3, 3>(ia, ip) = R.template block<3, 3>(3, 0);
+  const Record r = init(hist_[head_].t_s, x, P);  // taken as of now
+  rec.status = r.status;
+  rec.detail = r.detail;
+  return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::predict(double t_s, const Vec3<S>& accel_b_mps2, const Vec3<S>& omega_bi_b_rps)
+    -> Record {
+  Record rec;
+  rec.t_s = t_s;
+  if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized);
+  if (!std::isfinite(t_s) || !accel_b_mps2.allFinite() || !omega_bi_b_rps.allFinite())
+    return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
+  const Entry& cur = hist_[head_];
+  const double dt = t_s - cur.t_s;
+  if (!(dt > cfg_.time_tol_s)) return reject(rec, StepStatus::BadInput, StepDetail::TimeNotIncreasing);
+  // Missed ticks (IMU samples lost on the way): when dt spans m >= 2 whole
+  // IMU periods, this sample is held over each of them (with the gap noise)
+  // and the last kHistory - 1 ticks are stored, so a pose captured at a
+  // missed tick still lands on a stored tick. Earlier ticks of a long gap
+  // are coasted through in two temporaries; the stored ones go to scratch_
+  // first: a failure leaves everything untouched. Bounded by max_gap_s.
+  const long m = std::lround(dt / cfg_.dt_imu_s);
+  const bool on_grid = m >= 2 && std::abs(dt - double(m) * cfg_.dt_imu_s) <= cfg_.time_tol_s;
+  if (on_grid ? dt > cfg_.max_gap_s : dt > cfg_.max_dt_s)
+    return reject(rec, StepStatus::BadInput, StepDetail::StepTooLong);
+  const int steps = on_grid ? int(m) : 1;
+  const int kept = steps < kHistory - 1 ? steps : kHistory - 1;
+  const int coast = steps - kept;
+  bool repaired = false;
+  Entry coast_a, coast_b;
+  const Entry* prev = &cur;
+  for (int i = 0; i < steps; ++i) {  // bounded: max_gap_s / dt_imu_s
+    Entry& next = i < coast ? ((i % 2) ? coast_b : coast_a) : scratch_[i - coast];
+    next.t_s = (i + 1 == steps) ? t_s : cur.t_s + double(i + 1) * cfg_.dt_imu_s;
+    next.accel_b_mps2 = accel_b_mps2;
+    next.omega_bi_b_rps = omega_bi_b_rps;
+    next.dt_s = S(next.t_s - prev->t_s);
+    next.bridged = i + 1 < steps;
+    if (!propagate(prev->x, prev->P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.bridged, next.x,
+                   next.P, &repaired))
+      return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+    prev = &next;
+  }
+  for (int i = 0; i < kept; ++i) {
+    head_ = (head_ + 1) % kHistory;
+    if (count_ < kHistory) ++count_;
+    hist_[head_] = scratch_[i];
+  }
+  rec.status = StepStatus::Ok;
+  if (repaired) rec.detail = StepDetail::CovarianceRepaired;
+  return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::update_pose(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb,
+                                                 const MeasCov& R) -> Record {
+  Record rec;
+  rec.t_s = t_capture_s;
+  if (!pose_input_ok(t_capture_s, r_hill_m, q_hb, R, rec)) return rec;
+  if (t_capture_s < last_fused_t_s_ - cfg_.time_tol_s)
+    return reject(rec, StepStatus::BadInput, StepDetail::OutOfSequence);
+  // Find the stored tick at the capture time, newest first.
+  int back = -1;
+  for (int k = 0; k < count_; ++k) {
+    const double te = hist_[index_back(k)].t_s;
+    if (std::abs(te - t_capture_s) <= cfg_.time_tol_s) {
+      back = k;
+      break;
+    }
+    if (te < t_capture_s) break;  // passed it: capture time between two ticks
+  }
+  if (back < 0) {
+    const double t_oldest = hist_[index_back(count_ - 1)].t_s;
+    return reject(rec, StepStatus::BadInput,
+                  t_capture_s < t_oldest ? StepDetail::TooOld : StepDetail::OffTick);
+  }
+  const Entry& at = hist_[index_back(back)];
+  Entry* out = scratch_;
+  out[0] = at;
+  const Vec3<S> r_meas = r_hill_m;
+  const Quat<S> q_meas = normalized(q_hb);
+  const StepStatus st = fuse(at.x, at.P, r_meas, q_meas, R, rec, out[0].x, out[0].P);
+  if (st != StepStatus::Ok) return rec;  // state untouched; rec says why
+  bool repaired = rec.detail == StepDetail::CovarianceRepaired;
+  // Re-apply the stored IMU samples from the capture tick to now.
+  for (int k = back - 1, j = 1; k >= 0; --k, ++j) {
+    const Entry& src = hist_[index_back(k)];
+    out[j].t_s = src.t_s;
+    out[j].accel_b_mps2 = src.accel_b_mps2;
+    out[j].omega_bi_b_rps = src.omega_bi_b_rps;
+    out[j].dt_s = src.dt_s;
+    out[j].bridged = src.bridged;
+    if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, src.bridged,
+                   out[j].x, out[j].P, &repaired)) {
+      rec.fused = false;
+      return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+    }
+  }
+  // Commit.
+  for (int k = back, j = 0; k >= 0; --k, ++j) hist_[index_back(k)] = out[j];
+  last_fused_t_s_ = at.t_s;
+  rec.status = StepStatus::Ok;
+  rec.fused = true;
+  if (repaired) rec.detail = StepDetail::CovarianceRepaired;
+  return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::make_step(S dt) const -> StepModel {
+  StepModel m;
+  m.phi = cw_stm(cfg_.n_radps, dt);
+  m.gamma = cw_accel_response(cfg_.n_radps, dt);
+  m.hill_step = hill_frame_step(cfg_.n_radps, dt);
+  m.Q.setZero();
+  const S sa2 = cfg_.accel_sigma_mps2 * cfg_.accel_sigma_mps2;
+  m.Q.template block<6, 6>(0, 0) = sa2 * (m.gamma * m.gamma.transpose());
+  const S sg = cfg_.gyro_sigma_rps * dt;
+  m.Q.template block<3, 3>(Layout::kDTheta.index, Layout::kDTheta.index) = (sg * sg) * Mat3<S>::Identity();
+  if constexpr (kWithBias) {
+    const S qg = cfg_.gyro_bias_walk * cfg_.gyro_bias_walk * dt;
+    const S qa = cfg_.accel_bias_walk * cfg_.accel_bias_walk * dt;
+    m.Q.template block<3, 3>(Layout::kDGyroBias.index, Layout::kDGyroBias.index) = qg * Mat3<S>::Identity();
+    m.Q.template block<3, 3>(Layout::kDAccelBias.index, Layout::kDAccelBias.index) = qa * Mat3<S>::Identity();
+  }
+  return m;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt,
+                                              const StepModel& m) const -> State {
+  Vec3<S> w = omega_b;
+  Vec3<S> a = accel_b;
+  if constexpr (kWithBias) {
+    w -= x.gyro_bias_rps;
+    a -= x.accel_bias_mps2;
+  }
+  // Body acceleration at mid-step, into the Hill frame at mid-step.
+  const Vec3<S> a_mid_b = a + (S(0.5) * dt) * w.cross(a);
+  const Vec3<S> v = x.q_hb._transformVector(a_mid_b);
+  const S th = S(0.5) * cfg_.n_radps * dt;  // Hill frame turns by -n dt / 2 about z
+  const Vec3<S> a_hill(v.x() + th * v.y(), v.y() - th * v.x(), v.z());
+  Vec6<S> rv;
+  rv << x.r_hill_m, x.v_hill_mps;
+  const Vec6<S> rv1 = m.phi * rv + m.gamma * a_hill;
+  State out = x;
+  out.r_hill_m = rv1.template head<3>();
+  out.v_hill_mps = rv1.template tail<3>();
+  out.q_hb = propagate_attitude(x.q_hb, w, dt, m.hill_step);
+  return out;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::sigma_offset(const Cov& L, int i) const -> ErrVec {
+  if (i == 0) return ErrVec::Zero();
+  if (i <= kN) return gamma_ * L.col(i - 1);
+  return -gamma_ * L.col(i - 1 - kN);
+}
+
+template <typename S, bool kWithBias, int kHistory>
+void NavUkf<S, kWithBias, kHistory>::sigma_mean(const State* X, State& mean, Eigen::Matrix<S, kN, kSigma>& D) const {
+  const State& c = X[0];
+  ErrVec acc = ErrVec::Zero();
+  for (int i = 0; i < kSigma; ++i) acc += wm(i) * X[i].minus(c);
+  mean = c.plus(acc);
+  for (int i = 0; i < kSigma; ++i) D.col(i) = X[i].minus(mean);
+}
+
+template <typename S, bool kWithBias, int kHistory>
+bool NavUkf<S, kWithBias, kHistory>::propagate(const State& x, const Cov& P, const Vec3<S>& accel_b,
+                                               const Vec3<S>& omega_b, S dt, bool bridged, State& x_out, Cov& P_out,
+                                               bool* repaired) const {
+  Cov L;
+  const int rep = cholesky_lower_repaired(P, L);
+  if (rep < 0) return false;
+  if (rep > 0 && repaired != nullptr) *repaired = true;
+  const bool nominal = std::abs(dt - dt_nom_) <= S(1e-6) * dt_nom_;
+  StepModel other;
+  if (!nominal) other = make_step(dt);
+  const StepModel& m = nominal ? prop_nom_ : other;
+  State X[kSigma];
+  for (int i = 0; i < kSigma; ++i) X[i] = dynamics(x.plus(sigma_offset(L, i)), accel_b, omega_b, dt, m);
+  State mean;
+  Eigen::Matrix<S, kN, kSigma> D;
+  sigma_mean(X, mean, D);
+  Cov Pn = wc0_ * D.col(0) * D.col(0).transpose();
+  Pn.noalias() += wi_ * D.template rightCols<kSigma - 1>() * D.template rightCols<kSigma - 1>().transpose();
+  Pn += m.Q;
+  if (bridged) {  // the held sample stands in for an unknown one
+    const S ga = cfg_.gap_accel_sigma_mps2, gg = cfg_.gap_gyro_sigma_rps * dt;
+    Pn.template block<6, 6>(0, 0).noalias() += (ga * ga) * (m.gamma * m.gamma.transpose());
+    Pn.template block<3, 3>(Layout::kDTheta.index, Layout::kDTheta.index) += (gg * gg) * Mat3<S>::Identity();
+  }
+  if (!condition_covariance(Pn, var_min_, var_max_)) return false;
+  if (!mean.all_finite() || !Pn.allFinite()) return false;
+  x_out = mean;
+  P_out = Pn;
+  return true;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::fuse(const State& x, const Cov& P, const Vec3<S>& r_meas, const Quat<S>& q_meas,
+                                          const MeasCov& R, Record& rec, State& x_out, Cov& P_out) const -> StepStatus {
+  Cov L;
+  const int rep = cholesky_lower_repaired(P, L);
+  if (rep < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+  Eigen::Matrix<S, kN, kSigma> DX;
+  Vec3<S> r_sig[kSigma];
+  Quat<S> q_sig[kSigma];
+  for (int i = 0; i < kSigma; ++i) {
+    DX.col(i) = sigma_offset(L, i);
+    r_sig[i] = x.r_hill_m + DX.col(i).template segment<3>(Layout::kDPos.index);
+    q_sig[i] = boxplus(x.q_hb, Vec3<S>(DX.col(i).template segment<3>(Layout::kDTheta.index)));
+  }
+  // Predicted measurement: weighted mean, attitude in the tangent space
+  // around the central point.
+  Vec3<S> r_hat = Vec3<S>::Zero();
+  Vec3<S> dq = Vec3<S>::Zero();
+  for (int i = 0; i < kSigma; ++i) {
+    r_hat += wm(i) * r_sig[i];
+    dq += wm(i) * boxminus(q_sig[i], q_sig[0]);
+  }
+  const Quat<S> q_hat = boxplus(q_sig[0], dq);
+  Eigen::Matrix<S, kMeas, kSigma> DZ;
+  for (int i = 0; i < kSigma; ++i) {
+    DZ.col(i).template head<3>() = r_sig[i] - r_hat;
+    DZ.col(i).template tail<3>() = boxminus(q_sig[i], q_hat);
+  }
+  MeasCov Szz = wc0_ * DZ.col(0) * DZ.col(0).transpose();
+  Szz.noalias() += wi_ * DZ.template rightCols<kSigma - 1>() * DZ.template rightCols<kSigma - 1>().transpose();
+  Szz += R;
+  symmetrize(Szz);
+  Eigen::Matrix<S, kN, kMeas> Pxz = wc0_ * DX.col(0) * DZ.col(0).transpose();
+  Pxz.noalias() += wi_ * DX.template rightCols<kSigma - 1>() * DZ.template rightCols<kSigma - 1>().transpose();
+  MeasVec y;
+  y.template head<3>() = r_meas - r_hat;
+  y.template tail<3>() = boxminus(q_meas, q_hat);
+  rec.innovation = y;
+  rec.innovation_cov = Szz;
+  Eigen::LLT<MeasCov> llt;
+  if (!factor(Szz, llt)) return set(rec, StepStatus::NotPosDef, StepDetail::InnovationCholesky);
+  const MeasVec Siy = llt.solve(y);
+  rec.nis = y.dot(Siy);
+  const S log_2pi = S(1.8378770664093454836);
+  rec.log_likelihood = S(-0.5) * (rec.nis + S(kMeas) * log_2pi + log_det(llt));
+  if (cfg_.gate_chi2 > S(0) && !(rec.nis <= cfg_.gate_chi2)) return set(rec, StepStatus::Gated, StepDetail::None);
+  // K = Pxz S^-1, via S K^T = Pxz^T.
+  const Eigen::Matrix<S, kN, kMeas> K = llt.solve(Pxz.transpose()).transpose();
+  const ErrVec dx = K * y;
+  Cov Pn = P;
+  Pn.noalias() -= K * Szz * K.transpose();
+  Cov Ln;
+  if (!condition_covariance(Pn, var_min_, var_max_))
+    return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
+  const int rep_n = cholesky_lower_repaired(Pn, Ln);
+  if (rep_n < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
+  const State xn = x.plus(dx);
+  if (!xn.all_finite()) return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
+  x_out = xn;
+  P_out = Pn;
+  return set(rec, StepStatus::Ok, (rep > 0 || rep_n > 0) ? StepDetail::CovarianceRepaired : StepDetail::None);
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::set(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
+  rec.status = s;
+  rec.detail = d;
+  rec.fused = false;
+  return s;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::reject(Record& rec, StepStatus s, StepDetail d) -> Record {
+  set(rec, s, d);
+  return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+bool NavUkf<S, kWithBias, kHistory>::pose_input_ok(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb,
+                                                   const MeasCov& R, Record& rec) const {
+  StepDetail d = StepDetail::None;
+  const double t_now = hist_[head_].t_s;
+  if (!initialized_) d = StepDetail::NotInitialized;
+  else if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
+    d = StepDetail::NonFinite;
+  else if (!quat_unit(q_hb)) d = StepDetail::NonUnitQuaternion;
+  else if (t_capture_s > t_now + cfg_.time_tol_s) d = StepDetail::FromFuture;
+  else if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s) d = StepDetail::TooOld;
+  if (d == StepDetail::None) return true;
+  set(rec, StepStatus::BadInput, d);
+  return false;
+}
+
+// Compiled once, in fsw_core (instantiate_nav.cpp); users link to it instead
+// of compiling the filter again. FSW_IMPLICIT_INSTANTIATION (the fuzzer, which
+// instruments the code it runs) compiles it in place.
+#ifndef FSW_IMPLICIT_INSTANTIATION
+extern template class NavUkf<double, false>;
+extern template class NavUkf<float, false>;
+extern template class NavUkf<double, true>;
+extern template class NavUkf<float, true>;
+#endif
 
 }  // namespace fsw
