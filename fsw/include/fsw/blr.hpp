@@ -364,7 +364,7 @@ auto BayesLinReg<S, D, K, W>::information() const -> MatA {
 }
 
 template <typename S, int D, int K, int W>
-bool BayesLinReg<S, D, K, W>::cholesky(const MatA& xx, S lambda, MatA& l, VecX& inv_diag) {
+inline bool BayesLinReg<S, D, K, W>::cholesky(const MatA& xx, S lambda, MatA& l, VecX& inv_diag) {
   l = xx;
   l.diagonal().array() += lambda;
   for (int j = 0; j < D; ++j) {
@@ -386,7 +386,7 @@ bool BayesLinReg<S, D, K, W>::cholesky(const MatA& xx, S lambda, MatA& l, VecX& 
 }
 
 template <typename S, int D, int K, int W>
-bool BayesLinReg<S, D, K, W>::remove_oldest_impl() {
+inline bool BayesLinReg<S, D, K, W>::remove_oldest_impl() {
   const int slot = head_;
   head_ = (head_ + 1) % W;
   --count_;

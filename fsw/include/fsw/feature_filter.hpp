@@ -359,7 +359,8 @@ bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::predict_measureme
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::boxplus(const State& x, const ErrVec& d) -> State {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::boxplus(const State& x, const ErrVec& d)
+    -> State {
   State out;
   out.q_lf = fsw::boxplus(x.q_lf, Vec3<S>(d.template segment<3>(Layout::kDTheta.index)));
   out.w_fl_f_rps = x.w_fl_f_rps + d.template segment<3>(Layout::kDRate.index);
@@ -370,7 +371,8 @@ auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::boxplus(const Sta
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::boxminus(const State& a, const State& b) -> ErrVec {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::boxminus(const State& a, const State& b)
+    -> ErrVec {
   ErrVec d;
   d.template segment<3>(Layout::kDTheta.index) = fsw::boxminus(a.q_lf, b.q_lf);
   d.template segment<3>(Layout::kDRate.index) = a.w_fl_f_rps - b.w_fl_f_rps;
@@ -381,14 +383,14 @@ auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::boxminus(const St
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::pack(const State& x, S nu) -> RelVec<S> {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::pack(const State& x, S nu) -> RelVec<S> {
   RelVec<S> v;
   v << x.q_lf.w(), x.q_lf.x(), x.q_lf.y(), x.q_lf.z(), x.w_fl_f_rps, x.r_l_m, x.v_l_mps, nu;
   return v;
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::unpack(const RelVec<S>& v, State& x, S& nu) {
+inline void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::unpack(const RelVec<S>& v, State& x, S& nu) {
   x.q_lf = Quat<S>(v(0), v(1), v(2), v(3));
   x.w_fl_f_rps = v.template segment<3>(4);
   x.r_l_m = v.template segment<3>(7);
@@ -397,7 +399,7 @@ void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::unpack(const RelV
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::propagate(State& x, S& nu, S dt, Cov* F) const {
+inline void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::propagate(State& x, S& nu, S dt, Cov* F) const {
   RelVec<S> v = pack(x, nu);
   const S h = dt / S(cfg_.substeps);
   if (F != nullptr) F->setIdentity();
@@ -414,15 +416,15 @@ void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::propagate(State& 
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::process_noise(S dt) const -> Cov {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::process_noise(S dt) const -> Cov {
   Cov Q = Cov::Zero();
   Q.diagonal() = q_density_ * dt;
   return Q;
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::measure(const State& x, MeasVec& z, MeasJac* H,
-                                                                       std::uint32_t slots) const {
+inline bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::measure(const State& x, MeasVec& z, MeasJac* H,
+                                                                              std::uint32_t slots) const {
   z.setZero();
   if (H != nullptr) H->setZero();
   const DualQuat<S> pose = x.pose_lf();
@@ -457,8 +459,9 @@ bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::measure(const Sta
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::put(int row, const Vec2<S>& zz, const Mat26<S>* Hp,
-                                                                   const Vec2<S>* hphi, int j, MeasVec& z, MeasJac* H) {
+inline void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::put(int row, const Vec2<S>& zz,
+                                                                          const Mat26<S>* Hp, const Vec2<S>* hphi,
+                                                                          int j, MeasVec& z, MeasJac* H) {
   z.template segment<2>(row) = zz;
   if (H == nullptr) return;
   H->template block<2, 3>(row, Layout::kDTheta.index) = Hp->template leftCols<3>();
@@ -469,9 +472,9 @@ void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::put(int row, cons
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_update(const MeasVec& z, std::uint32_t mask,
-                                                                            Record& rec, std::uint32_t& slots,
-                                                                            Eigen::Matrix<S, kMeas, 1>& rowmask) const {
+inline bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_update(
+    const MeasVec& z, std::uint32_t mask, Record& rec, std::uint32_t& slots,
+    Eigen::Matrix<S, kMeas, 1>& rowmask) const {
   if (!config_ok()) {
     reject(rec, StepStatus::BadInput, StepDetail::BadConfig);
     return false;
@@ -495,9 +498,8 @@ bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_update(cons
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::select_rows(const MeasVec& z, const MeasVec& zhat,
-                                                                           const Eigen::Matrix<S, kMeas, 1>& rowmask)
-    -> MeasVec {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::select_rows(
+    const MeasVec& z, const MeasVec& zhat, const Eigen::Matrix<S, kMeas, 1>& rowmask) -> MeasVec {
   MeasVec y = MeasVec::Zero();
   for (int i = 0; i < kMeas; ++i)
     if (rowmask(i) > S(0)) y(i) = z(i) - zhat(i);
@@ -505,8 +507,8 @@ auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::select_rows(const
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::meas_cov(const Eigen::Matrix<S, kMeas, 1>& rowmask) const
-    -> MeasCov {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::meas_cov(
+    const Eigen::Matrix<S, kMeas, 1>& rowmask) const -> MeasCov {
   MeasCov R = MeasCov::Zero();
   const S r = cfg_.image_sigma_m * cfg_.image_sigma_m;
   for (int i = 0; i < kMeas; ++i) R(i, i) = rowmask(i) > S(0) ? r : S(1);
@@ -514,7 +516,7 @@ auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::meas_cov(const Ei
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_predict(double t_s, Record& rec) const {
+inline bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_predict(double t_s, Record& rec) const {
   if (!config_ok()) return reject(rec, StepStatus::BadInput, StepDetail::BadConfig), false;
   if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized), false;
   if (!std::isfinite(t_s)) return reject(rec, StepStatus::BadInput, StepDetail::NonFinite), false;
@@ -524,8 +526,8 @@ bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_predict(dou
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::score(Record& rec, const MeasVec& y, const MeasCov& Ls,
-                                                                     int used_rows) {
+inline void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::score(Record& rec, const MeasVec& y,
+                                                                            const MeasCov& Ls, int used_rows) {
   MeasVec w = y;
   Ls.template triangularView<Eigen::Lower>().solveInPlace(w);
   rec.nis = w.squaredNorm();
@@ -535,7 +537,7 @@ void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::score(Record& rec
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::reject(Record& rec, StepStatus s, StepDetail d)
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::reject(Record& rec, StepStatus s, StepDetail d)
     -> Record& {
   rec.status = s;
   rec.detail = d;
@@ -544,8 +546,9 @@ auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::reject(Record& re
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::commit_predict(Record& rec, double t_s, const State& x,
-                                                                              S nu, Cov& P) -> Record& {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::commit_predict(Record& rec, double t_s,
+                                                                                     const State& x, S nu, Cov& P)
+    -> Record& {
   if (!x.all_finite() || !condition_covariance(P, var_min_, var_max_))
     return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
   x_ = x;
@@ -557,8 +560,8 @@ auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::commit_predict(Re
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::commit_update(Record& rec, const ErrVec& dx, Cov& P)
-    -> Record& {
+inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::commit_update(Record& rec, const ErrVec& dx,
+                                                                                    Cov& P) -> Record& {
   Cov L;
   if (!dx.allFinite() || !condition_covariance(P, var_min_, var_max_) || !cholesky_lower(P, L))
     return reject(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
@@ -827,7 +830,7 @@ auto FeatureUkf<S, kMaxPoints, kMaxLines, kMaxCircles>::update(const MeasVec& z,
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
-auto FeatureUkf<S, kMaxPoints, kMaxLines, kMaxCircles>::weights(S alpha) const -> Weights {
+inline auto FeatureUkf<S, kMaxPoints, kMaxLines, kMaxCircles>::weights(S alpha) const -> Weights {
   const S n = S(kN);
   const S lambda = alpha * alpha * (n + this->cfg_.kappa) - n;
   Weights w;

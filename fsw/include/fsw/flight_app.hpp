@@ -286,7 +286,7 @@ void FlightApp<S>::note_step_cpu(double seconds) {
 }
 
 template <typename S>
-void FlightApp<S>::dispatch(const PacketView& p) {
+inline void FlightApp<S>::dispatch(const PacketView& p) {
   switch (static_cast<Apid>(p.header.apid)) {
     case Apid::ImuSample: return on_imu(p);
     case Apid::LedPose: return on_pose(p);
@@ -299,7 +299,7 @@ void FlightApp<S>::dispatch(const PacketView& p) {
 }
 
 template <typename S>
-void FlightApp<S>::on_imu(const PacketView& p) {
+inline void FlightApp<S>::on_imu(const PacketView& p) {
   ImuSampleMsg<S> m;
   decode(p.payload, p.t_s, m);  // the deframer has checked finiteness
   const typename Nav::Record rec = nav_.predict(p.t_s, m.accel_b_mps2, m.omega_bi_b_rps);
@@ -316,7 +316,7 @@ void FlightApp<S>::on_imu(const PacketView& p) {
 }
 
 template <typename S>
-void FlightApp<S>::on_valves(const PacketView& p) {
+inline void FlightApp<S>::on_valves(const PacketView& p) {
   ThrusterValvesMsg<S> m;
   decode(p.payload, p.t_s, m);
   ++counters_.valves;
@@ -326,7 +326,7 @@ void FlightApp<S>::on_valves(const PacketView& p) {
 }
 
 template <typename S>
-void FlightApp<S>::learn(double t_s, const ImuSampleMsg<S>& m) {
+inline void FlightApp<S>::learn(double t_s, const ImuSampleMsg<S>& m) {
   const bool covers = valves_pending_ && valves_.valve_mask != 0 &&
                       std::abs(t_s - valves_t_s_ - double(valves_.interval_s)) <= nav_cfg_.time_tol_s;
   const bool prev_opens = have_prev_gyro_ && std::abs(prev_gyro_t_s_ - valves_t_s_) <= nav_cfg_.time_tol_s;
@@ -355,7 +355,7 @@ void FlightApp<S>::learn(double t_s, const ImuSampleMsg<S>& m) {
 }
 
 template <typename S>
-void FlightApp<S>::on_pose(const PacketView& p) {
+inline void FlightApp<S>::on_pose(const PacketView& p) {
   LedPoseMsg<S> m;
   decode(p.payload, p.t_s, m);
   const S r_sigma = m.r_sigma_m > S(0) ? m.r_sigma_m : pose_pos_fraction_ * m.r_hill_m.norm();
@@ -384,8 +384,8 @@ void FlightApp<S>::on_pose(const PacketView& p) {
 }
 
 template <typename S>
-auto FlightApp<S>::apply_pose(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
-                              typename Nav::Record& rec) -> StepKind {
+inline auto FlightApp<S>::apply_pose(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
+                                     typename Nav::Record& rec) -> StepKind {
   if (nav_.initialized() && lost()) return reacquire(t_s, r, q, R, rec);
   rec = nav_.update_pose(t_s, r, q, R);
   if (rec.fused) {
@@ -401,8 +401,8 @@ auto FlightApp<S>::apply_pose(double t_s, const Vec3<S>& r, const Quat<S>& q, co
 }
 
 template <typename S>
-auto FlightApp<S>::reacquire(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
-                             typename Nav::Record& rec) -> StepKind {
+inline auto FlightApp<S>::reacquire(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R,
+                                    typename Nav::Record& rec) -> StepKind {
   rec = nav_.reacquire(t_s, r, q, R);
   if (rec.status == StepStatus::Ok) {
     ++counters_.reacquisitions;
@@ -412,7 +412,7 @@ auto FlightApp<S>::reacquire(double t_s, const Vec3<S>& r, const Quat<S>& q, con
 }
 
 template <typename S>
-bool FlightApp<S>::lost() const {
+inline bool FlightApp<S>::lost() const {
   const auto d = nav_.P().diagonal();
   const S pos_var = d.template segment<3>(0).maxCoeff();
   const S att_var = d.template segment<3>(6).maxCoeff();
@@ -421,7 +421,8 @@ bool FlightApp<S>::lost() const {
 }
 
 template <typename S>
-void FlightApp<S>::note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q, const typename Nav::MeasCov& R) {
+inline void FlightApp<S>::note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q,
+                                        const typename Nav::MeasCov& R) {
   const S r_var = R.diagonal().template head<3>().maxCoeff();
   const S a_var = R.diagonal().template tail<3>().maxCoeff();
   bool agrees = false;
@@ -441,7 +442,7 @@ void FlightApp<S>::note_rejected(double t_s, const Vec3<S>& r, const Quat<S>& q,
 }
 
 template <typename S>
-void FlightApp<S>::on_reset(const PacketView& p) {
+inline void FlightApp<S>::on_reset(const PacketView& p) {
   CmdResetMsg<S> m;
   decode(p.payload, p.t_s, m);
   ++counters_.resets;
@@ -469,7 +470,7 @@ void FlightApp<S>::on_reset(const PacketView& p) {
 }
 
 template <typename S>
-void FlightApp<S>::on_config(const PacketView& p) {
+inline void FlightApp<S>::on_config(const PacketView& p) {
   CmdConfigMsg<S> m;
   decode(p.payload, p.t_s, m);
   switch (static_cast<ConfigParam>(m.param_id)) {
@@ -507,7 +508,7 @@ void FlightApp<S>::on_config(const PacketView& p) {
 }
 
 template <typename S>
-void FlightApp<S>::set_modal(double& field, S value) {
+inline void FlightApp<S>::set_modal(double& field, S value) {
   const double old = field;
   field = double(value);
   if (modal_tracker_config_invalid_field(modal_cfg_) != nullptr) {
@@ -517,7 +518,7 @@ void FlightApp<S>::set_modal(double& field, S value) {
 }
 
 template <typename S>
-void FlightApp<S>::on_range_segment(const PacketView& p) {
+inline void FlightApp<S>::on_range_segment(const PacketView& p) {
   RangeImageSegmentMsg<S> m;
   decode(p.payload, p.t_s, p.header.seq_flags, m);  // the deframer has checked fields and finiteness
   typename Modal::Report rep;
@@ -526,7 +527,7 @@ void FlightApp<S>::on_range_segment(const PacketView& p) {
 }
 
 template <typename S>
-void FlightApp<S>::report_modal(const typename Modal::Report& r) {
+inline void FlightApp<S>::report_modal(const typename Modal::Report& r) {
   TmModalMsg<S> tm;
   tm.image_id = r.image_id;
   tm.status = static_cast<std::uint8_t>(r.step.status);
@@ -553,7 +554,7 @@ void FlightApp<S>::report_modal(const typename Modal::Report& r) {
 }
 
 template <typename S>
-void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec, double t_s) {
+inline void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec, double t_s) {
   TmInnovationMsg<S> inn;
   inn.step_kind = static_cast<std::uint8_t>(kind);
   inn.status = static_cast<std::uint8_t>(rec.status);
@@ -577,7 +578,7 @@ void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec, double
 }
 
 template <typename S>
-void FlightApp<S>::housekeeping(double t_s) {
+inline void FlightApp<S>::housekeeping(double t_s) {
   const LinkCounters& c = deframer_.counters();
   TmLinkCountersMsg lc;
   lc.packets_accepted = c.packets_accepted;

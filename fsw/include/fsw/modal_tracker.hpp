@@ -199,7 +199,7 @@ bool ModalTracker<S, M, F>::add(const RangeImageSegmentMsg<S>& m, double t_s, Re
 }
 
 template <typename S, int M, typename F>
-void ModalTracker<S, M, F>::close(Report& out) {
+inline void ModalTracker<S, M, F>::close(Report& out) {
   open_ = false;
   out = Report();
   out.image_id = image_id_;

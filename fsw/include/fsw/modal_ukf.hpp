@@ -183,8 +183,10 @@ class ModeUkf {
   Vec4 q_ = Vec4::Zero();
 };
 
+// ModeUkf's members stay inline (as in the class body): the bank calls them
+// per mode inside its loops.
 template <typename S>
-void ModeUkf<S>::init(S a0, S var_a0, const ModalModeConfig<S>& cfg) {
+inline void ModeUkf<S>::init(S a0, S var_a0, const ModalModeConfig<S>& cfg) {
   x_ << a0, S(0), cfg.omega_radps, cfg.alpha_ps;
   P_.setZero();
   P_(0, 0) = var_a0;
@@ -195,7 +197,7 @@ void ModeUkf<S>::init(S a0, S var_a0, const ModalModeConfig<S>& cfg) {
 }
 
 template <typename S>
-bool ModeUkf<S>::predict_into(S dt, const UtWeights<S>& w, Vec4& x_out, Mat4& P_out) const {
+inline bool ModeUkf<S>::predict_into(S dt, const UtWeights<S>& w, Vec4& x_out, Mat4& P_out) const {
   Eigen::LLT<Mat4> llt(P_);
   if (llt.info() != Eigen::Success) return false;
   const Mat4 Lg = w.gamma * llt.matrixL().toDenseMatrix();
@@ -217,13 +219,13 @@ bool ModeUkf<S>::predict_into(S dt, const UtWeights<S>& w, Vec4& x_out, Mat4& P_
 }
 
 template <typename S>
-void ModeUkf<S>::set(const Vec4& x, const Mat4& P) {
+inline void ModeUkf<S>::set(const Vec4& x, const Mat4& P) {
   x_ = x;
   P_ = P;
 }
 
 template <typename S>
-auto ModeUkf<S>::update(S a_meas, S r, S gate_nis, S& innov, S& innov_var, S& nis) -> Update {
+inline auto ModeUkf<S>::update(S a_meas, S r, S gate_nis, S& innov, S& innov_var, S& nis) -> Update {
   innov = a_meas - x_(0);
   innov_var = P_(0, 0) + r;
   if (!(innov_var > S(0)) || !std::isfinite(innov_var)) return Update::NotPosDef;
@@ -359,7 +361,7 @@ void ModalUkfBank<S, M>::amplitude_cov(MatM& P) const {
 }
 
 template <typename S, int M>
-auto ModalUkfBank<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
+inline auto ModalUkfBank<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
   rec.status = s;
   rec.detail = d;
   rec.fused = false;
@@ -584,7 +586,7 @@ void ModalUkfJoint<S, M>::amplitude_cov(MatM& Pa) const {
 }
 
 template <typename S, int M>
-auto ModalUkfJoint<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
+inline auto ModalUkfJoint<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
   rec.status = s;
   rec.detail = d;
   rec.fused = false;

@@ -437,7 +437,7 @@ auto NavUkf<S, kWithBias, kHistory>::update_pose(double t_capture_s, const Vec3<
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::make_step(S dt) const -> StepModel {
+inline auto NavUkf<S, kWithBias, kHistory>::make_step(S dt) const -> StepModel {
   StepModel m;
   m.phi = cw_stm(cfg_.n_radps, dt);
   m.gamma = cw_accel_response(cfg_.n_radps, dt);
@@ -457,8 +457,8 @@ auto NavUkf<S, kWithBias, kHistory>::make_step(S dt) const -> StepModel {
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt,
-                                              const StepModel& m) const -> State {
+inline auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b,
+                                                     S dt, const StepModel& m) const -> State {
   Vec3<S> w = omega_b;
   Vec3<S> a = accel_b;
   if constexpr (kWithBias) {
@@ -481,14 +481,15 @@ auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const Vec3<S>& acc
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::sigma_offset(const Cov& L, int i) const -> ErrVec {
+inline auto NavUkf<S, kWithBias, kHistory>::sigma_offset(const Cov& L, int i) const -> ErrVec {
   if (i == 0) return ErrVec::Zero();
   if (i <= kN) return gamma_ * L.col(i - 1);
   return -gamma_ * L.col(i - 1 - kN);
 }
 
 template <typename S, bool kWithBias, int kHistory>
-void NavUkf<S, kWithBias, kHistory>::sigma_mean(const State* X, State& mean, Eigen::Matrix<S, kN, kSigma>& D) const {
+inline void NavUkf<S, kWithBias, kHistory>::sigma_mean(const State* X, State& mean,
+                                                       Eigen::Matrix<S, kN, kSigma>& D) const {
   const State& c = X[0];
   ErrVec acc = ErrVec::Zero();
   for (int i = 0; i < kSigma; ++i) acc += wm(i) * X[i].minus(c);
@@ -497,9 +498,9 @@ void NavUkf<S, kWithBias, kHistory>::sigma_mean(const State* X, State& mean, Eig
 }
 
 template <typename S, bool kWithBias, int kHistory>
-bool NavUkf<S, kWithBias, kHistory>::propagate(const State& x, const Cov& P, const Vec3<S>& accel_b,
-                                               const Vec3<S>& omega_b, S dt, bool bridged, State& x_out, Cov& P_out,
-                                               bool* repaired) const {
+inline bool NavUkf<S, kWithBias, kHistory>::propagate(const State& x, const Cov& P, const Vec3<S>& accel_b,
+                                                      const Vec3<S>& omega_b, S dt, bool bridged, State& x_out,
+                                                      Cov& P_out, bool* repaired) const {
   Cov L;
   const int rep = cholesky_lower_repaired(P, L);
   if (rep < 0) return false;
@@ -529,8 +530,9 @@ bool NavUkf<S, kWithBias, kHistory>::propagate(const State& x, const Cov& P, con
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::fuse(const State& x, const Cov& P, const Vec3<S>& r_meas, const Quat<S>& q_meas,
-                                          const MeasCov& R, Record& rec, State& x_out, Cov& P_out) const -> StepStatus {
+inline auto NavUkf<S, kWithBias, kHistory>::fuse(const State& x, const Cov& P, const Vec3<S>& r_meas,
+                                                 const Quat<S>& q_meas, const MeasCov& R, Record& rec, State& x_out,
+                                                 Cov& P_out) const -> StepStatus {
   Cov L;
   const int rep = cholesky_lower_repaired(P, L);
   if (rep < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
@@ -592,7 +594,7 @@ auto NavUkf<S, kWithBias, kHistory>::fuse(const State& x, const Cov& P, const Ve
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::set(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
+inline auto NavUkf<S, kWithBias, kHistory>::set(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
   rec.status = s;
   rec.detail = d;
   rec.fused = false;
@@ -600,14 +602,14 @@ auto NavUkf<S, kWithBias, kHistory>::set(Record& rec, StepStatus s, StepDetail d
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::reject(Record& rec, StepStatus s, StepDetail d) -> Record {
+inline auto NavUkf<S, kWithBias, kHistory>::reject(Record& rec, StepStatus s, StepDetail d) -> Record {
   set(rec, s, d);
   return rec;
 }
 
 template <typename S, bool kWithBias, int kHistory>
-bool NavUkf<S, kWithBias, kHistory>::pose_input_ok(double t_capture_s, const Vec3<S>& r_hill_m, const Quat<S>& q_hb,
-                                                   const MeasCov& R, Record& rec) const {
+inline bool NavUkf<S, kWithBias, kHistory>::pose_input_ok(double t_capture_s, const Vec3<S>& r_hill_m,
+                                                          const Quat<S>& q_hb, const MeasCov& R, Record& rec) const {
   StepDetail d = StepDetail::None;
   const double t_now = hist_[head_].t_s;
   if (!initialized_) d = StepDetail::NotInitialized;
