@@ -766,6 +766,15 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
     return (R * cfg_.pattern.normal_host).dot(R * centre_p + t) < 0.0;
   };
 
+  // Largest single-LED reprojection error [px] of a pose.
+  auto worst_residual = [&](const std::vector<cv::Point2d>& img, const cv::Mat& rv, const cv::Mat& tv) {
+    std::vector<cv::Point2d> rep;
+    cv::projectPoints(obj_, rv, tv, K_, dist_, rep);
+    double worst = 0.0;
+    for (int l = 0; l < kNumLeds; ++l) worst = std::max(worst, cv::norm(rep[l] - img[l]));
+    return worst;
+  };
+
   try {
     for (Hypothesis& h : hyps) {
       std::vector<cv::Point2d> img(kNumLeds);
@@ -773,13 +782,18 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
       std::vector<cv::Mat> rvecs, tvecs;
       cv::solvePnPGeneric(obj_, img, K_, dist_, rvecs, tvecs, false, cv::SOLVEPNP_IPPE);
       // Robust gate: with more than four correspondences, every LED must be
-      // an inlier of a RANSAC fit from minimal subsets.
-      if (static_cast<int>(img.size()) > 4) {
+      // an inlier of a RANSAC fit from minimal subsets. An IPPE solution with
+      // every LED within the threshold already is such a fit (the consensus
+      // of all of them), so RANSAC runs only when neither is.
+      double best_worst = std::numeric_limits<double>::infinity();
+      for (size_t s = 0; s < rvecs.size(); ++s)
+        best_worst = std::min(best_worst, worst_residual(img, rvecs[s], tvecs[s]));
+      if (static_cast<int>(img.size()) > 4 && !(best_worst <= cfg_.ransac_threshold_px)) {
         cv::Mat rv, tv;
         std::vector<int> inliers;
         const bool ok = cv::solvePnPRansac(obj_, img, K_, dist_, rv, tv, false, 50, cfg_.ransac_threshold_px, 0.99,
                                            inliers, cv::SOLVEPNP_AP3P);
-        if (ok && static_cast<int>(inliers.size()) < kNumLeds) continue;
+        if (ok && static_cast<int>(inliers.size()) < kNumLeds) continue;  // an LED is an outlier
         if (ok) {
           rvecs.push_back(rv);
           tvecs.push_back(tv);
