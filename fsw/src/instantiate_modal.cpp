@@ -1,7 +1,8 @@
 // Explicit instantiations of the modal estimator for float and double, at the
 // mode counts the bench and the flight application use (pendulum 3, flight 10,
 // structure 50), so a float-only compile error cannot hide; everything else
-// links to these.
+// links to these. The two filters have their own files (the longest
+// compiles in the build, so they run in parallel).
 #include "fsw/modal_decomposition.hpp"
 #include "fsw/modal_shape.hpp"
 #include "fsw/modal_ukf.hpp"
@@ -15,18 +16,6 @@ template class ModalDecomposition<double, 50>;
 template class ModalDecomposition<float, 50>;
 template class ModeUkf<double>;
 template class ModeUkf<float>;
-template class ModalUkfBank<double, 3>;
-template class ModalUkfBank<float, 3>;
-template class ModalUkfBank<double, 10>;
-template class ModalUkfBank<float, 10>;
-template class ModalUkfBank<double, 50>;
-template class ModalUkfBank<float, 50>;
-template class ModalUkfJoint<double, 3>;
-template class ModalUkfJoint<float, 3>;
-template class ModalUkfJoint<double, 10>;
-template class ModalUkfJoint<float, 10>;
-template class ModalUkfJoint<double, 50>;
-template class ModalUkfJoint<float, 50>;
 template ShapeRecord reconstruct_shape<double, 3>(const Eigen::Matrix<double, 3, 1>&,
                                                   const Eigen::Matrix<double, 3, 3>&, const double*, int, double*,
                                                   double*);

@@ -593,7 +593,8 @@ inline auto ModalUkfJoint<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -
   return s;
 }
 
-// Compiled once, in fsw_core (instantiate_modal.cpp); see nav_ukf.hpp.
+// Compiled once, in fsw_core (instantiate_modal.cpp, instantiate_modal_bank.cpp,
+// instantiate_modal_joint.cpp); see nav_ukf.hpp.
 #ifndef FSW_IMPLICIT_INSTANTIATION
 extern template class ModeUkf<double>;
 extern template class ModeUkf<float>;
