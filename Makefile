@@ -39,9 +39,13 @@ $(STAMPS)/venv: $(STAMPS)/apt
 	@touch $@
 
 # Editable install: Python sources are used in place; the native module is
-# rebuilt incrementally (build/<wheel tag>) when a native source changes.
-$(STAMPS)/install: $(STAMPS)/venv $(NATIVE_SRC)
-	$(VPY) -m pip install -q --disable-pip-version-check --no-build-isolation -e ".[dev]"
+# rebuilt incrementally (build/<wheel tag>) when a native source changes. It
+# links the flight libraries built in $(CPP_BUILD) rather than compiling the
+# flight templates a second time.
+$(STAMPS)/install: $(STAMPS)/venv $(STAMPS)/cpp-configure $(NATIVE_SRC)
+	$(VENV)/bin/cmake --build $(CPP_BUILD) --target fsw_libraries
+	$(VPY) -m pip install -q --disable-pip-version-check --no-build-isolation \
+	  -C cmake.define.PROXOPS_PREBUILT_FSW=$(abspath $(CPP_BUILD)) -e ".[dev]"
 	@touch $@
 
 # CI (CI=true) builds what the tests need; the Google Benchmark targets
