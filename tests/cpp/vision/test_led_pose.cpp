@@ -200,6 +200,29 @@ TEST_F(LedPoseTest, IdentifiesAmongClutterPoints) {
   EXPECT_GE(ok, 18);
 }
 
+// The robust gate. With the RMS gate loosened to 5 px (as for a defocused
+// camera), corner 2 moved 14 px still gives a least-squares fit within it
+// (3.5 px RMS: the error spreads over all five LEDs), but the other four
+// agree on a pose that leaves it 14 px out, so the labelling is refused.
+// With the gate out of reach (threshold 1000 px) the same points give that
+// fit, so it is the gate that refuses it; 4 px off, the corner is kept.
+TEST_F(LedPoseTest, OneLedOutsideTheConsensusOfTheOtherFourIsRefused) {
+  LedPoseConfig loose = cfg;
+  loose.max_reproj_rms_px = 5.0;
+  LedPoseConfig no_gate = loose;
+  no_gate.ransac_threshold_px = 1000.0;
+  auto px = cv_project(cfg, truth);
+  px[2] += cv::Point2d(0.0, 14.0);
+  const LedPoseMeasurement gated = LedPoseEstimator(loose).estimate_from_points(px, 0.0);
+  EXPECT_EQ(gated.status, PoseStatus::SolverFailed) << fsw_vision::to_string(gated.status);
+  const LedPoseMeasurement fitted = LedPoseEstimator(no_gate).estimate_from_points(px, 0.0);
+  ASSERT_EQ(fitted.status, PoseStatus::Ok) << fsw_vision::to_string(fitted.status);
+  EXPECT_GT(fitted.reproj_rms_px, 2.0);
+  EXPECT_LT(fitted.reproj_rms_px, loose.max_reproj_rms_px);
+  px[2] -= cv::Point2d(0.0, 10.0);
+  EXPECT_EQ(LedPoseEstimator(loose).estimate_from_points(px, 0.0).status, PoseStatus::Ok);
+}
+
 TEST_F(LedPoseTest, TooFewLedsWithThreePoints) {
   const LedPoseEstimator est(cfg);
   auto px = cv_project(cfg, truth);

@@ -7,9 +7,10 @@
 // LEDs (four square corners plus an identifier on one edge, a quarter of the
 // way from corner 0 to corner 1; collinearity survives projection, so the
 // identifier marks the edge and its off-centre position the direction) ->
-// pose by cv::solvePnP (IPPE, both planar solutions), a RANSAC consistency
-// gate (cv::solvePnPRansac, every LED must be an inlier) and Levenberg-
-// Marquardt refinement (cv::solvePnPRefineLM) -> covariance from the
+// pose by cv::solvePnP (IPPE, both planar solutions), a consistency gate
+// (every LED within 4 px of one fit, searched over the five leave-one-out
+// fits) and Levenberg-Marquardt refinement (cv::solvePnPRefineLM) ->
+// covariance from the
 // reprojection Jacobian, (J^T W J)^-1 with W the inverse centroid variances
 // (from the calibrated centroid error model per blob), taken directly with respect
 // to the navigation filter's measurement coordinates.
@@ -217,6 +218,9 @@ class LedPoseEstimator {
   // estimate by 1.5 px or more (the first estimate is then that far off).
   bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, int first_faint,
                        double u0, double v0, double width_px, double sigma_w, Blob& out, bool& drifted) const;
+  // The robust gate's consensus over the five leave-one-out fits of a
+  // labelling: the most LEDs within ransac_threshold_px of one pose.
+  int consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const;
 
   LedPoseConfig cfg_;
   cv::Mat K_;
