@@ -87,25 +87,26 @@ DeframeResult Deframer::reject(RejectReason r, int apid_row, std::uint16_t apid)
 
 std::size_t Deframer::feed(const std::uint8_t* data, std::size_t n, DeframeResult& out) {
   out = DeframeResult{};
-  for (std::size_t i = 0; i < n; ++i) {
-    bump(counters_.bytes_received);
-    switch (acc_.push(data[i])) {
-      case CobsAccumulator<kMaxFrameLen>::Event::None:
-        break;
-      case CobsAccumulator<kMaxFrameLen>::Event::EmptyFrame:
-        bump(counters_.frames_total);
-        out = reject(RejectReason::EmptyFrame);
-        return i + 1;
-      case CobsAccumulator<kMaxFrameLen>::Event::Runaway:
-        bump(counters_.frames_total);
-        out = reject(RejectReason::FrameTooLong);
-        return i + 1;
-      case CobsAccumulator<kMaxFrameLen>::Event::Frame:
-        out = process_frame(acc_.frame(), acc_.size());
-        return i + 1;
-    }
+  CobsAccumulator<kMaxFrameLen>::Event ev;
+  const std::size_t used = acc_.push_bytes(data, n, ev);
+  const std::uint32_t room = UINT32_MAX - counters_.bytes_received;  // saturate rather than wrap
+  counters_.bytes_received += used < room ? static_cast<std::uint32_t>(used) : room;
+  switch (ev) {
+    case CobsAccumulator<kMaxFrameLen>::Event::None:
+      break;
+    case CobsAccumulator<kMaxFrameLen>::Event::EmptyFrame:
+      bump(counters_.frames_total);
+      out = reject(RejectReason::EmptyFrame);
+      break;
+    case CobsAccumulator<kMaxFrameLen>::Event::Runaway:
+      bump(counters_.frames_total);
+      out = reject(RejectReason::FrameTooLong);
+      break;
+    case CobsAccumulator<kMaxFrameLen>::Event::Frame:
+      out = process_frame(acc_.frame(), acc_.size());
+      break;
   }
-  return n;
+  return used;
 }
 
 DeframeResult Deframer::process_frame(const std::uint8_t* frame, std::size_t n) {

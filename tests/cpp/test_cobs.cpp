@@ -1,6 +1,7 @@
 // COBS encoder, decoder and the streaming accumulator.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <random>
@@ -139,4 +140,43 @@ TEST(CobsAccumulator, ExactlyCapacityIsAccepted) {
   for (int i = 0; i < 8; ++i) ASSERT_EQ(acc.push(0x01), CobsAccumulator<8>::Event::None);
   EXPECT_EQ(acc.push(0x00), CobsAccumulator<8>::Event::Frame);
   EXPECT_EQ(acc.size(), 8u);
+}
+
+// push_bytes (runs between zeros, memchr and memcpy) against push byte by
+// byte: the same events after the same bytes, the same frames, the same
+// state, on random streams with short and over-long frames cut into random
+// reads (capacity 8, so runaways and frames of exactly the capacity occur).
+TEST(CobsAccumulator, PushBytesMatchesPushByteByByte) {
+  using Acc = CobsAccumulator<8>;
+  std::mt19937 rng(11);
+  int events[4] = {0, 0, 0, 0};
+  for (int trial = 0; trial < 300; ++trial) {
+    Bytes stream(1 + rng() % 200);
+    for (auto& b : stream) b = (rng() % 6 == 0) ? 0 : static_cast<std::uint8_t>(1 + rng() % 255);
+    Acc bytewise, bulk;
+    std::size_t pos = 0;
+    while (pos < stream.size()) {
+      const std::size_t n = std::min<std::size_t>(1 + rng() % 24, stream.size() - pos);
+      Acc::Event ev;
+      const std::size_t used = bulk.push_bytes(stream.data() + pos, n, ev);
+      ASSERT_GE(used, 1u);
+      ASSERT_LE(used, n);
+      // The reference: byte by byte until the first event or the end of the read.
+      Acc::Event ref = Acc::Event::None;
+      std::size_t k = 0;
+      while (k < n && ref == Acc::Event::None) ref = bytewise.push(stream[pos + k++]);
+      ASSERT_EQ(ev, ref) << "trial " << trial << " at byte " << pos;
+      ASSERT_EQ(used, k) << "trial " << trial << " at byte " << pos;
+      ++events[static_cast<int>(ev)];
+      if (ev == Acc::Event::Frame) {
+        ASSERT_EQ(bulk.size(), bytewise.size());
+        ASSERT_TRUE(std::equal(bulk.frame(), bulk.frame() + bulk.size(), bytewise.frame()));
+      }
+      ASSERT_EQ(bulk.pending(), bytewise.pending());
+      ASSERT_EQ(bulk.discarding(), bytewise.discarding());
+      pos += used;
+    }
+  }
+  // Every kind of event was exercised.
+  for (int e = 0; e < 4; ++e) EXPECT_GT(events[e], 10) << "event " << e;
 }

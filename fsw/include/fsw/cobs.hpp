@@ -8,6 +8,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 namespace fsw {
 
@@ -66,11 +67,9 @@ inline CobsStatus cobs_decode(const std::uint8_t* in, std::size_t n, std::uint8_
     const std::size_t run = static_cast<std::size_t>(code) - 1;
     if (run > n - i) return CobsStatus::CodePastEnd;
     if (run > cap - o) return CobsStatus::Overflow;
-    for (std::size_t k = 0; k < run; ++k) {
-      const std::uint8_t b = in[i + k];
-      if (b == 0) return CobsStatus::ZeroInFrame;
-      out[o + k] = b;
-    }
+    // A run is copied whole (memchr and memcpy work a vector at a time).
+    if (std::memchr(in + i, 0, run) != nullptr) return CobsStatus::ZeroInFrame;
+    std::memcpy(out + o, in + i, run);
     i += run;
     o += run;
     if (code != 0xFF && i < n) {
@@ -114,6 +113,35 @@ class CobsAccumulator {
     }
     buf_[len_++] = b;
     return Event::None;
+  }
+
+  // push() over data[0, n) up to and including the byte that raises an event
+  // (ev; Event::None if none did), in runs between zeros rather than byte by
+  // byte. Returns the number of bytes consumed.
+  std::size_t push_bytes(const std::uint8_t* data, std::size_t n, Event& ev) {
+    ev = Event::None;
+    std::size_t i = 0;
+    while (i < n) {
+      const void* z = std::memchr(data + i, 0, n - i);
+      const std::size_t run = z ? static_cast<std::size_t>(static_cast<const std::uint8_t*>(z) - data) - i : n - i;
+      if (!discarding_) {
+        const std::size_t room = Capacity - len_;
+        if (run > room) {  // the byte after the room is the runaway
+          std::memcpy(buf_.data() + len_, data + i, room);
+          len_ = Capacity;
+          ev = push(data[i + room]);  // Runaway, discarding from here
+          return i + room + 1;
+        }
+        std::memcpy(buf_.data() + len_, data + i, run);
+        len_ += run;
+      }
+      i += run;
+      if (i == n) return n;
+      ev = push(0);  // the 0x00 at i
+      ++i;
+      if (ev != Event::None) return i;
+    }
+    return n;
   }
 
   // The last completed frame (valid until the next push of a byte).
