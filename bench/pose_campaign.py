@@ -55,7 +55,7 @@ def run_case(est, r, q, qh, scene: cm.Scene, rng, cam: cm.Camera, t_s: float = 0
     img = cm.render(r, q, qh, scene, rng, cam)
     m = est.estimate(img, t_s, qh)
     out = {"status": m.status, "range_m": float(np.linalg.norm(cm.led_pixels(r, q, qh, cam)[2][:4].mean(0))),
-           "n_blobs": int(m.n_blobs)}
+           "n_blobs": int(m.n_blobs), "identifier_split": bool(m.identifier_split)}
     if m.ok:
         e = pose_error(m.r_hill_m, m.q_hb, r, q)
         R = m.R

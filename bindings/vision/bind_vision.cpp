@@ -145,7 +145,11 @@ void bind_vision(py::module_& m) {
                      "Calibrated factor on the propagated pixel-noise sigma of a refined centroid.")
       .def_readwrite("sat_sigma_px", &LedPoseConfig::sat_sigma_px,
                      "Calibrated saturation term: a spot with n_sat saturated pixels adds "
-                     "(sat_sigma_px n_sat / max(width_px, 1)^4)^2 to its centroid variance [px^2].");
+                     "(sat_sigma_px n_sat / max(width_px, 1)^4)^2 to its centroid variance [px^2].")
+      .def_readwrite("merged_id_min_dchi2", &LedPoseConfig::merged_id_min_dchi2,
+                     "Merged identifier: the two-spot fit must beat one spot by this chi^2 (0: off).")
+      .def_readwrite("merged_id_margin_dchi2", &LedPoseConfig::merged_id_margin_dchi2,
+                     "... and every other labelling's two-spot fit by this chi^2.");
 
   py::class_<LedPoseMeasurement>(m, "LedPoseMeasurement",
                                  "Pose measurement for NavUkf.update_pose: r_hill_m (inspector relative to host, "
@@ -164,6 +168,8 @@ void bind_vision(py::module_& m) {
       .def_readonly("flip_weight", &LedPoseMeasurement::flip_weight,
                     "Weight of the planar mirror solution folded into R (0: none).")
       .def_readonly("range_m", &LedPoseMeasurement::range_m, "Camera to pattern centre [m].")
+      .def_readonly("identifier_split", &LedPoseMeasurement::identifier_split,
+                    "True when the identifier came from a two-spot fit of a blob merged with its corner.")
       .def_property_readonly("blob_of_led",
                              [](const LedPoseMeasurement& r) {
                                return std::vector<int>(r.blob_of_led.begin(), r.blob_of_led.end());

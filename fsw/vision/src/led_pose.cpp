@@ -2,6 +2,8 @@
 // See led_pose.hpp and docs/VISION.md.
 #include "fsw_vision/led_pose.hpp"
 
+#include "fsw_vision/spot_fit.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -616,12 +618,151 @@ LedPoseMeasurement LedPoseEstimator::estimate(const cv::Mat& gray, double t_capt
     }
     return estimate_from_points(pts, t_capture_s, q_h_host, sig);
   };
-  const std::vector<Blob> plain = detect(gray, false);
-  LedPoseMeasurement m = from_blobs(plain);
+  std::vector<Blob> blobs = detect(gray, false);
+  LedPoseMeasurement m = from_blobs(blobs);
   if (cfg_.faint_sigma_px > 0.0 && (m.status == PoseStatus::TooFewLeds || m.status == PoseStatus::AmbiguousIdentity)) {
-    const std::vector<Blob> all = detect(gray, true);
-    if (all.size() > plain.size()) return from_blobs(all);  // Ok, or why not with every spot seen
+    std::vector<Blob> all = detect(gray, true);
+    if (all.size() > blobs.size()) {  // Ok, or why not with every spot seen
+      blobs.swap(all);
+      m = from_blobs(blobs);
+    }
   }
+  if (m.status == PoseStatus::AmbiguousIdentity && blobs.size() == kNumLeds - 1 && cfg_.merged_id_min_dchi2 > 0.0) {
+    const LedPoseMeasurement split = pose_with_merged_identifier(gray, blobs, t_capture_s, q_h_host);
+    if (split.identifier_split) return split;  // Ok, or why not once the identifier is found
+  }
+  return m;
+}
+
+double LedPoseEstimator::identifier_fraction(const std::array<cv::Point2d, 4>& corners) const {
+  std::array<cv::Point2f, 4> quad;
+  for (int c = 0; c < 4; ++c) quad[c] = cv::Point2f(float(corners[c].x), float(corners[c].y));
+  const cv::Mat H = cv::getPerspectiveTransform(plane_uv_.data(), quad.data());
+  const cv::Point2f& id = plane_uv_[kIdentifier];
+  const double w = H.at<double>(2, 0) * id.x + H.at<double>(2, 1) * id.y + H.at<double>(2, 2);
+  if (!(std::abs(w) > 1e-12)) return std::numeric_limits<double>::quiet_NaN();
+  const cv::Point2d p((H.at<double>(0, 0) * id.x + H.at<double>(0, 1) * id.y + H.at<double>(0, 2)) / w,
+                      (H.at<double>(1, 0) * id.x + H.at<double>(1, 1) * id.y + H.at<double>(1, 2)) / w);
+  const cv::Point2d e = corners[1] - corners[0];
+  const double L2 = e.dot(e);
+  return L2 > 0.0 ? e.dot(p - corners[0]) / L2 : std::numeric_limits<double>::quiet_NaN();
+}
+
+// A point that takes part in identification and in the reprojection gates
+// but carries no weight in the pose covariance [px].
+constexpr double kUnweightedSigmaPx = 1e3;
+
+// Blur at long range merges the identifier with corner 0 (a quarter of an
+// edge apart) into one blob, which leaves the four corners: a square, four
+// ways ambiguous. Every corner in turn, towards either neighbour, is taken
+// as corner 0 of a labelling; the four corners' homography says where on
+// that edge the identifier must be, and a fit of two spots of one width, the
+// second held there, is compared with a fit of one spot on the same pixels.
+// When one labelling's pair explains the blob by far the best, its corner 0
+// and identifier join the other three corners, and the five points go
+// through identification and pose like any others.
+LedPoseMeasurement LedPoseEstimator::pose_with_merged_identifier(const cv::Mat& gray, const std::vector<Blob>& blobs,
+                                                                 double t_capture_s,
+                                                                 const Eigen::Quaterniond& q_h_host) const {
+  LedPoseMeasurement none;
+  none.t_capture_s = t_capture_s;
+  none.status = PoseStatus::AmbiguousIdentity;
+  none.n_blobs = static_cast<int>(blobs.size());
+  if (blobs.size() != 4) return none;
+
+  // Convex order around the centroid.
+  cv::Point2d centre(0.0, 0.0);
+  for (const Blob& b : blobs) centre += cv::Point2d(b.u_px, b.v_px) * 0.25;
+  std::array<int, 4> ord{{0, 1, 2, 3}};
+  std::sort(ord.begin(), ord.end(), [&](int a, int b) {
+    return std::atan2(blobs[a].v_px - centre.y, blobs[a].u_px - centre.x) <
+           std::atan2(blobs[b].v_px - centre.y, blobs[b].u_px - centre.x);
+  });
+  auto pt = [&](int k) { return cv::Point2d(blobs[ord[(k + 4) % 4]].u_px, blobs[ord[(k + 4) % 4]].v_px); };
+  double width0 = std::numeric_limits<double>::infinity();
+  for (const Blob& b : blobs) width0 = std::min(width0, b.width_px);
+  width0 = std::clamp(width0, 0.8, 4.0);
+  const PixelNoise noise{cfg_.read_noise_counts, cfg_.shot_gain};
+
+  struct Candidate {
+    double dchi2 = -std::numeric_limits<double>::infinity();
+    int k = -1;
+    SpotFit pair;
+  };
+  Candidate best, second;
+  for (int k = 0; k < 4; ++k) {
+    const cv::Point2d c = pt(k);
+    const double e_max = std::max(cv::norm(pt(k + 1) - c), cv::norm(pt(k - 1) - c));
+    const int half = std::clamp(static_cast<int>(std::ceil(3.0 * width0 + cfg_.id_fraction_max * e_max)), 4,
+                                cfg_.merged_id_max_half_window_px);
+    const SpotWindow win{static_cast<int>(std::lround(c.y)) - half, static_cast<int>(std::lround(c.y)) + half + 1,
+                         static_cast<int>(std::lround(c.x)) - half, static_cast<int>(std::lround(c.x)) + half + 1};
+    const Eigen::Vector2d c_e(c.x, c.y);
+    const SpotFit one = fit_spots(gray, win, noise, SpotModel::One, c_e, width0);
+    if (!one.ok) continue;
+    for (const int dir : {+1, -1}) {
+      std::array<cv::Point2d, 4> corners{{c, pt(k + dir), pt(k + 2 * dir), pt(k + 3 * dir)}};
+      const Eigen::Vector2d far(corners[1].x, corners[1].y);
+      SpotFit pair;
+      Eigen::Vector2d u0 = one.u0;
+      bool ok = true;
+      // The fraction depends on corner 0, which the pair fit moves: twice.
+      for (int pass = 0; pass < 2 && ok; ++pass) {
+        corners[0] = cv::Point2d(u0(0), u0(1));
+        const double f = identifier_fraction(corners);
+        ok = std::isfinite(f) && f >= cfg_.id_fraction_min && f <= cfg_.id_fraction_max;
+        if (!ok) break;
+        pair = fit_spots(gray, win, noise, SpotModel::PairOnLine, u0, one.width_px, far, f);
+        ok = pair.ok && pair.flux0 > 0.0 && pair.flux1 > 0.0;
+        u0 = pair.u0;
+      }
+      if (!ok) continue;
+      const double ratio = pair.flux1 / pair.flux0;
+      if (ratio > cfg_.merged_id_max_flux_ratio || ratio < 1.0 / cfg_.merged_id_max_flux_ratio) continue;
+      Candidate cand;
+      cand.dchi2 = one.chi2 - pair.chi2;
+      cand.k = k;
+      cand.pair = pair;
+      if (cand.dchi2 > best.dchi2) {
+        second = best;
+        best = cand;
+      } else if (cand.dchi2 > second.dchi2) {
+        second = cand;
+      }
+    }
+  }
+  if (best.k < 0 || !(best.dchi2 >= cfg_.merged_id_min_dchi2) ||
+      !(best.dchi2 - second.dchi2 >= cfg_.merged_id_margin_dchi2)) {
+    return none;
+  }
+
+  // Corner 0 from the held fit (its covariance accounts for the identifier
+  // beside it). The identifier's own position there is where the other
+  // corners put it, so it carries no information of its own: it serves the
+  // identification and enters the pose with a sigma that gives it no weight.
+  const SpotFit& fit = best.pair;
+  const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(fit.cov_u0).eigenvalues()(1);
+  std::vector<cv::Point2d> pts;
+  std::vector<double> sig;
+  for (int k = 0; k < 4; ++k) {
+    if (k == best.k) {
+      pts.emplace_back(fit.u0(0), fit.u0(1));
+      sig.push_back(std::sqrt(std::max(lmax, 0.0) + cfg_.centroid_floor_px * cfg_.centroid_floor_px));
+    } else {
+      pts.emplace_back(blobs[ord[k]].u_px, blobs[ord[k]].v_px);
+      sig.push_back(blobs[ord[k]].sigma_px);
+    }
+  }
+  pts.emplace_back(fit.u1(0), fit.u1(1));
+  sig.push_back(kUnweightedSigmaPx);
+  LedPoseMeasurement m = estimate_from_points(pts, t_capture_s, q_h_host, sig);
+  // An Ok pose must use the split as found: the new point as the identifier,
+  // the blob it came out of as corner 0. A refusal after the split (most
+  // often DegenerateGeometry: at long range the planar mirror pose fits
+  // four corners nearly as well) is reported as such.
+  if (m.status == PoseStatus::Ok && (m.blob_of_led[kIdentifier] != 4 || m.blob_of_led[0] != best.k)) return none;
+  m.n_blobs = static_cast<int>(blobs.size());
+  m.identifier_split = true;
   return m;
 }
 

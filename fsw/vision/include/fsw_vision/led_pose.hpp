@@ -132,6 +132,17 @@ struct LedPoseConfig {
   double centroid_weight_sat_scale = 4.0;  // weight width factor for a spot with saturated pixels
   double centroid_noise_scale = 0.96;      // calibrated factor on the propagated pixel noise
   double sat_sigma_px = 0.0047;            // calibrated saturation term [px per saturated pixel]
+  // Merged identifier (docs/VISION.md): four blobs and no identifier after
+  // both passes; each corner is tried as the identifier's corner by a
+  // two-spot fit with the identifier on the edge where the four corners'
+  // homography puts it. Accepted when the best pair fits better than one
+  // spot by merged_id_min_dchi2 (0: off) and better than every other
+  // labelling's pair by merged_id_margin_dchi2, with the two fluxes within
+  // a factor merged_id_max_flux_ratio.
+  double merged_id_min_dchi2 = 25.0;
+  double merged_id_margin_dchi2 = 10.0;
+  double merged_id_max_flux_ratio = 4.0;
+  int merged_id_max_half_window_px = 20;  // fit window half-size bound
   double max_condition = 1e12;     // of J^T J
   double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
 };
@@ -163,6 +174,7 @@ struct LedPoseMeasurement {
   double reproj_rms_px = 0.0;
   double flip_weight = 0.0;                   // weight of the planar mirror solution folded into R
   double range_m = 0.0;                       // camera to pattern centre
+  bool identifier_split = false;              // the identifier came from a merged blob's two-spot fit
   std::array<int, kNumLeds> blob_of_led{{-1, -1, -1, -1, -1}};
   Eigen::Matrix3d R_cp = Eigen::Matrix3d::Identity();  // host body -> camera
   Eigen::Vector3d t_cp_m = Eigen::Vector3d::Zero();    // host origin in camera frame
@@ -183,6 +195,8 @@ class LedPoseEstimator {
   // pass (a matched filter over the frame) runs only when the plain
   // threshold's blobs give no pose for want of an LED (TooFewLeds or
   // AmbiguousIdentity); when it finds more blobs, its result is the answer.
+  // Four blobs still ambiguous then: the merged-identifier fit
+  // (pose_with_merged_identifier) decides.
   LedPoseMeasurement estimate(const cv::Mat& gray, double t_capture_s,
                               const Eigen::Quaterniond& q_h_host = Eigen::Quaterniond::Identity()) const;
 
@@ -218,6 +232,15 @@ class LedPoseEstimator {
   // estimate by 1.5 px or more (the first estimate is then that far off).
   bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, int first_faint,
                        double u0, double v0, double width_px, double sigma_w, Blob& out, bool& drifted) const;
+  // The pose when the identifier is merged into its corner's blob (four
+  // blobs, AmbiguousIdentity), with identifier_split set; AmbiguousIdentity
+  // (identifier_split false) when no labelling's two-spot fit stands out
+  // (merged_id_* settings).
+  LedPoseMeasurement pose_with_merged_identifier(const cv::Mat& gray, const std::vector<Blob>& blobs,
+                                                 double t_capture_s, const Eigen::Quaterniond& q_h_host) const;
+  // The identifier's image fraction along edge 0 -> 1 under the homography
+  // of four image corners (in label order); NaN when degenerate.
+  double identifier_fraction(const std::array<cv::Point2d, 4>& corners) const;
   // The robust gate's consensus over the five leave-one-out fits of a
   // labelling: the most LEDs within ransac_threshold_px of one pose.
   int consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const;
