@@ -48,6 +48,56 @@ void BM_ImageToPose(benchmark::State& state) {
 }
 BENCHMARK(BM_ImageToPose)->Arg(0)->Arg(6)->Unit(benchmark::kMillisecond);
 
+// A blurred (2.15 px), faint (about 10 counts at the peak) frame at long
+// range, tilted, with the identifier a few px from corner 0 in one blob.
+cv::Mat far_blurred_frame(const fsw_vision::LedPoseEstimator& est, double range_m, double tilt_rad) {
+  const Eigen::Quaterniond q_hb =
+      Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ())) *
+      Eigen::Quaterniond(Eigen::AngleAxisd(tilt_rad, Eigen::Vector3d(0.3, 0.9, 0.1).normalized()));
+  const Eigen::Vector3d r_hill = q_hb * Eigen::Vector3d(-range_m, 0.05, 0.02);
+  std::array<cv::Point2d, fsw_vision::kNumLeds> px;
+  est.project(r_hill, q_hb, Eigen::Quaterniond::Identity(), px);
+  cv::Mat img(480, 640, CV_32F, cv::Scalar(6.0));
+  const double sigma = 2.15, amp = 300.0 / (2.0 * M_PI * sigma * sigma);
+  for (const auto& p : px)
+    for (int r = int(p.y) - 10; r <= int(p.y) + 10; ++r)
+      for (int c = int(p.x) - 10; c <= int(p.x) + 10; ++c)
+        if (r >= 0 && r < 480 && c >= 0 && c < 640)
+          img.at<float>(r, c) +=
+              float(amp * std::exp(-0.5 * ((c - p.x) * (c - p.x) + (r - p.y) * (r - p.y)) / (sigma * sigma)));
+  cv::Mat noise(480, 640, CV_32F);
+  cv::RNG(2).fill(noise, cv::RNG::NORMAL, 0.0, 1.5);
+  img += noise;
+  cv::Mat frame;
+  img.convertTo(frame, CV_8U);
+  return frame;
+}
+
+// Image to pose when the identifier is merged into its corner's blob (the
+// first range from 4 m, in 0.1 m steps, where the split gives a pose).
+// Arg 1: the split on (the default); 0: off, the same frame then ends
+// AmbiguousIdentity after both passes. The difference is the split's cost.
+void BM_ImageToPoseMergedIdentifier(benchmark::State& state) {
+  const fsw_vision::LedPoseEstimator with_split;
+  fsw_vision::LedPoseConfig off;
+  off.merged_id_min_dchi2 = 0.0;
+  const fsw_vision::LedPoseEstimator without(off);
+  cv::Mat frame;
+  for (double range = 4.0; range <= 5.0 && frame.empty(); range += 0.1) {
+    const cv::Mat f = far_blurred_frame(with_split, range, 0.7);
+    const auto m = with_split.estimate(f, 0.0);
+    if (m.status == fsw_vision::PoseStatus::Ok && m.identifier_split) frame = f;
+  }
+  if (frame.empty()) {
+    state.SkipWithError("no merged-identifier frame");
+    return;
+  }
+  const fsw_vision::LedPoseEstimator& est = state.range(0) ? with_split : without;
+  state.SetLabel(fsw_vision::to_string(est.estimate(frame, 0.0).status));
+  for (auto _ : state) benchmark::DoNotOptimize(est.estimate(frame, 0.0).status);
+}
+BENCHMARK(BM_ImageToPoseMergedIdentifier)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 // Arg: 1 with the faint-spot pass (the default), 0 without it.
 void BM_Detect(benchmark::State& state) {
   fsw_vision::LedPoseConfig cfg;

@@ -648,6 +648,11 @@ double LedPoseEstimator::identifier_fraction(const std::array<cv::Point2d, 4>& c
   return L2 > 0.0 ? e.dot(p - corners[0]) / L2 : std::numeric_limits<double>::quiet_NaN();
 }
 
+// Two spots of one width merge into one maximum only within about this
+// many widths of each other: the farthest a merged identifier can be from
+// its corner, which bounds the fit window.
+constexpr double kMergedReachWidths = 3.0;
+
 // A point that takes part in identification and in the reprojection gates
 // but carries no weight in the pose covariance [px].
 constexpr double kUnweightedSigmaPx = 1e3;
@@ -693,8 +698,9 @@ LedPoseMeasurement LedPoseEstimator::pose_with_merged_identifier(const cv::Mat& 
   for (int k = 0; k < 4; ++k) {
     const cv::Point2d c = pt(k);
     const double e_max = std::max(cv::norm(pt(k + 1) - c), cv::norm(pt(k - 1) - c));
-    const int half = std::clamp(static_cast<int>(std::ceil(3.0 * width0 + cfg_.id_fraction_max * e_max)), 4,
-                                cfg_.merged_id_max_half_window_px);
+    const int half = std::clamp(
+        static_cast<int>(std::ceil(3.0 * width0 + std::min(cfg_.id_fraction_max * e_max, kMergedReachWidths * width0))),
+        4, cfg_.merged_id_max_half_window_px);
     const SpotWindow win{static_cast<int>(std::lround(c.y)) - half, static_cast<int>(std::lround(c.y)) + half + 1,
                          static_cast<int>(std::lround(c.x)) - half, static_cast<int>(std::lround(c.x)) + half + 1};
     const Eigen::Vector2d c_e(c.x, c.y);

@@ -2,7 +2,6 @@
 #include "fsw_vision/spot_fit.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -33,21 +32,83 @@ SpotTerm spot_term(double x, double y, double u, double v, double s, double flux
   return {val, val * dx / s2, val * dy / s2, val * (d2 / (s2 * s) - 2.0 / s), shape};
 }
 
-// Model value at a pixel and its gradient over the parameters.
-double model_at(SpotModel m, const Eigen::VectorXd& p, const Eigen::Vector2d& line_p, double f, double x, double y,
-                Eigen::VectorXd& grad) {
-  grad.setZero(p.size());
-  if (m == SpotModel::One) {
+// Model value at a pixel and its gradient over the parameters (N = 5: One,
+// N = 6: PairOnLine).
+template <int N>
+double model_at(const Eigen::Matrix<double, N, 1>& p, const Eigen::Vector2d& line_p, double f, double x, double y,
+                Eigen::Matrix<double, N, 1>& grad) {
+  if constexpr (N == 5) {
     const SpotTerm t = spot_term(x, y, p(0), p(1), p(2), p(3));
     grad << t.du, t.dv, t.ds, t.dflux, 1.0;
     return t.value + p(4);
+  } else {
+    // PairOnLine: spot 1 at (1 - f) u0 + f p moves with u0 by (1 - f).
+    const double s = p(2);
+    const SpotTerm a = spot_term(x, y, p(0), p(1), s, p(3));
+    const SpotTerm b = spot_term(x, y, (1.0 - f) * p(0) + f * line_p(0), (1.0 - f) * p(1) + f * line_p(1), s, p(4));
+    grad << a.du + (1.0 - f) * b.du, a.dv + (1.0 - f) * b.dv, a.ds + b.ds, a.dflux, b.dflux, 1.0;
+    return a.value + b.value + p(5);
   }
-  // PairOnLine: spot 1 at (1 - f) u0 + f p moves with u0 by (1 - f).
-  const double s = p(2);
-  const SpotTerm a = spot_term(x, y, p(0), p(1), s, p(3));
-  const SpotTerm b = spot_term(x, y, (1.0 - f) * p(0) + f * line_p(0), (1.0 - f) * p(1) + f * line_p(1), s, p(4));
-  grad << a.du + (1.0 - f) * b.du, a.dv + (1.0 - f) * b.dv, a.ds + b.ds, a.dflux, b.dflux, 1.0;
-  return a.value + b.value + p(5);
+}
+
+// Levenberg-Marquardt from p; false unless it settles at a finite minimum.
+// Fixed-size normal equations (5 or 6 parameters) over every pixel.
+template <int N>
+bool minimise(const std::vector<Pixel>& px, const Eigen::Vector2d& line_p, double f, Eigen::Matrix<double, N, 1>& p,
+              double& chi2, Eigen::Matrix<double, N, N>& cov) {
+  using Vec = Eigen::Matrix<double, N, 1>;
+  using Mat = Eigen::Matrix<double, N, N>;
+  auto normal_equations = [&](const Vec& q, Mat& H, Vec& g) {
+    H.setZero();
+    g.setZero();
+    Vec grad;
+    double c2 = 0.0;
+    for (const Pixel& k : px) {
+      const double res = k.z - model_at<N>(q, line_p, f, k.x, k.y, grad);
+      c2 += k.w * res * res;
+      H.noalias() += (k.w * grad) * grad.transpose();
+      g += (k.w * res) * grad;
+    }
+    return c2;
+  };
+  Mat H;
+  Vec g;
+  chi2 = normal_equations(p, H, g);
+  double lambda = 1e-3;
+  bool converged = false;
+  for (int it = 0; it < kMaxIter && std::isfinite(chi2); ++it) {
+    Mat A = H;
+    A.diagonal() *= 1.0 + lambda;
+    const Vec step = A.ldlt().solve(g);
+    const Vec q = p + step;
+    Mat Hq = Mat::Zero();
+    Vec gq = Vec::Zero();
+    const double chi2_q =
+        (q(2) > kMinWidthPx && q(2) < kMaxWidthPx && step.allFinite()) ? normal_equations(q, Hq, gq) : INFINITY;
+    if (chi2_q < chi2) {
+      const double gain = chi2 - chi2_q;
+      p = q;
+      H = Hq;
+      g = gq;
+      chi2 = chi2_q;
+      lambda = std::max(lambda / 3.0, 1e-9);
+      if (gain < 1e-7 * (1.0 + chi2)) {
+        converged = true;
+        break;
+      }
+    } else {
+      lambda *= 4.0;
+      if (lambda > 1e8) {  // no downhill step left: at the minimum
+        converged = true;
+        break;
+      }
+    }
+  }
+  if (!converged || !std::isfinite(chi2)) return false;
+  const Eigen::LDLT<Mat> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return false;
+  cov = ldlt.solve(Mat::Identity());
+  return cov.allFinite();
 }
 
 }  // namespace
@@ -83,77 +144,25 @@ SpotFit fit_spots(const cv::Mat& gray, const SpotWindow& w, const PixelNoise& no
   }
   if (static_cast<int>(px.size()) <= np || !(flux_sum > 0.0)) return out;
 
-  Eigen::VectorXd p(np);
-  if (model == SpotModel::One) {
-    p << u0_init(0), u0_init(1), width_init_px, flux_sum, b0;
-  } else {
-    p << u0_init(0), u0_init(1), width_init_px, 0.5 * flux_sum, 0.5 * flux_sum, b0;
-  }
-
-  Eigen::VectorXd grad(np);
-  auto normal_equations = [&](const Eigen::VectorXd& q, Eigen::MatrixXd& H, Eigen::VectorXd& g) {
-    H.setZero(np, np);
-    g.setZero(np);
-    double chi2 = 0.0;
-    for (const Pixel& k : px) {
-      const double res = k.z - model_at(model, q, line_p, line_f, k.x, k.y, grad);
-      chi2 += k.w * res * res;
-      H.selfadjointView<Eigen::Lower>().rankUpdate(grad, k.w);
-      g += (k.w * res) * grad;
-    }
-    H = H.selfadjointView<Eigen::Lower>();
-    return chi2;
-  };
-
-  Eigen::MatrixXd H;
-  Eigen::VectorXd g;
-  double chi2 = normal_equations(p, H, g);
-  double lambda = 1e-3;
-  bool converged = false;
-  for (int it = 0; it < kMaxIter && std::isfinite(chi2); ++it) {
-    Eigen::MatrixXd A = H;
-    A.diagonal() *= 1.0 + lambda;
-    const Eigen::VectorXd step = A.ldlt().solve(g);
-    const Eigen::VectorXd q = p + step;
-    const double s = q(2);
-    Eigen::MatrixXd Hq;
-    Eigen::VectorXd gq;
-    const double chi2_q =
-        (s > kMinWidthPx && s < kMaxWidthPx && step.allFinite()) ? normal_equations(q, Hq, gq) : INFINITY;
-    if (chi2_q < chi2) {
-      const double gain = chi2 - chi2_q;
-      p = q;
-      H = Hq;
-      g = gq;
-      chi2 = chi2_q;
-      lambda = std::max(lambda / 3.0, 1e-9);
-      if (gain < 1e-8 * (1.0 + chi2)) {
-        converged = true;
-        break;
-      }
-    } else {
-      lambda *= 4.0;
-      if (lambda > 1e8) {  // no downhill step left: at the minimum
-        converged = true;
-        break;
-      }
-    }
-  }
-  if (!converged || !std::isfinite(chi2)) return out;
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return out;
-  const Eigen::MatrixXd cov = ldlt.solve(Eigen::MatrixXd::Identity(np, np));
-
-  out.ok = cov.allFinite();
-  out.chi2 = chi2;
   out.n_pixels = static_cast<int>(px.size());
-  out.u0 = p.head<2>();
-  out.cov_u0 = cov.topLeftCorner<2, 2>();
-  out.width_px = p(2);
   if (model == SpotModel::One) {
+    Eigen::Matrix<double, 5, 1> p;
+    p << u0_init(0), u0_init(1), width_init_px, flux_sum, b0;
+    Eigen::Matrix<double, 5, 5> cov;
+    out.ok = minimise<5>(px, line_p, line_f, p, out.chi2, cov);
+    out.u0 = p.head<2>();
+    out.cov_u0 = cov.topLeftCorner<2, 2>();
+    out.width_px = p(2);
     out.flux0 = p(3);
     out.background = p(4);
   } else {
+    Eigen::Matrix<double, 6, 1> p;
+    p << u0_init(0), u0_init(1), width_init_px, 0.5 * flux_sum, 0.5 * flux_sum, b0;
+    Eigen::Matrix<double, 6, 6> cov;
+    out.ok = minimise<6>(px, line_p, line_f, p, out.chi2, cov);
+    out.u0 = p.head<2>();
+    out.cov_u0 = cov.topLeftCorner<2, 2>();
+    out.width_px = p(2);
     out.u1 = (1.0 - line_f) * out.u0 + line_f * line_p;
     out.cov_u1 = (1.0 - line_f) * (1.0 - line_f) * out.cov_u0;
     out.flux0 = p(3);
