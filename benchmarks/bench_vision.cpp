@@ -11,30 +11,46 @@
 
 namespace {
 
-// A frame with the pattern 1.5 m away, tilted, Gaussian spots on a noisy background.
-cv::Mat make_frame(const fsw_vision::LedPoseEstimator& est, int clutter_spots) {
-  // Inspector on the host's +x side (the LED face), boresight towards -x Hill.
+// A frame of the pattern: the inspector range_m from it on the host's +x
+// side (the LED face), boresight towards -x Hill, tilted by tilt_rad about
+// tilt_axis; Gaussian spots (sigma_px, peak amp counts, drawn within
+// half_px) plus clutter_spots LED-like spots on a noisy background.
+struct FrameSpec {
+  double range_m, tilt_rad;
+  Eigen::Vector3d tilt_axis;
+  double sigma_px, amp;
+  int half_px, clutter_spots;
+  uint64_t seed;
+};
+
+cv::Mat make_frame(const fsw_vision::LedPoseEstimator& est, const FrameSpec& f) {
   const Eigen::Quaterniond q_hb = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ())) *
-                                  Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 0.9, 0.1).normalized()));
-  const Eigen::Vector3d r_hill = q_hb * Eigen::Vector3d(-1.6, 0.05, 0.02);
+                                  Eigen::Quaterniond(Eigen::AngleAxisd(f.tilt_rad, f.tilt_axis.normalized()));
+  const Eigen::Vector3d r_hill = q_hb * Eigen::Vector3d(-f.range_m, 0.05, 0.02);
   std::array<cv::Point2d, fsw_vision::kNumLeds> px;
   est.project(r_hill, q_hb, Eigen::Quaterniond::Identity(), px);
   cv::Mat img(480, 640, CV_32F, cv::Scalar(6.0));
-  cv::RNG rng(1);
+  cv::RNG rng(f.seed);
   auto spot = [&](double u, double v, double sigma, double amp) {
-    for (int r = int(v) - 6; r <= int(v) + 6; ++r)
-      for (int c = int(u) - 6; c <= int(u) + 6; ++c)
+    for (int r = int(v) - f.half_px; r <= int(v) + f.half_px; ++r)
+      for (int c = int(u) - f.half_px; c <= int(u) + f.half_px; ++c)
         if (r >= 0 && r < 480 && c >= 0 && c < 640)
-          img.at<float>(r, c) += float(amp * std::exp(-0.5 * ((c - u) * (c - u) + (r - v) * (r - v)) / (sigma * sigma)));
+          img.at<float>(r, c) +=
+              float(amp * std::exp(-0.5 * ((c - u) * (c - u) + (r - v) * (r - v)) / (sigma * sigma)));
   };
-  for (const auto& p : px) spot(p.x, p.y, 1.2, 200.0);
-  for (int k = 0; k < clutter_spots; ++k) spot(rng.uniform(0.0, 640.0), rng.uniform(0.0, 480.0), 1.0, 150.0);
+  for (const auto& p : px) spot(p.x, p.y, f.sigma_px, f.amp);
+  for (int k = 0; k < f.clutter_spots; ++k) spot(rng.uniform(0.0, 640.0), rng.uniform(0.0, 480.0), 1.0, 150.0);
   cv::Mat noise(480, 640, CV_32F);
   rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.5);
   img += noise;
   cv::Mat out;
   img.convertTo(out, CV_8U);
   return out;
+}
+
+// The pattern 1.6 m away, tilted, bright 1.2 px spots.
+cv::Mat make_frame(const fsw_vision::LedPoseEstimator& est, int clutter_spots) {
+  return make_frame(est, {1.6, 0.3, Eigen::Vector3d(0.2, 0.9, 0.1), 1.2, 200.0, 6, clutter_spots, 1});
 }
 
 void BM_ImageToPose(benchmark::State& state) {
@@ -51,26 +67,9 @@ BENCHMARK(BM_ImageToPose)->Arg(0)->Arg(6)->Unit(benchmark::kMillisecond);
 // A blurred (2.15 px), faint (about 10 counts at the peak) frame at long
 // range, tilted, with the identifier a few px from corner 0 in one blob.
 cv::Mat far_blurred_frame(const fsw_vision::LedPoseEstimator& est, double range_m, double tilt_rad) {
-  const Eigen::Quaterniond q_hb =
-      Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ())) *
-      Eigen::Quaterniond(Eigen::AngleAxisd(tilt_rad, Eigen::Vector3d(0.3, 0.9, 0.1).normalized()));
-  const Eigen::Vector3d r_hill = q_hb * Eigen::Vector3d(-range_m, 0.05, 0.02);
-  std::array<cv::Point2d, fsw_vision::kNumLeds> px;
-  est.project(r_hill, q_hb, Eigen::Quaterniond::Identity(), px);
-  cv::Mat img(480, 640, CV_32F, cv::Scalar(6.0));
-  const double sigma = 2.15, amp = 300.0 / (2.0 * M_PI * sigma * sigma);
-  for (const auto& p : px)
-    for (int r = int(p.y) - 10; r <= int(p.y) + 10; ++r)
-      for (int c = int(p.x) - 10; c <= int(p.x) + 10; ++c)
-        if (r >= 0 && r < 480 && c >= 0 && c < 640)
-          img.at<float>(r, c) +=
-              float(amp * std::exp(-0.5 * ((c - p.x) * (c - p.x) + (r - p.y) * (r - p.y)) / (sigma * sigma)));
-  cv::Mat noise(480, 640, CV_32F);
-  cv::RNG(2).fill(noise, cv::RNG::NORMAL, 0.0, 1.5);
-  img += noise;
-  cv::Mat frame;
-  img.convertTo(frame, CV_8U);
-  return frame;
+  const double sigma = 2.15;
+  return make_frame(
+      est, {range_m, tilt_rad, Eigen::Vector3d(0.3, 0.9, 0.1), sigma, 300.0 / (2.0 * M_PI * sigma * sigma), 10, 0, 2});
 }
 
 // Image to pose when the identifier is merged into its corner's blob (the

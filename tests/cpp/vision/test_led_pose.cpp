@@ -11,6 +11,7 @@
 #include <random>
 
 #include "fsw_vision/led_pose.hpp"
+#include "spot_image.hpp"
 
 using fsw_vision::LedPoseConfig;
 using fsw_vision::LedPoseEstimator;
@@ -443,27 +444,9 @@ TEST_F(LedPoseTest, FullySaturatedImageGivesNoBlobsAndTooFewLeds) {
 
 namespace {
 
-// Blurred spots of one flux on the bench's background (6 counts) with read
-// noise 1.5 counts and shot variance 0.05 per count of signal, seeded, 8-bit.
+// The bench's faint blurred spots in a full frame (spot_image.hpp).
 cv::Mat faint_image(const std::vector<cv::Point2d>& centres, double sigma, double flux, uint64_t seed) {
-  cv::Mat img(480, 640, CV_64F, cv::Scalar(6.0));
-  const double s = std::sqrt(2.0) * sigma;
-  for (const auto& p : centres)
-    for (int r = int(p.y) - 14; r <= int(p.y) + 14; ++r)
-      for (int c = int(p.x) - 14; c <= int(p.x) + 14; ++c) {
-        const double gx = 0.5 * (std::erf((c + 0.5 - p.x) / s) - std::erf((c - 0.5 - p.x) / s));
-        const double gy = 0.5 * (std::erf((r + 0.5 - p.y) / s) - std::erf((r - 0.5 - p.y) / s));
-        img.at<double>(r, c) += flux * gx * gy;
-      }
-  cv::RNG rng(seed);
-  for (int r = 0; r < img.rows; ++r)
-    for (int c = 0; c < img.cols; ++c) {
-      double& v = img.at<double>(r, c);
-      v += rng.gaussian(std::sqrt(1.5 * 1.5 + 0.05 * std::max(v - 6.0, 0.0)));
-    }
-  cv::Mat img8;
-  img.convertTo(img8, CV_8U);
-  return img8;
+  return noisy_spots_image(480, 640, centres, sigma, flux, seed);
 }
 
 }  // namespace

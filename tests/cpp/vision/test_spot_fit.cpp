@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "fsw_vision/spot_fit.hpp"
+#include "spot_image.hpp"
 
 using fsw_vision::fit_spots;
 using fsw_vision::PixelNoise;
@@ -18,27 +19,11 @@ using fsw_vision::SpotWindow;
 
 namespace {
 
-// Pixel-integrated Gaussian spots on a background of 6 counts, with the
-// detector's noise (read 1.5 counts, shot 0.05 per count), 8-bit.
+// A 64 x 64 image of the bench's blurred spots (spot_image.hpp).
 cv::Mat spots_image(const std::vector<Eigen::Vector2d>& centres, double sigma, double flux, uint64_t seed) {
-  cv::Mat img(64, 64, CV_64F, cv::Scalar(6.0));
-  const double s = std::sqrt(2.0) * sigma;
-  for (const auto& p : centres)
-    for (int r = 0; r < img.rows; ++r)
-      for (int c = 0; c < img.cols; ++c) {
-        const double gx = 0.5 * (std::erf((c + 0.5 - p.x()) / s) - std::erf((c - 0.5 - p.x()) / s));
-        const double gy = 0.5 * (std::erf((r + 0.5 - p.y()) / s) - std::erf((r - 0.5 - p.y()) / s));
-        img.at<double>(r, c) += flux * gx * gy;
-      }
-  cv::RNG rng(seed);
-  for (int r = 0; r < img.rows; ++r)
-    for (int c = 0; c < img.cols; ++c) {
-      double& v = img.at<double>(r, c);
-      v += rng.gaussian(std::sqrt(1.5 * 1.5 + 0.05 * std::max(v - 6.0, 0.0)));
-    }
-  cv::Mat img8;
-  img.convertTo(img8, CV_8U);
-  return img8;
+  std::vector<cv::Point2d> pts;
+  for (const auto& c : centres) pts.emplace_back(c.x(), c.y());
+  return noisy_spots_image(64, 64, pts, sigma, flux, seed);
 }
 
 const SpotWindow kWindow{20, 45, 20, 45};
