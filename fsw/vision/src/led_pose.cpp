@@ -67,7 +67,9 @@ constexpr double kMaxRefineShiftPx = 1.5;
 // threshold): the background-subtracted image smoothed by a Gaussian about
 // as wide as a spot, a matched filter whose pixel noise is 1 / (2 sqrt(pi)
 // sigma) of the raw image's, thresholded lower. Its components that touch
-// none of the plain threshold's are split between their local maxima (two
+// none of the plain threshold's (not counting plain components smaller than
+// min_area_px: a faint spot's noise peaks that poke through the plain
+// threshold, which the shape gates drop) are split between their local maxima (two
 // blurred LEDs a few pixels apart, the identifier beside its corner, join
 // at a low threshold but keep two maxima), each pixel to the nearest, and
 // appended after the plain components (labels n, n+1, ...) with their stats
@@ -75,7 +77,7 @@ constexpr double kMaxRefineShiftPx = 1.5;
 // of one spot refine to the same centre and are merged there).
 // Returns the new label count.
 int append_faint_components(const cv::Mat& diff, const cv::Mat& mask, double sigma_px, double threshold_counts,
-                            cv::Mat& labels, cv::Mat& stats, cv::Mat& cents, int n) {
+                            int min_area_px, cv::Mat& labels, cv::Mat& stats, cv::Mat& cents, int n) {
   thread_local cv::Mat diff_f, smooth, dil, fmask, flabels, fstats, fcents;  // see detect()
   diff.convertTo(diff_f, CV_32F);
   cv::GaussianBlur(diff_f, smooth, cv::Size(0, 0), sigma_px, sigma_px, cv::BORDER_REPLICATE);
@@ -86,8 +88,10 @@ int append_faint_components(const cv::Mat& diff, const cv::Mat& mask, double sig
   for (int r = 0; r < mask.rows; ++r) {
     const uint8_t* m = mask.ptr<uint8_t>(r);
     const int* fl = flabels.ptr<int>(r);
+    const int* pl = labels.ptr<int>(r);
     for (int c = 0; c < mask.cols; ++c)
-      if (m[c] != 0 && fl[c] != 0) touches[static_cast<size_t>(fl[c])] = 1;
+      if (m[c] != 0 && fl[c] != 0 && stats.at<int>(pl[c], cv::CC_STAT_AREA) >= min_area_px)
+        touches[static_cast<size_t>(fl[c])] = 1;
   }
   // Local maxima (3 x 3) of the kept components; one per 2-pixel neighbourhood.
   struct Peak {
@@ -507,7 +511,8 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray, bool faint_pass)
   const int first_faint = n;
   std::vector<char> faint;  // per blob in out: found by the faint pass
   if (faint_pass && cfg_.faint_sigma_px > 0.0)
-    n = append_faint_components(diff, mask, cfg_.faint_sigma_px, cfg_.faint_threshold_counts, labels, stats, cents, n);
+    n = append_faint_components(diff, mask, cfg_.faint_sigma_px, cfg_.faint_threshold_counts, cfg_.min_area_px, labels,
+                                stats, cents, n);
   for (int l = 1; l < n; ++l) {
     const int area = stats.at<int>(l, cv::CC_STAT_AREA);
     const int x0 = stats.at<int>(l, cv::CC_STAT_LEFT), y0 = stats.at<int>(l, cv::CC_STAT_TOP);

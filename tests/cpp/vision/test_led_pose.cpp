@@ -560,3 +560,26 @@ TEST_F(LedPoseTest, MergedIdentifierIsSplitFromItsCornerAtLongRange) {
   }
   EXPECT_GE(ok, 6);
 }
+
+// A faint spot whose noise pokes one pixel through the plain threshold: that
+// one-pixel plain component fails the area gate, and the spot must still be
+// found by the faint pass (it used to be dropped as touching a plain
+// component, which lost far LEDs in nominal, blurred and sunlit frames).
+TEST_F(LedPoseTest, FaintSpotWithOnePixelOverThePlainThresholdIsStillFound) {
+  const LedPoseEstimator est(cfg);
+  const cv::Point2d p(300.3, 200.6);
+  const double sigma = 2.15, peak = 17.0;  // counts over the background, under the 20-count threshold
+  cv::Mat img(480, 640, CV_8U, cv::Scalar(6));
+  for (int r = 186; r <= 215; ++r)
+    for (int c = 286; c <= 315; ++c) {
+      const double d2 = (c - p.x) * (c - p.x) + (r - p.y) * (r - p.y);
+      img.at<uint8_t>(r, c) = cv::saturate_cast<uint8_t>(6.0 + peak * std::exp(-0.5 * d2 / (sigma * sigma)));
+    }
+  img.at<uint8_t>(201, 300) = 6 + 25;  // one pixel over the plain threshold: a component of area 1
+  LedPoseConfig plain_cfg = cfg;
+  plain_cfg.faint_sigma_px = 0.0;
+  EXPECT_TRUE(LedPoseEstimator(plain_cfg).detect(img).empty());  // the area gate drops it
+  const auto blobs = est.detect(img);
+  ASSERT_EQ(blobs.size(), 1u);
+  EXPECT_LT(std::hypot(blobs[0].u_px - p.x, blobs[0].v_px - p.y), 0.5);
+}
