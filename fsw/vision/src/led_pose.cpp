@@ -639,18 +639,24 @@ LedPoseMeasurement LedPoseEstimator::estimate(const cv::Mat& gray, double t_capt
   return m;
 }
 
-double LedPoseEstimator::identifier_fraction(const std::array<cv::Point2d, 4>& corners) const {
-  std::array<cv::Point2f, 4> quad;
-  for (int c = 0; c < 4; ++c) quad[c] = cv::Point2f(float(corners[c].x), float(corners[c].y));
+bool LedPoseEstimator::identifier_in_image(const std::array<cv::Point2f, 4>& quad, cv::Point2d& id_px) const {
   const cv::Mat H = cv::getPerspectiveTransform(plane_uv_.data(), quad.data());
   const cv::Point2f& id = plane_uv_[kIdentifier];
   const double w = H.at<double>(2, 0) * id.x + H.at<double>(2, 1) * id.y + H.at<double>(2, 2);
-  if (!(std::abs(w) > 1e-12)) return std::numeric_limits<double>::quiet_NaN();
-  const cv::Point2d p((H.at<double>(0, 0) * id.x + H.at<double>(0, 1) * id.y + H.at<double>(0, 2)) / w,
+  if (!(std::abs(w) > 1e-12)) return false;
+  id_px = cv::Point2d((H.at<double>(0, 0) * id.x + H.at<double>(0, 1) * id.y + H.at<double>(0, 2)) / w,
                       (H.at<double>(1, 0) * id.x + H.at<double>(1, 1) * id.y + H.at<double>(1, 2)) / w);
+  return true;
+}
+
+double LedPoseEstimator::identifier_fraction(const std::array<cv::Point2d, 4>& corners) const {
+  std::array<cv::Point2f, 4> quad;
+  for (int c = 0; c < 4; ++c) quad[c] = cv::Point2f(float(corners[c].x), float(corners[c].y));
+  cv::Point2d p;
   const cv::Point2d e = corners[1] - corners[0];
   const double L2 = e.dot(e);
-  return L2 > 0.0 ? e.dot(p - corners[0]) / L2 : std::numeric_limits<double>::quiet_NaN();
+  if (!identifier_in_image(quad, p) || !(L2 > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return e.dot(p - corners[0]) / L2;
 }
 
 // Two spots of one width merge into one maximum only within about this
@@ -786,9 +792,9 @@ LedPoseMeasurement LedPoseEstimator::pose_with_merged_identifier(const cv::Mat& 
 // only five minimal sets for a planar four-point solver, so this is what a
 // RANSAC over them would find, without its random draws (50 AP3P draws of
 // cv::solvePnPRansac cost 0.55 ms per labelling, this 0.10 ms;
-// docs/perf/vision.md). Returns the
-// largest number of LEDs within ransac_threshold_px of one pose (0 when no
-// pose could be computed); rv, tv get a pose with every LED within it.
+// docs/perf/vision.md). Returns the largest number of LEDs within
+// ransac_threshold_px of one pose (0 when no pose could be computed); rv, tv
+// get a pose with every LED within it.
 int LedPoseEstimator::consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const {
   std::vector<cv::Point3d> obj4(kNumLeds - 1);
   std::vector<cv::Point2d> img4(kNumLeds - 1), rep;
@@ -872,7 +878,7 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
   bool any_collinear_triple = false;
   constexpr int kMaxCandidates = 2000;  // bounds the work on a cluttered frame
   int candidates = 0;
-  std::vector<cv::Point2f> quad_px(4);
+  std::array<cv::Point2f, 4> quad_px;
   for (int i = 0; i < n && candidates < kMaxCandidates; ++i) {
     for (int j = 0; j < n; ++j) {
       if (j == i) continue;
@@ -892,12 +898,8 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
             if (0.5 * convex_quad_area2(q) < cfg_.min_quad_area_px2) continue;
             ++candidates;
             for (int c = 0; c < 4; ++c) quad_px[c] = cv::Point2f(float(q[c]->x), float(q[c]->y));
-            const cv::Mat H = cv::getPerspectiveTransform(plane_uv_.data(), quad_px.data());
-            const cv::Point2f& id = plane_uv_[kIdentifier];
-            const double w = H.at<double>(2, 0) * id.x + H.at<double>(2, 1) * id.y + H.at<double>(2, 2);
-            if (!(std::abs(w) > 1e-12)) continue;
-            const cv::Point2d mapped((H.at<double>(0, 0) * id.x + H.at<double>(0, 1) * id.y + H.at<double>(0, 2)) / w,
-                                     (H.at<double>(1, 0) * id.x + H.at<double>(1, 1) * id.y + H.at<double>(1, 2)) / w);
+            cv::Point2d mapped;
+            if (!identifier_in_image(quad_px, mapped)) continue;
             const cv::Point2d dd = mapped - pts[k];
             const double score = std::sqrt(dd.dot(dd));
             if (!(score <= tol)) continue;
@@ -933,8 +935,9 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
   }
 
   // Pose per labelling: IPPE (both planar solutions) and the consensus
-  // gate's solution when it found one, each refined by Levenberg-Marquardt; the physical ones are kept and the
-  // labelling's best is the one with the smallest reprojection error.
+  // gate's solution when it found one, each refined by Levenberg-Marquardt;
+  // the physical ones are kept and the labelling's best is the one with the
+  // smallest reprojection error.
   const Eigen::Vector3d centre_p = [&] {
     Eigen::Vector3d c = Eigen::Vector3d::Zero();
     for (int i = 0; i < 4; ++i) c += cfg_.pattern.p_host_m[i];

@@ -144,7 +144,6 @@ SpotFit fit_spots(const cv::Mat& gray, const SpotWindow& w, const PixelNoise& no
   }
   if (static_cast<int>(px.size()) <= np || !(flux_sum > 0.0)) return out;
 
-  out.n_pixels = static_cast<int>(px.size());
   if (model == SpotModel::One) {
     Eigen::Matrix<double, 5, 1> p;
     p << u0_init(0), u0_init(1), width_init_px, flux_sum, b0;
@@ -164,7 +163,6 @@ SpotFit fit_spots(const cv::Mat& gray, const SpotWindow& w, const PixelNoise& no
     out.cov_u0 = cov.topLeftCorner<2, 2>();
     out.width_px = p(2);
     out.u1 = (1.0 - line_f) * out.u0 + line_f * line_p;
-    out.cov_u1 = (1.0 - line_f) * (1.0 - line_f) * out.cov_u0;
     out.flux0 = p(3);
     out.flux1 = p(4);
     out.background = p(5);

@@ -36,7 +36,7 @@ const PixelNoise kNoise{};
 // width and flux come back.
 TEST(SpotFit, OneSpotPositionMatchesItsCovariance) {
   const Eigen::Vector2d truth(32.3, 31.6);
-  double z2 = 0.0, width = 0.0, flux = 0.0;
+  double z2 = 0.0, width = 0.0, flux = 0.0, background = 0.0;
   const int n = 300;
   for (int seed = 1; seed <= n; ++seed) {
     const cv::Mat img = spots_image({truth}, 2.0, 300.0, seed);
@@ -46,6 +46,7 @@ TEST(SpotFit, OneSpotPositionMatchesItsCovariance) {
     z2 += e.dot(f.cov_u0.ldlt().solve(e));
     width += f.width_px;
     flux += f.flux0;
+    background += f.background;
   }
   z2 /= n;
   // Mean of chi^2(2) over 300 runs: 2 +- 0.16 (1 sigma); 8-bit rounding adds a little.
@@ -54,6 +55,7 @@ TEST(SpotFit, OneSpotPositionMatchesItsCovariance) {
   // The fit's Gaussian is point-sampled: its width includes the pixel's (1/12 px^2).
   EXPECT_NEAR(width / n, std::sqrt(4.0 + 1.0 / 12.0), 0.05);
   EXPECT_NEAR(flux / n, 300.0, 10.0);
+  EXPECT_NEAR(background / n, 6.0, 0.2);  // the 8-bit conversion rounds, which leaves 6 on average
 }
 
 // Two spots 5 px apart (2.3 widths: one blob): the pair held on the line

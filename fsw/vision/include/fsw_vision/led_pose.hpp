@@ -238,8 +238,11 @@ class LedPoseEstimator {
   // (merged_id_* settings).
   LedPoseMeasurement pose_with_merged_identifier(const cv::Mat& gray, const std::vector<Blob>& blobs,
                                                  double t_capture_s, const Eigen::Quaterniond& q_h_host) const;
-  // The identifier's image fraction along edge 0 -> 1 under the homography
-  // of four image corners (in label order); NaN when degenerate.
+  // Where the homography of four image corners (in label order) puts the
+  // identifier; false when degenerate.
+  bool identifier_in_image(const std::array<cv::Point2f, 4>& quad, cv::Point2d& id_px) const;
+  // The identifier's image fraction along edge 0 -> 1 under that
+  // homography; NaN when degenerate.
   double identifier_fraction(const std::array<cv::Point2d, 4>& corners) const;
   // The robust gate's consensus over the five leave-one-out fits of a
   // labelling: the most LEDs within ransac_threshold_px of one pose.

@@ -31,14 +31,12 @@ enum class SpotModel {
 struct SpotFit {
   bool ok = false;                                   // converged to a finite minimum with positive width
   double chi2 = 0.0;                                 // weighted residual sum of squares at the minimum
-  int n_pixels = 0;                                  // pixels fitted
   Eigen::Vector2d u0 = Eigen::Vector2d::Zero();      // first spot (column, row) [px]
   Eigen::Vector2d u1 = Eigen::Vector2d::Zero();      // second spot (PairOnLine)
   double width_px = 0.0;                             // Gaussian sigma of both spots
   double flux0 = 0.0, flux1 = 0.0;                   // total counts of each spot
   double background = 0.0;                           // counts per pixel
-  Eigen::Matrix2d cov_u0 = Eigen::Matrix2d::Zero();  // position covariances from the
-  Eigen::Matrix2d cov_u1 = Eigen::Matrix2d::Zero();  //   Fisher information [px^2] (u1's follows u0's)
+  Eigen::Matrix2d cov_u0 = Eigen::Matrix2d::Zero();  // u0's covariance from the Fisher information [px^2]
 };
 
 // line_p, line_f: for PairOnLine, the far point p and the fraction f that
