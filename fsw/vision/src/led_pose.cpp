@@ -790,11 +790,10 @@ LedPoseMeasurement LedPoseEstimator::pose_with_merged_identifier(const cv::Mat& 
 // LED left out in turn, IPPE on the other four (both planar solutions), and
 // every LED checked against each of those poses. Five correspondences have
 // only five minimal sets for a planar four-point solver, so this is what a
-// RANSAC over them would find, without its random draws (50 AP3P draws of
-// cv::solvePnPRansac cost 0.55 ms per labelling, this 0.10 ms;
-// docs/perf/vision.md). Returns the largest number of LEDs within
-// ransac_threshold_px of one pose (0 when no pose could be computed); rv, tv
-// get a pose with every LED within it.
+// RANSAC over them would find, without its random draws, and cheaper than
+// cv::solvePnPRansac's 50 AP3P draws (docs/perf/vision.md). Returns the
+// largest number of LEDs within ransac_threshold_px of one pose (0 when no
+// pose could be computed); rv, tv get a pose with every LED within it.
 int LedPoseEstimator::consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const {
   std::vector<cv::Point3d> obj4(kNumLeds - 1);
   std::vector<cv::Point2d> img4(kNumLeds - 1), rep;
