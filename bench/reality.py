@@ -46,18 +46,33 @@ def _effects_at(effects: EffectSet, t_s: float) -> EffectSet:
 
 
 def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
-                  scenario: ScenarioConfig | None = None, scripts: list | None = None) -> list:
+                  scenario: ScenarioConfig | None = None, scripts: list | None = None,
+                  then_scripts: list | None = None) -> list:
     """Docking runs (run_docking results) chained to fill duration_s. With
     ``scripts`` (each run's valve configurations, from an earlier call) the
-    runs replay those valves open loop, so the chain splits where it did."""
+    runs replay those valves open loop, so the chain splits where it did.
+    ``then_scripts``: after the docking runs, one run per valve script, open
+    loop (a thruster characterisation, bench/gap/characterise.py); with
+    ``scripts`` they are the last len(then_scripts) of the replayed runs."""
     eff = EffectSet(effects or {})
+    then = [list(sc) for sc in then_scripts or []]
+    n_dock = None if scripts is None else len(scripts) - len(then)
     runs, t_done, k = [], 0.0, 0
     while t_done < duration_s - 1e-9:
         cfg = _scenario(scenario, _effects_at(eff, t_done) if eff else None, duration_s - t_done)
         if scripts is not None:
-            if k >= len(scripts):
+            if k >= n_dock:
                 break
             cfg = ScenarioConfig(**{**cfg.__dict__, "valve_script": tuple(int(c) for c in scripts[k])})
+        run = run_docking(int(seed) + k, cfg)
+        runs.append(run)
+        t_done += float(run["summary"]["t_end_s"]) + cfg.dt_s
+        k += 1
+    for sc in (then if scripts is None else scripts[k:]):
+        # Long enough for the script after the wait for the first pose; the run ends with its script.
+        cfg = _scenario(scenario, _effects_at(eff, t_done) if eff else None, len(sc) * DT_S + 60.0)
+        cfg = ScenarioConfig(**{**cfg.__dict__, "t_max_s": len(sc) * DT_S + 60.0,
+                                "valve_script": tuple(int(c) for c in sc)})
         run = run_docking(int(seed) + k, cfg)
         runs.append(run)
         t_done += float(run["summary"]["t_end_s"]) + cfg.dt_s
@@ -115,12 +130,12 @@ def effect_key(seed: int, effects: dict | None, duration_s: float) -> dict:
 
 def simulate_log_with_key(seed: int, effects: dict | None, duration_s: float = 120.0, with_truth: bool = True,
                           config_extra: dict | None = None, scenario: ScenarioConfig | None = None,
-                          scripts: list | None = None):
+                          scripts: list | None = None, then_scripts: list | None = None):
     """(FlightLog, key): the log carries no trace of the effects; the key
-    names them with their parameters (and a sha256 of itself). ``scripts``:
-    see simulate_runs."""
+    names them with their parameters (and a sha256 of itself). ``scripts``,
+    ``then_scripts``: see simulate_runs."""
     eff = EffectSet(effects or {})
-    runs = simulate_runs(seed, eff, duration_s, scenario, scripts)
+    runs = simulate_runs(seed, eff, duration_s, scenario, scripts, then_scripts)
     cfg = log_config(seed, duration_s, scenario)
     cfg.update(config_extra or {})
     log = runs_to_log(runs, cfg, _clock_rate(eff), with_truth)

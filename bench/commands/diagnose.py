@@ -12,7 +12,10 @@ def register(sub):
     p.add_argument("log", help="flight log (HDF5, docs/FLIGHT_LOG.md)")
     p.add_argument("--report", default=None, help="write the Markdown report and plots into this folder")
     p.add_argument("--json", default=None, help="write the diagnosis as JSON here")
-    p.add_argument("--calibration", default=None, help="null calibration JSON (default: the committed one)")
+    p.add_argument("--calibration", default=None,
+                   help="null calibration JSON (default: the committed one for docking logs; "
+                        "bench/gap/data/null_calibration_characterisation.json for logs that also fly the "
+                        "thruster characterisation)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=main)
 

@@ -9,7 +9,10 @@ def register(sub):
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", default=None, help="write the scores here (and OUT.prereg.json with the key hashes first)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
-    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds per run")
+    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds of docking per run")
+    p.add_argument("--manoeuvres", default="docking", choices=("docking", "docking+characterisation"),
+                   help="what each run flies: docking alone, or docking then a thruster characterisation "
+                        "(each valve alone 3 s, then 20 s without firing)")
     p.set_defaults(func=main)
 
 
@@ -18,7 +21,7 @@ def main(args):
     from bench.report import write_json
 
     workers = args.workers or default_workers()
-    res = run_campaign(args.runs, args.seed, args.json, workers, args.duration)
+    res = run_campaign(args.runs, args.seed, args.json, workers, args.duration, manoeuvres=args.manoeuvres)
     if args.json:
         from pathlib import Path
 
@@ -26,7 +29,7 @@ def main(args):
 
         write_json(args.json, res)
         Path(str(args.json) + ".runs.csv").write_text(runs_table(res))
-    print(f"runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {workers} workers)")
+    print(f"runs {res['runs']} (seed {res['seed']}, {res['manoeuvres']}, {res['elapsed_s']:.0f} s on {workers} workers)")
     print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")
     for s, v in res["in_library_by_scale"].items():
         print(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")

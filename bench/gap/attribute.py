@@ -125,7 +125,7 @@ def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
     return np.vstack([Jn, Jd]), Jd_full
 
 
-def ln_bayes_factor(two_dll: float, u: np.ndarray, Ju: np.ndarray) -> float:
+def ln_bayes_factor(two_dll: float, u: np.ndarray, Ju: np.ndarray, nonnegative: bool = False) -> float:
     """ln Bayes factor of a candidate against the nominal model by Laplace's
     approximation at the fit. Parameters in units of the candidate's typical
     size (Candidate.scale), each with a Cauchy prior of unit scale: heavy
@@ -137,12 +137,43 @@ def ln_bayes_factor(two_dll: float, u: np.ndarray, Ju: np.ndarray) -> float:
 
         ln BF = dLL + sum_i ln p(u_i) + k/2 ln(2 pi) - 1/2 ln det(Ju^T Ju + I),
         ln p(u) = -ln(pi) - ln(1 + u^2).
+
+    A candidate whose parameters are non-negative by definition has a
+    half-Cauchy prior (twice the density on half the line, + ln 2 each), and
+    a parameter held at zero by that bound keeps only the half of its
+    Gaussian posterior that lies inside (- ln 2 each).
     """
     k = u.size
     F = Ju.T @ Ju
     _, logdet = np.linalg.slogdet(np.eye(k) + F)
     ln_prior = float(np.sum(-np.log(np.pi) - np.log1p(u**2)))
+    if nonnegative:
+        ln_prior += (k - int(np.sum(u <= 0.0))) * float(np.log(2.0))
     return float(0.5 * two_dll + ln_prior + 0.5 * k * np.log(2 * np.pi) - 0.5 * logdet)
+
+
+def bounded_fit(J: np.ndarray, s: np.ndarray, lower: float, upper: float) -> np.ndarray:
+    """J theta* with theta* = argmin |s - J theta|^2 over lower <= theta <= upper:
+    the part of ``s`` a candidate with those physical bounds can reproduce.
+    Unbounded (or symmetric bounds the fit stays inside): the projection onto
+    J's range."""
+    U, sv, _ = np.linalg.svd(J, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
+    p = U @ (U.T @ s)
+    if lower == -np.inf and upper == np.inf:
+        return p
+    th, *_ = np.linalg.lstsq(J, p, rcond=None)
+    if np.all(th >= lower) and np.all(th <= upper):
+        return p
+    from scipy.optimize import lsq_linear
+
+    # Columns scaled to unit norm (a whitened signature per unit of a loss is
+    # thousands), bounds with them; BVLS is an exact active-set solver.
+    norm = np.linalg.norm(J, axis=0)
+    keep = norm > 0
+    Js = J[:, keep] / norm[keep]
+    x = lsq_linear(Js, s, bounds=(lower * norm[keep], upper * norm[keep]), method="bvls").x
+    return Js @ x
 
 
 def screen_logp(two_dll: float, rank: int) -> float:
@@ -154,16 +185,19 @@ def screen_logp(two_dll: float, rank: int) -> float:
     return float(-chi2.logsf(max(two_dll, 0.0), rank) / np.log(10.0))
 
 
-def bound_excess(theta_free: np.ndarray, sigma: np.ndarray, bound: float) -> float:
+def bound_excess(theta_free: np.ndarray, sigma: np.ndarray, bound: float, lower: float | None = None) -> float:
     """How far the unconstrained fit lies beyond the candidate's physical
-    bound, in its own standard deviations (largest over the parameters; 0
-    inside). A candidate whose data want a physically impossible size is no
-    explanation, however well its bounded fit does."""
-    if not np.isfinite(bound):
+    bounds [lower, bound] (lower = -bound unless given), in its own standard
+    deviations (largest over the parameters; 0 inside). A candidate whose
+    data want a physically impossible size is no explanation, however well
+    its bounded fit does."""
+    lower = -bound if lower is None else lower
+    if not np.isfinite(bound) and not np.isfinite(lower):
         return 0.0
+    over = np.maximum(theta_free - bound, lower - theta_free)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = (np.abs(theta_free) - bound) / sigma
-    z = np.where(np.isfinite(z), z, np.where(np.abs(theta_free) > bound, np.inf, 0.0))
+        z = over / sigma
+    z = np.where(np.isfinite(z), z, np.where(over > 0, np.inf, 0.0))
     return float(max(np.max(z, initial=0.0), 0.0))
 
 
@@ -184,17 +218,17 @@ def screen(ctx: Context, names=None, progress=None) -> list:
             continue
         u, *_ = np.linalg.lstsq(J, -e0, rcond=None)
         sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0, None))
-        beyond = bound_excess(u, sig, c.bound)
-        if np.any(np.abs(u) > c.bound):
+        beyond = bound_excess(u, sig, c.bound, c.lower)
+        if np.any(u > c.bound) or np.any(u < c.lower):
             from scipy.optimize import lsq_linear
 
-            u = lsq_linear(J, -e0, bounds=(-c.bound, c.bound)).x
+            u = lsq_linear(J, -e0, bounds=(c.lower, c.bound)).x
         r1 = e0 + J @ u
         two_dll = float(e0 @ e0 - r1 @ r1)
         f = Fit(name, c.kind, u, sig, two_dll, two_dll - rank * np.log(n_obs), rank, screen_logp(two_dll, rank))
         f.bound_excess_sigma = beyond
         f.J_u = J * c.scale
-        f.screen_ln_bf = ln_bayes_factor(two_dll, u / c.scale, f.J_u)
+        f.screen_ln_bf = ln_bayes_factor(two_dll, u / c.scale, f.J_u, c.nonnegative)
         f.Jd_full = Jd_full
         fits.append(f)
     # Screening order: the GLR's p-value (the detection statistic), which
@@ -233,10 +267,10 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
                 parts.append(dyn_after(u * sc)[ctx.train_dyn].ravel())
             return np.concatenate(parts)
 
-        ub = c.bound / c.scale
-        u0 = np.clip(np.nan_to_num(fit.theta / sc), -0.999 * ub, 0.999 * ub)
+        ub, lb = c.bound / c.scale, c.lower / c.scale
+        u0 = np.clip(np.nan_to_num(fit.theta / sc), 0.999 * lb, 0.999 * ub)
         kw = dict(max_nfev=max_nfev * (c.n_params + 1), diff_step=1e-3)
-        sol = (least_squares(resid, u0, method="trf", bounds=(-ub, ub), **kw) if np.isfinite(ub)
+        sol = (least_squares(resid, u0, method="trf", bounds=(lb, ub), **kw) if np.isfinite(ub)
                else least_squares(resid, u0, method="lm", **kw))
         theta = sol.x * sc
         J_u = sol.jac
@@ -255,7 +289,7 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
         int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0)
     fit.theta, fit.sigma, fit.dll_train = theta, sigma, dll
     fit.bic = 2 * dll - max(fit.rank, 1) * np.log(max(n_obs, 2))
-    fit.ln_bf = ln_bayes_factor(2 * dll, theta / c.scale, J_u)
+    fit.ln_bf = ln_bayes_factor(2 * dll, theta / c.scale, J_u, c.nonnegative)
     fit.confirmed = True
     fit.after_nav, fit.after_dyn = after, ad
     return fit

@@ -29,10 +29,17 @@ class Candidate:
     separate_by: str  # the manoeuvre that tells it apart from look-alikes
     bound: float = float("inf")  # physically plausible |parameter| (fits are kept inside)
     nav: bool = True  # has a signature in the navigation replay (else only in the dynamics channel)
+    # A quantity that has a sign by its definition (a loss of thrust, a flow of
+    # propellant out of the tank) is fitted in [0, bound], not [-bound, bound].
+    nonnegative: bool = False
 
     @property
     def n_params(self) -> int:
         return len(self.params)
+
+    @property
+    def lower(self) -> float:
+        return 0.0 if self.nonnegative else -self.bound
 
     def corrections(self, theta, d: LogData) -> Corrections:
         if not self.nav:
@@ -104,12 +111,14 @@ _BUILDERS = {
 CANDIDATES = {c.name: c for c in (
     Candidate("thrust_loss", "dynamics", tuple(f"loss_{i} [1]" for i in range(8)), 0.1,
               "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a loss changes the rate "
-              "along the valve's torque, a tilt across it (python -m bench.gap.characterise)", bound=0.9, nav=False),
+              "along the valve's torque, a tilt across it (python -m bench.gap.characterise)", bound=0.9, nav=False,
+              nonnegative=True),
     Candidate("thruster_misalignment", "dynamics", tuple(f"phi_{i}{a} [rad]" for i in range(8) for a in "xyz"), 0.05,
               "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a tilt changes the rate "
               "across the valve's torque, a loss along it (python -m bench.gap.characterise)", bound=0.5, nav=False),
     Candidate("mass_depletion", "dynamics", ("mdot [kg/s per open valve]",), 1e-3,
-              "a long firing: the acceleration per valve grows as propellant is used", bound=0.02, nav=False),
+              "a long firing: the acceleration per valve grows as propellant is used", bound=0.02, nav=False,
+              nonnegative=True),
     Candidate("com_offset", "dynamics", ("c_x [m]", "c_y [m]", "c_z [m]"), 0.01,
               "fast slews with pure couples: the accelerometer's lever arm reads w x (w x c) and wdot x c", bound=0.1),
     Candidate("accel_bias", "sensor", ("b_x [m/s^2]", "b_y [m/s^2]", "b_z [m/s^2]"), 3e-4,

@@ -105,14 +105,15 @@ def _next_size(probes: list, lam_req: float) -> float:
 
 
 def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, calibration: dict,
-                        simulate=None, power: float = POWER) -> dict:
+                        simulate=None, power: float = POWER, then_scripts: list | None = None) -> dict:
     """The size of effect ``name`` along ``unit_params`` (a draw at size 1)
     that the diagnoser's screen detects with probability ``power`` in the
     run of ``seed`` with the effect at that size. Returns the size and how it
     was found.
 
     ``simulate(effects, scripts)`` returns (log, scripts): the run closed loop
-    (scripts None) or replaying ``scripts`` open loop."""
+    (scripts None) or replaying ``scripts`` open loop; ``then_scripts``: a
+    characterisation flown after the docking runs (bench.reality.simulate_runs)."""
     from bench.effects import EFFECTS
     from bench.gap.attribute import numerical_rank, signature
     from bench.gap.candidates import CANDIDATES
@@ -122,7 +123,7 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
         from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
 
         def simulate(eff, scripts=None):
-            runs = simulate_runs(seed, eff, duration_s, scripts=scripts)
+            runs = simulate_runs(seed, eff, duration_s, scripts=scripts, then_scripts=then_scripts)
             log = runs_to_log(runs, log_config(seed, duration_s), _clock_rate(EffectSet(eff)), with_truth=False)
             return log, [r["config"] for r in runs]
 

@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from bench.gap import dyn, localise, null as nullmod, quantify
-from bench.gap.attribute import BF_AMBIGUOUS, Context, Pass, confirm, screen
+from bench.gap.attribute import BF_AMBIGUOUS, Context, Pass, bounded_fit, confirm, screen
 from bench.gap.candidates import CANDIDATES, NOT_MODELLED
 from bench.gap.replay import LogData, prepare, reference
 from bench.gap.separability import DELTA2_95
@@ -97,16 +97,16 @@ def segment_of(d: LogData, t: np.ndarray) -> np.ndarray:
 
 
 def signature_distance(a, b) -> float:
-    """|(I - P_b) J_a theta_a|^2 on the training rows (screen Jacobians): how
-    far, in noise standard deviations squared, candidate a's fitted signature
-    lies from anything candidate b can produce (bench/gap/separability.py)."""
+    """|J_a theta_a - J_b theta_b*|^2 on the training rows (screen Jacobians),
+    theta_b* the closest fit inside b's physical bounds: how far, in noise
+    standard deviations squared, candidate a's fitted signature lies from
+    anything candidate b can produce (bench/gap/separability.py)."""
     Ja, Jb = getattr(a, "J_u", None), getattr(b, "J_u", None)
     if Ja is None or Jb is None or Ja.shape[0] != Jb.shape[0]:
         return float("inf")
     sa = Ja @ (a.theta / CANDIDATES[a.name].scale)
-    U, sv, _ = np.linalg.svd(Jb, full_matrices=False)
-    U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
-    r = sa - U @ (U.T @ sa)
+    cb = CANDIDATES[b.name]
+    r = sa - bounded_fit(Jb, sa, cb.lower / cb.scale, cb.bound / cb.scale)
     return float(r @ r)
 
 

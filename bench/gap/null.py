@@ -5,6 +5,10 @@ tables, stored with the false-alarm rate they give.
 Regenerate the committed cache (bench/gap/data/null_calibration.json):
     python -m bench.gap.null --runs 1000 --seed 1000 --workers 2
 
+Logs that also fly the thruster characterisation after docking have their
+own (bench/gap/data/null_calibration_characterisation.json):
+    python -m bench.gap.null --runs 1000 --seed 1001 --manoeuvres docking+characterisation
+
 Each statistic gets the threshold that leaves FA_EACH of the null runs above
 it (the empirical quantile, a little beyond the largest value when there are
 few runs); the stored ``false_alarm_rate`` is the fraction of the null runs
@@ -20,34 +24,42 @@ from pathlib import Path
 import numpy as np
 
 DATA = Path(__file__).resolve().parent / "data" / "null_calibration.json"
+DATA_BY_MANOEUVRES = {"docking": DATA,
+                      "docking+characterisation": DATA.with_name("null_calibration_characterisation.json")}
 FA_EACH = 0.005
 
 
-def load(path=DATA) -> dict:
-    p = Path(path)
+def load(path=DATA, manoeuvres: str | None = None) -> dict:
+    """The null calibration at ``path``, or the committed one for logs that
+    fly ``manoeuvres`` (bench/gap/validate.py MANOEUVRES)."""
+    p = Path(DATA_BY_MANOEUVRES[manoeuvres] if manoeuvres is not None else path)
     if not p.exists():
         return {}
     return json.loads(p.read_text())
 
 
-def null_log(seed: int, duration_s: float):
+def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
     """One simulated-on-simulated log: bench.reality without effects when
     available, else the bench's docking scenario."""
     from bench.gap.simlogs import docking_log, reality_available
+    from bench.gap.validate import then_scripts
 
+    then = then_scripts({"manoeuvres": manoeuvres})
     if reality_available():
         from bench.reality import simulate_log_with_key
 
-        log, _ = simulate_log_with_key(seed, {}, duration_s=duration_s, with_truth=True)
+        log, _ = simulate_log_with_key(seed, {}, duration_s=duration_s, with_truth=True, then_scripts=then)
         return log
+    if then is not None:
+        raise ValueError("a characterisation needs bench.reality")
     return docking_log(seed, t_max_s=duration_s)
 
 
 def _stats_one(args):
-    seed, duration_s = args
+    seed, duration_s, manoeuvres = args
     from bench.gap.diagnose import diagnose
 
-    r = diagnose(null_log(seed, duration_s), calibration={}, progress=False)
+    r = diagnose(null_log(seed, duration_s, manoeuvres), calibration={}, progress=False)
     return {"seed": seed, "map_max_abs_z": r["statistics"]["map_max_abs_z"],
             "screen_logp": r["statistics"]["screen_logp_max"]}
 
@@ -60,17 +72,19 @@ def _threshold(values: np.ndarray, fa: float) -> float:
     return float(0.5 * (v[k] + v[k + 1]))
 
 
-def calibrate(seeds, duration_s: float = 120.0, workers: int = 1, progress: bool = True) -> dict:
+def calibrate(seeds, duration_s: float = 120.0, workers: int = 1, progress: bool = True,
+              manoeuvres: str = "docking") -> dict:
     from bench.gap.validate import pool_map
 
     t0 = time.time()
-    rows = pool_map(_stats_one, [(int(s), duration_s) for s in seeds], workers, progress, "null calibration")
+    rows = pool_map(_stats_one, [(int(s), duration_s, manoeuvres) for s in seeds], workers, progress,
+                    "null calibration")
     z = np.array([r["map_max_abs_z"] for r in rows])
     b = np.array([r["screen_logp"] for r in rows])
     thr = {"map_max_abs_z": _threshold(z, FA_EACH), "screen_logp": _threshold(b, FA_EACH)}
     fa = float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"])))
     return {"thresholds": thr, "false_alarm_rate": fa, "false_alarm_target_each": FA_EACH, "runs": len(rows),
-            "duration_s": duration_s, "seeds": [int(s) for s in seeds], "null_map_max_abs_z": z.tolist(),
+            "duration_s": duration_s, "manoeuvres": manoeuvres, "seeds": [int(s) for s in seeds], "null_map_max_abs_z": z.tolist(),
             "null_screen_logp": b.tolist(), "elapsed_s": time.time() - t0,
             "command": None}
 
@@ -81,16 +95,20 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--duration", type=float, default=120.0)
     ap.add_argument("--workers", type=int, default=None)
-    ap.add_argument("--out", default=str(DATA))
+    ap.add_argument("--manoeuvres", default="docking", choices=tuple(DATA_BY_MANOEUVRES),
+                    help="what the null logs fly (bench/gap/validate.py)")
+    ap.add_argument("--out", default=None, help="default: the committed calibration for --manoeuvres")
     a = ap.parse_args(argv)
     import os
 
     workers = a.workers or os.cpu_count() or 1
     seeds = np.random.default_rng(a.seed).integers(0, 2**31, a.runs)
-    cal = calibrate(seeds, a.duration, workers)
-    cal["command"] = (f"python -m bench.gap.null --runs {a.runs} --seed {a.seed} --duration {a.duration:g}")
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(cal, indent=1) + "\n")
+    cal = calibrate(seeds, a.duration, workers, manoeuvres=a.manoeuvres)
+    cal["command"] = (f"python -m bench.gap.null --runs {a.runs} --seed {a.seed} --duration {a.duration:g}"
+                      + (f" --manoeuvres {a.manoeuvres}" if a.manoeuvres != "docking" else ""))
+    out = Path(a.out) if a.out else DATA_BY_MANOEUVRES[a.manoeuvres]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(cal, indent=1) + "\n")
     print(f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs")
 
 

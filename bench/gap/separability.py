@@ -10,7 +10,9 @@ cannot reproduce, with c's parameters free:
     delta2_c = |(I - P_c) P_true s|^2        (in-library: what the true model fits)
     delta2_c = |(I - P_c) s|^2               (out of the library: all of it)
 
-P the projection onto a candidate's Jacobian on the training rows. delta2
+P the projection onto a candidate's Jacobian on the training rows: its
+closest fit inside the candidate's physical bounds (a thrust loss cannot be
+negative; bench/gap/attribute.py bounded_fit). delta2
 is the squared distance, in noise standard deviations, between the data the
 true effect predicts and the nearest the competitor can predict. Telling
 two hypotheses at that distance apart from one noisy run is right with
@@ -26,26 +28,22 @@ import numpy as np
 DELTA2_95 = float((2 * 1.6448536269514722) ** 2)  # 10.82: 95 % correct between two hypotheses
 
 
-def _basis(J: np.ndarray) -> np.ndarray:
-    U, sv, _ = np.linalg.svd(J, full_matrices=False)
-    return U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
-
-
 def separability(seed: int, name: str, effects: dict, duration_s: float, in_library: bool,
-                 scripts: list | None = None) -> dict:
+                 scripts: list | None = None, then_scripts: list | None = None) -> dict:
     """delta2 of effect ``name`` (parameters ``effects``) in the run of
     ``seed`` against every library candidate; the closest competitor.
     ``scripts``: fly these valve scripts (bench.reality.simulate_runs) instead
-    of the closed-loop docking runs."""
+    of the closed-loop docking runs; ``then_scripts``: fly these after the
+    docking runs (bench.reality.simulate_runs)."""
     from bench.effects import EffectSet
-    from bench.gap.attribute import signature
+    from bench.gap.attribute import bounded_fit, signature
     from bench.gap.candidates import CANDIDATES
     from bench.gap.detectable import _residuals
     from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
 
-    runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts)
+    runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts, then_scripts=then_scripts)
     scripts = [r["config"] for r in runs1]
-    runs0 = simulate_runs(seed, {}, duration_s, scripts=scripts)
+    runs0 = simulate_runs(seed, {}, duration_s, scripts=scripts, then_scripts=then_scripts)
     log1 = runs_to_log(runs1, log_config(seed, duration_s), _clock_rate(EffectSet(effects)), with_truth=False)
     log0 = runs_to_log(runs0, log_config(seed, duration_s), 1.0, with_truth=False)
     ctx0, e0, rows_ok = _residuals(log0)
@@ -54,16 +52,21 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
     except ValueError:
         return {"delta2": {}, "closest": None, "delta2_min": float("nan"), "note": "run length changed"}
     s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
-    bases = {c: _basis(signature(ctx0, c, rows_ok)[0]) for c in CANDIDATES}
-    if in_library and name in bases:
-        U = bases[name]
-        s = U @ (U.T @ s)
+    jac = {c: signature(ctx0, c, rows_ok)[0] for c in CANDIDATES}
+
+    def fit(c, v):
+        # The data's residual s is removed by the candidate's correction J theta,
+        # so the candidate reproduces s as -J theta.
+        return bounded_fit(-jac[c], v, CANDIDATES[c].lower, CANDIDATES[c].bound)
+
+    if in_library and name in jac:
+        s = fit(name, s)
     lam = float(s @ s)
     d2 = {}
-    for c, U in bases.items():
+    for c in jac:
         if c == name:
             continue
-        r = s - U @ (U.T @ s)
+        r = s - fit(c, s)
         d2[c] = float(r @ r)
     closest = min(d2, key=d2.get) if d2 else None
     return {"lambda": lam, "delta2": d2, "closest": closest, "delta2_min": d2[closest] if closest else float("nan"),

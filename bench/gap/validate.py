@@ -31,6 +31,12 @@ from pathlib import Path
 import numpy as np
 
 FRACTIONS = {"null": 0.2, "in_library": 0.6, "out_of_library": 0.2}
+# What each campaign run flies: the docking runs alone, or the docking runs
+# then the thruster characterisation the diagnoser names to separate a nozzle
+# tilt from a thrust loss (bench/gap/characterise.py: each valve alone
+# CHARACTERISATION_FIRE_S, then CHARACTERISATION_COAST_S without firing).
+MANOEUVRES = ("docking", "docking+characterisation")
+CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S = 3.0, 20.0
 SCALES = (1.0, 2.0)
 USER_CONFIG_KEYS = ("orbit_radius_m", "dt_imu_s", "accel_sigma_mps2", "gyro_sigma_rps", "pose_period_s", "noise",
                     "vehicle", "gate_chi2")
@@ -77,11 +83,23 @@ def key_hash(key: dict) -> str:
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
 
 
-def draw_campaign(n_runs: int, seed: int) -> list:
+def then_scripts(key: dict) -> list | None:
+    """The valve scripts flown after the docking runs of ``key``'s run."""
+    if key.get("manoeuvres", "docking") == "docking":
+        return None
+    from bench.gap.characterise import single_valve_scripts
+
+    return single_valve_scripts(CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S)
+
+
+def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     """The drawn plan: [{"run", "seed", "category", "effect", "scale", "unit"}];
-    ``unit`` is the effect's direction (a draw at size 1; sign, spread, phase)."""
+    ``unit`` is the effect's direction (a draw at size 1; sign, spread, phase);
+    ``manoeuvres`` one of MANOEUVRES, recorded in every key."""
     from bench.effects import EFFECTS
 
+    if manoeuvres not in MANOEUVRES:
+        raise ValueError(f"manoeuvres must be one of {MANOEUVRES}, not {manoeuvres!r}")
     rng = np.random.default_rng(seed)
     # The campaign's logs have synthetic poses: effects of the camera that
     # exist only with rendered images are not drawn.
@@ -100,6 +118,8 @@ def draw_campaign(n_runs: int, seed: int) -> list:
         unit = None if eff is None else [float(x) for x in EFFECTS[eff].draw_fn(rng, 1.0)]
         keys.append({"run": run, "seed": int(rng.integers(0, 2**31)), "category": cat, "effect": eff,
                      "scale": scale, "unit": unit, "effects": {}})
+        if manoeuvres != "docking":  # keys of docking-only campaigns hash as they always did
+            keys[-1]["manoeuvres"] = manoeuvres
     return keys
 
 
@@ -113,7 +133,8 @@ def _size_one(arg):
     if key["effect"] is None:
         return key
     spec = EFFECTS[key["effect"]]
-    md = min_detectable_size(key["seed"], key["effect"], key["unit"], duration_s, calibration)
+    md = min_detectable_size(key["seed"], key["effect"], key["unit"], duration_s, calibration,
+                             then_scripts=then_scripts(key))
     key["min_detectable"] = md["size"]
     key["detectable"] = md["detectable"]
     key["lambda_at_min_detectable"] = md.get("lambda_at_size")
@@ -132,8 +153,11 @@ def simulate(key: dict, duration_s: float):
     if reality_available():
         from bench.reality import simulate_log_with_key
 
-        log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False)
+        log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,
+                                       then_scripts=then_scripts(key))
         return log
+    if then_scripts(key) is not None:
+        raise ValueError("a characterisation needs bench.reality")
     # Fallback without bench.reality: the sensor-profile effects only.
     from bench.sensors import NoiseProfile
 
@@ -196,7 +220,8 @@ def _run_one(arg):
         # Could this run's data tell its effect from each candidate at all?
         from bench.gap.separability import separability
 
-        sep = separability(key["seed"], eff, key["effects"], duration_s, key["category"] == "in_library")
+        sep = separability(key["seed"], eff, key["effects"], duration_s, key["category"] == "in_library",
+                           then_scripts=then_scripts(key))
         out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable")}
     return out
 
@@ -306,28 +331,34 @@ def score(keys: list, answers: list) -> dict:
 
 
 def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration_s: float = 120.0,
-                 progress: bool = True) -> dict:
+                 progress: bool = True, manoeuvres: str = "docking") -> dict:
     from bench.gap import null as nullmod
 
-    cal = nullmod.load()
+    cal = nullmod.load(manoeuvres=manoeuvres)
+    if not cal:
+        raise FileNotFoundError(f"no null calibration for {manoeuvres!r} logs "
+                                f"(python -m bench.gap.null --manoeuvres {manoeuvres})")
     t0 = time.time()
-    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_campaign(n_runs, seed)], workers, progress,
+    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_campaign(n_runs, seed, manoeuvres)], workers, progress,
                     "minimum detectable sizes")
     hashes = [key_hash(k) for k in keys]
     if out:
         prereg = Path(str(out) + ".prereg.json")
         prereg.parent.mkdir(parents=True, exist_ok=True)
-        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "key_sha256": hashes}, indent=1) + "\n")
+        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "manoeuvres": manoeuvres, "key_sha256": hashes},
+                                     indent=1) + "\n")
     answers = pool_map(_run_one, [(k, duration_s, cal) for k in keys], workers, progress, "validate-gap")
     # Only now: the keys are re-hashed and compared with the answers.
     if [key_hash(k) for k in keys] != hashes:
         raise RuntimeError("drawn keys changed during the campaign")
     res = score(keys, answers)
-    res.update({"seed": seed, "duration_s": duration_s, "workers": workers, "elapsed_s": time.time() - t0,
+    res.update({"seed": seed, "duration_s": duration_s, "manoeuvres": manoeuvres, "workers": workers,
+                "elapsed_s": time.time() - t0,
                 "calibration": {"runs": cal.get("runs"), "false_alarm_rate": cal.get("false_alarm_rate"),
                                 "thresholds": cal.get("thresholds")},
                 "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
-                "command": f"proxops validate-gap --runs {n_runs} --seed {seed} --duration {duration_s:g}"})
+                "command": f"proxops validate-gap --runs {n_runs} --seed {seed} --duration {duration_s:g}"
+                           + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})
     return res
 
 

@@ -280,3 +280,62 @@ def test_signature_distance_is_zero_inside_the_other_span_and_full_outside():
     v -= Jb @ np.linalg.lstsq(Jb, v, rcond=None)[0]  # orthogonal to b's span
     a_out.J_u = v[:, None]
     assert signature_distance(a_out, b) == pytest.approx(float(v @ v), rel=1e-9)
+
+
+def test_a_thrust_gain_is_no_thrust_loss():
+    from bench.gap.attribute import Fit, bound_excess
+    from bench.gap.candidates import CANDIDATES
+    from bench.gap.diagnose import signature_distance
+
+    loss = CANDIDATES["thrust_loss"]
+    assert loss.nonnegative and loss.lower == 0.0 and CANDIDATES["gyro_bias"].lower == -CANDIDATES["gyro_bias"].bound
+    rng = np.random.default_rng(2)
+    Jb = np.linalg.qr(rng.standard_normal((300, 8)))[0] * np.arange(1.0, 9.0)  # each valve its own direction
+    b = Fit("thrust_loss", "dynamics", np.zeros(8), np.zeros(8), 0.0, 0.0)
+    b.J_u = Jb
+    theta = np.array([0.5, 0.2, 0.0, 0.0, 0.3, 0.0, 0.1, 0.0])  # losses, in units of the candidate's scale
+    a = Fit("gyro_bias", "sensor", np.array([CANDIDATES["gyro_bias"].scale]), np.zeros(1), 0.0, 0.0)
+    a.J_u = (Jb @ theta)[:, None]  # the signature of these losses
+    assert signature_distance(a, b) == pytest.approx(0.0, abs=1e-9)
+    a.J_u = -a.J_u  # the same valves gaining thrust: no loss reproduces any of it
+    assert signature_distance(a, b) == pytest.approx(float(theta @ Jb.T @ Jb @ theta), rel=1e-9)
+    # A fit that wants a negative loss lies beyond the lower bound, in its sigmas.
+    assert bound_excess(np.array([0.01, -0.03]), np.array([0.01, 0.01]), 0.9, 0.0) == pytest.approx(3.0)
+    assert bound_excess(np.array([0.01, -0.03]), np.array([0.01, 0.01]), 0.9) == 0.0
+
+
+def test_half_cauchy_prior_doubles_the_density_and_a_parameter_held_at_zero_keeps_half_its_mass():
+    from bench.gap.attribute import ln_bayes_factor
+
+    J = np.diag([3.0, 2.0, 4.0])
+    u = np.array([0.4, 0.7, 1.1])
+    free = ln_bayes_factor(10.0, u, J)
+    assert ln_bayes_factor(10.0, u, J, nonnegative=True) == pytest.approx(free + 3 * np.log(2.0))
+    u0 = np.array([0.4, 0.0, 1.1])
+    assert ln_bayes_factor(10.0, u0, J, nonnegative=True) == pytest.approx(ln_bayes_factor(10.0, u0, J) + 2 * np.log(2.0))
+
+
+def test_a_characterisation_flown_after_docking_is_replayed_run_for_run():
+    from bench.gap.characterise import single_valve_scripts
+
+    then = single_valve_scripts(fire_s=1.0, coast_s=2.0)
+    runs = reality.simulate_runs(12, {"thrust_loss": [0.0, 0.1, 0, 0, 0, 0, 0, 0]}, 20.0, then_scripts=then)
+    n_dock = len(runs) - len(then)
+    assert n_dock >= 1 and sum(r["summary"]["t_end_s"] for r in runs[:n_dock]) >= 20.0 - 0.1 * n_dock - 1e-9
+    for r, sc in zip(runs[n_dock:], then):  # each valve alone, then closed, one run each
+        assert list(r["config"]) == sc
+    # Replayed open loop without the effect: the same runs, the same valves.
+    again = reality.simulate_runs(12, {}, 20.0, scripts=[r["config"] for r in runs], then_scripts=then)
+    assert len(again) == len(runs)
+    assert all(np.array_equal(a["config"], r["config"]) for a, r in zip(again, runs))
+
+
+def test_a_campaign_with_the_characterisation_records_it_in_every_key():
+    from bench.gap.validate import draw_campaign, key_hash, then_scripts
+
+    dock, char = draw_campaign(20, 5), draw_campaign(20, 5, "docking+characterisation")
+    assert all("manoeuvres" not in k and then_scripts(k) is None for k in dock)
+    assert all(k["manoeuvres"] == "docking+characterisation" and len(then_scripts(k)) == 8 for k in char)
+    assert [key_hash(k) for k in dock] != [key_hash(k) for k in char]
+    with pytest.raises(ValueError, match="manoeuvres"):
+        draw_campaign(5, 5, "slalom")
