@@ -339,3 +339,24 @@ def test_a_campaign_with_the_characterisation_records_it_in_every_key():
     assert [key_hash(k) for k in dock] != [key_hash(k) for k in char]
     with pytest.raises(ValueError, match="manoeuvres"):
         draw_campaign(5, 5, "slalom")
+
+
+def test_a_fit_that_buys_one_channel_with_another_is_a_contradiction():
+    from bench.gap.diagnose import Z_CONTRADICT, channel_gain
+
+    rng = np.random.default_rng(8)
+    n = rng.standard_normal(3000)
+    sig = np.zeros(3000)
+    sig[:300] = 0.4  # the channel's data carry this
+    # The right correction removes what is there: the channel gains ~ |sig|^2 / 2.
+    right = channel_gain(n + sig, n)
+    assert right["gain"] == pytest.approx(0.5 * sig @ sig, abs=4 * np.sqrt(sig @ sig))
+    assert right["z"] > 3.0
+    # A correction where the data show nothing costs ~ q / 2: z ~ -sqrt(q) / 2.
+    wrong = channel_gain(n, n - sig)
+    assert wrong["q"] == pytest.approx(sig @ sig)
+    assert wrong["z"] < -Z_CONTRADICT
+    # Fitted noise alone (a small correction along the noise) never counts against a channel.
+    fit_noise = channel_gain(n, n - 0.05 * n)
+    assert fit_noise["z"] > 0.0
+    assert channel_gain(n, n)["z"] == 0.0
