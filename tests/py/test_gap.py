@@ -360,3 +360,16 @@ def test_a_fit_that_buys_one_channel_with_another_is_a_contradiction():
     fit_noise = channel_gain(n, n - 0.05 * n)
     assert fit_noise["z"] > 0.0
     assert channel_gain(n, n)["z"] == 0.0
+
+
+def test_each_kind_of_log_has_a_null_calibration_made_on_its_own_manoeuvres():
+    dock = nullmod.load(manoeuvres="docking")
+    char = nullmod.load(manoeuvres="docking+characterisation")
+    assert dock == nullmod.load()
+    assert char["manoeuvres"] == "docking+characterisation" and char["runs"] >= 1000
+    assert "--manoeuvres docking+characterisation" in char["command"]
+    for cal in (dock, char):  # each threshold leaves about FA_EACH of its own null runs above it
+        for stat, key in (("map_max_abs_z", "null_map_max_abs_z"), ("screen_logp", "null_screen_logp")):
+            above = np.mean(np.asarray(cal[key]) > cal["thresholds"][stat])
+            assert above <= 2 * nullmod.FA_EACH
+        assert cal["false_alarm_rate"] <= 0.02
