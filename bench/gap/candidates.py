@@ -55,6 +55,18 @@ def _t(d: LogData) -> np.ndarray:
     return d.imu_t - d.t_init
 
 
+def _rate_derivative(d: LogData) -> np.ndarray:
+    """d(gyro)/dt by central differences within each run (one-sided at its
+    ends): a chained log's next run starts from rest, not from the last
+    run's final rate."""
+    brk = np.flatnonzero(np.diff(d.imu_t) > 1.5 * d.dt_s) + 1
+    out = np.zeros_like(d.gyro)
+    for a, b in zip(np.r_[0, brk], np.r_[brk, d.imu_t.size]):
+        if b - a > 1:
+            out[a:b] = np.gradient(d.gyro[a:b], d.dt_s, axis=0)
+    return out
+
+
 def _ecc(theta, d: LogData) -> Corrections:
     # First order in e of the relative motion about an elliptical host orbit,
     # minus the circular CW model: M = M0 + n t, theta = [e cos M0, e sin M0].
@@ -90,7 +102,7 @@ def _com(theta, d: LogData) -> Corrections:
     # c from the IMU (body axes) the IMU reads a_cm - wdot x c - w x (w x c);
     # wdot from the gyro by central differences.
     w = d.gyro
-    wdot = np.gradient(w, d.dt_s, axis=0)
+    wdot = _rate_derivative(d)
     extra = np.cross(wdot, theta) + np.cross(w, np.cross(w, theta))
     return Corrections(accel_extra_b=extra)
 

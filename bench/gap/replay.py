@@ -219,7 +219,10 @@ def corrected_inputs(d: LogData, c: Corrections | None):
             raise ValueError("latency corrections need the reference trajectory (replay.reference)")
         k = np.clip(d.pose_tick, 0, d.imu_t.size - 1)
         r = r + c.latency_s * d.ref_v[k]
-        w_bh = gyr[np.clip(k + 1, 0, d.imu_t.size - 1)] - np.einsum(
+        # The body rate over the latency: the IMU interval that ends at the
+        # pose's tick (sample k), never the next one, which at a run's last
+        # pose belongs to the next run.
+        w_bh = gyr[k] - np.einsum(
             "nji,j->ni", rotmats(d.ref_q[k]), np.array([0.0, 0.0, d.n_radps]))
         q = qmul_many(q, qexp_many(c.latency_s * w_bh))
     return acc, gyr, r, q
