@@ -373,3 +373,40 @@ def test_each_kind_of_log_has_a_null_calibration_made_on_its_own_manoeuvres():
             above = np.mean(np.asarray(cal[key]) > cal["thresholds"][stat])
             assert above <= 2 * nullmod.FA_EACH
         assert cal["false_alarm_rate"] <= 0.02
+
+
+def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
+    # Each single-valve run ends spinning; the next starts at rest. The
+    # candidate must turn a run's last pose by that run's rate.
+    from bench.gap.attribute import signature
+    from bench.gap.characterise import single_valve_scripts
+    from bench.gap.detectable import _residuals
+
+    then = single_valve_scripts(fire_s=3.0, coast_s=6.0)
+    tau = 0.1
+    runs1 = reality.simulate_runs(4, {"camera_latency": [tau]}, 30.0, then_scripts=then)
+    scripts = [r["config"] for r in runs1]
+    runs0 = reality.simulate_runs(4, {}, 30.0, scripts=scripts, then_scripts=then)
+    cfg = reality.log_config(4, 30.0)
+    ctx0, e0, rows_ok = _residuals(reality.runs_to_log(runs0, cfg, 1.0, with_truth=False))
+    _, w, e_dyn = _residuals(reality.runs_to_log(runs1, cfg, 1.0, with_truth=False), ctx0)
+    s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0  # the effect's whitened signature
+    J = signature(ctx0, "camera_latency", rows_ok)[0]
+    theta = np.linalg.lstsq(-J, s, rcond=None)[0]
+    left = s + J @ theta
+    assert s @ s > 50.0  # the spins show it
+    assert theta[0] == pytest.approx(tau, rel=0.05)
+    assert left @ left < 0.05 * (s @ s)
+
+
+def test_the_rate_derivative_does_not_difference_across_runs():
+    from types import SimpleNamespace
+
+    from bench.gap.candidates import _rate_derivative
+
+    t = np.r_[np.arange(0, 20) * 0.1, 5.0 + np.arange(0, 20) * 0.1]  # a second run after a gap
+    gyro = np.zeros((40, 3))
+    gyro[:20, 2] = 0.5 + 0.1 * t[:20]  # spinning up at 0.1 rad/s^2 when the first run ends
+    d = SimpleNamespace(imu_t=t, dt_s=0.1, gyro=gyro)
+    wdot = _rate_derivative(d)
+    assert np.allclose(wdot[:20, 2], 0.1) and np.allclose(wdot[20:], 0.0)
