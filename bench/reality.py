@@ -71,8 +71,7 @@ def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
     for sc in (then if scripts is None else scripts[k:]):
         # Long enough for the script after the wait for the first pose; the run ends with its script.
         cfg = _scenario(scenario, _effects_at(eff, t_done) if eff else None, len(sc) * DT_S + 60.0)
-        cfg = ScenarioConfig(**{**cfg.__dict__, "t_max_s": len(sc) * DT_S + 60.0,
-                                "valve_script": tuple(int(c) for c in sc)})
+        cfg = ScenarioConfig(**{**cfg.__dict__, "valve_script": tuple(int(c) for c in sc)})
         run = run_docking(int(seed) + k, cfg)
         runs.append(run)
         t_done += float(run["summary"]["t_end_s"]) + cfg.dt_s
