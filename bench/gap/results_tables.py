@@ -138,7 +138,40 @@ def shrink_by_scale(res: dict) -> str:
                  and which in by[k["run"]] and by[k["run"]][which].get("measurable")]
             med = f"{np.median(v):.2f}" if v else "-"
             lines.append(f"- {s:g}x, {which.replace('_fit', '')} effect fitted: median {med} (n = {len(v)})")
+    v = np.asarray([s for _, s in _true_shrinks(res)])
+    if v.size:
+        lo, hi = median_interval(v)
+        lines.append(f"- both sizes, true effect fitted: median {np.median(v):.4f} (n = {v.size}), 95 % bootstrap "
+                     f"interval of the median [{lo:.2f}, {hi:.2f}] ({BOOTSTRAP_RESAMPLES} resamples of the runs)")
     return "\n".join(lines)
+
+
+BOOTSTRAP_RESAMPLES = 10000
+
+
+def median_interval(v: np.ndarray, resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> tuple:
+    """95 % bootstrap interval of the median of ``v`` (runs resampled with replacement, seeded)."""
+    rng = np.random.default_rng(seed)
+    med = np.median(rng.choice(v, (resamples, v.size)), axis=1)
+    return float(np.percentile(med, 2.5)), float(np.percentile(med, 97.5))
+
+
+def _true_shrinks(res: dict) -> list:
+    """(effect, shrink) of the true effect's forced fit on every measurable in-library run."""
+    by = {a["run"]: a for a in res["answers"]}
+    return [(k["effect"], by[k["run"]]["true_fit"]["shrink"]) for k in res["keys"]
+            if k["category"] == "in_library" and k.get("detectable", True)
+            and by[k["run"]].get("true_fit", {}).get("measurable")]
+
+
+def shrink_by_effect(res: dict) -> str:
+    per = {}
+    for e, s in _true_shrinks(res):
+        per.setdefault(e, []).append(s)
+    rows = sorted(per.items(), key=lambda kv: -np.median(kv[1]))
+    out = ["| effect | measurable runs | median shrink, true effect fitted |", "|---|---|---|"]
+    out += [f"| {e} | {len(v)} | {np.median(v):.2f} |" for e, v in rows]
+    return "\n".join(out)
 
 
 def main(argv=None) -> int:
@@ -157,7 +190,8 @@ def main(argv=None) -> int:
                         ("Per in-library effect", per_effect_table(res)),
                         ("Out-of-library effects", out_of_library_table(res)),
                         ("Beyond the detection limit of their run", beyond_limit_table(res)),
-                        ("Held-out shrink by size (measurable runs)", shrink_by_scale(res))):
+                        ("Held-out shrink by size (measurable runs)", shrink_by_scale(res)),
+                        ("Held-out shrink by effect (measurable runs)", shrink_by_effect(res))):
         print(f"### {title}\n\n{body}\n")
     return 0
 

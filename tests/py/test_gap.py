@@ -99,6 +99,7 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
     assert results_tables.main([str(out)]) == 0
     md = capsys.readouterr().out
     assert "| false alarms on null runs |" in md and "### Per in-library effect" in md
+    assert "### Held-out shrink by effect" in md
 
 
 def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
@@ -410,3 +411,15 @@ def test_the_rate_derivative_does_not_difference_across_runs():
     d = SimpleNamespace(imu_t=t, dt_s=0.1, gyro=gyro)
     wdot = _rate_derivative(d)
     assert np.allclose(wdot[:20, 2], 0.1) and np.allclose(wdot[20:], 0.0)
+
+
+def test_bootstrap_interval_of_a_median_narrows_with_more_runs_and_holds_the_median():
+    from bench.gap.results_tables import median_interval
+
+    rng = np.random.default_rng(3)
+    small, large = rng.normal(0.8, 0.3, 40), rng.normal(0.8, 0.3, 1000)
+    lo_s, hi_s = median_interval(small)
+    lo_l, hi_l = median_interval(large)
+    assert lo_s < np.median(small) < hi_s and lo_l < np.median(large) < hi_l
+    assert (hi_l - lo_l) < 0.4 * (hi_s - lo_s)  # about sqrt(40 / 1000) = 0.2 as wide
+    assert median_interval(small) == (lo_s, hi_s)  # seeded
