@@ -108,12 +108,15 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
                 prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
-                batch_ml_periods=()):
+                batch_ml_periods=(), crb_periods=()):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
     reference (bench.modal_batch_ml) is fitted to every coarse estimate so far
-    and its shape error compared with the filter's at the same image."""
+    and its shape error compared with the filter's at the same image.
+    crb_periods: times [lowest-mode periods] at which the Cramer-Rao bounds
+    of this run's coarse estimates (bench.modal_crb) are set beside the
+    filter's frequency and shape errors."""
     fb = _fb()
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
@@ -121,10 +124,8 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     amp, phase = st.plate_truth(plate, rng)
     w_true = plate.omega_radps
     w_prior = w_true * (1 + rng.uniform(-prior_err, prior_err, n_modes))
-    batch_ml_images = [int(round(p * 2 * np.pi / w_true[0] / dt_s)) + 1 for p in batch_ml_periods]
-    for p, k in zip(batch_ml_periods, batch_ml_images):
-        if not 3 <= k <= n_images:
-            raise ValueError(f"batch ML reference at {p} lowest-mode periods needs {k} images; the run has {n_images}")
+    batch_ml_images = _images_at(batch_ml_periods, w_true[0], dt_s, n_images, "batch ML reference")
+    crb_images = _images_at(crb_periods, w_true[0], dt_s, n_images, "Cramer-Rao bound")
     gx, gy = plate.grid(40)
     phi_grid = plate.phi(gx, gy)
 
@@ -139,7 +140,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     shape = getattr(fb, f"reconstruct_shape{n_modes}")
     est = np.zeros((n_images, n_modes, 4))
     coarse = np.full((n_images, n_modes), np.nan)
-    coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if batch_ml_periods else None
+    coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if batch_ml_periods or crb_periods else None
     truth = np.zeros((n_images, n_modes))
     shape_rms = np.full(n_images, np.nan)
     shape_rms_oracle = np.full(n_images, np.nan)
@@ -218,9 +219,44 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     if batch_ml_periods:
         out["batch_ml"] = [_batch_ml_row(k, coarse, coarse_cov, t, w_prior, sigma_w_prior, est, truth, phi_grid,
                                          shape_rms, shape_rms_oracle, w_true, strong, period1) for k in batch_ml_images]
+    if crb_periods:
+        out["crb"] = [_crb_row(k, coarse_cov, t, amp, phase, w_true, sigma_w_prior, est, phi_grid, shape_rms,
+                               shape_rms_oracle, strong, period1) for k in crb_images]
     if keep_series:
         out.update(t_s=t, est=est, coarse=coarse, truth=truth)
     return out
+
+
+def _images_at(periods, omega1, dt_s, n_images, what):
+    """Image counts that reach the given times [lowest-mode periods]."""
+    images = [int(round(p * 2 * np.pi / omega1 / dt_s)) + 1 for p in periods]
+    for p, k in zip(periods, images):
+        if not 3 <= k <= n_images:
+            raise ValueError(f"{what} at {p} lowest-mode periods needs {k} images; the run has {n_images}")
+    return images
+
+
+def _crb_row(k, cov, t, amp, phase, w_true, sigma_w, est, phi_grid, shape_rms, shape_rms_oracle, strong, period1):
+    """The Cramer-Rao bounds of the first k images beside the filter at image k - 1."""
+    from bench import modal_crb
+
+    ok = np.all(np.isfinite(cov[:k]), axis=(1, 2))
+    # a = amp sin(w t + phase) = c cos(w t) + s sin(w t)
+    b = modal_crb.bound(t[:k][ok], w_true, amp * np.sin(phase), amp * np.cos(phase), cov[:k][ok], sigma_w,
+                        phi_grid, strong=strong)
+    rel = np.abs(est[k - 1, :, 2] / w_true - 1)
+    return {"images": int(k), "periods": float(t[k - 1] / period1),
+            "crb_sd_omega_rel": b["sd_omega_rel"],
+            "crb_p_within_1pct": b["p_within_band"],
+            "crb_expected_excited_within_1pct": b["expected_within_band_scored"],
+            "crb_p_all_excited_within_1pct": b["p_all_scored_within_band"],
+            "n_excited": b["n_scored"],
+            "filter_excited_within_1pct": int(np.sum(rel[strong] <= 0.01)),
+            "filter_freq_rel_err": rel,
+            "crb_shape_rms_m": b["shape_rms_bound_m"],
+            "crb_shape_rms_known_omega_m": b["shape_rms_bound_known_omega_m"],
+            "shape_rms_filter_m": float(shape_rms[k - 1]),
+            "shape_rms_known_omega_m": float(shape_rms_oracle[k - 1])}
 
 
 def _batch_ml_row(k, coarse, cov, t, w_prior, sigma_w, est, truth, phi_grid, shape_rms, shape_rms_oracle,

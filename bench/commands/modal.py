@@ -40,12 +40,18 @@ def register(sub):
     p.add_argument("--batch-ml-at", type=float, nargs="+", default=(), metavar="PERIODS",
                    help="structure: also fit the batch maximum-likelihood reference to every coarse estimate up to "
                         "these times [lowest-mode periods] and compare its shape error with the filter's")
+    p.add_argument("--crb-at", type=float, nargs="+", default=(), metavar="PERIODS",
+                   help="structure: also compute the Cramer-Rao bounds of each run's coarse estimates at these times "
+                        "[lowest-mode periods] and set the filter's frequency and shape errors beside them")
     p.add_argument("--json", default=None)
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)
 
     t = sub.add_parser("modal-timing", help="Table I grid: flight code vs numpy vs the seed's figures")
-    t.add_argument("--bench-exe", default=None, help="bench_modal executable (Google Benchmark) for the full flight grid")
+    t.add_argument("--bench-exe", action="append", default=[], metavar="[LABEL=]PATH",
+                   help="bench_modal executable (Google Benchmark) for the full flight grid; repeat with labels "
+                        "(e.g. portable=build/bench-rel/bench_modal v3=build/bench-v3/bench_modal) to set builds "
+                        "side by side in one run")
     t.add_argument("--max-points", type=int, default=100000)
     t.add_argument("--repeats", type=int, default=5)
     t.add_argument("--json", default=None)
@@ -93,7 +99,8 @@ def main(args):
         for k in range(args.trials):
             trials.append(mc.plate_trial(args.seed + k, n_modes=args.modes, kind=args.filter, n_images=n_img,
                                          dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots),
-                                         noise_frac=args.range_noise, batch_ml_periods=args.batch_ml_at))
+                                         noise_frac=args.range_noise, batch_ml_periods=args.batch_ml_at,
+                                         crb_periods=args.crb_at))
         out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "range_noise": args.range_noise,
                "trials": []}
         for tr in trials:
@@ -105,6 +112,8 @@ def main(args):
                   f"{_fmt(tr['shape_converge_periods'])} periods; cond(M_Y) {tr['condition_number_median']:.1f}")
         if args.batch_ml_at:
             out["batch_ml_summary"] = _batch_ml_summary(trials)
+        if args.crb_at:
+            out["crb_summary"] = _crb_summary(trials)
         out["ill_conditioned_cases"] = mc.plate_aliased_case(args.modes)
         print("ill-conditioned cases:", out["ill_conditioned_cases"])
         if args.plots:
@@ -140,6 +149,47 @@ def _batch_ml_summary(trials):
               f"{r['filter_over_batch_ml_median']:.2f} [{r['filter_over_batch_ml_quartiles'][0]:.2f}, "
               f"{r['filter_over_batch_ml_quartiles'][1]:.2f}]; within 2x floor: filter {r['filter_within_2x_floor']}, "
               f"batch ML {r['batch_ml_within_2x_floor']}, known omega {r['known_omega_within_2x_floor']}")
+    return rows
+
+
+def _crb_summary(trials):
+    """Per requested time, the filter beside its run's Cramer-Rao bounds:
+    excited modes within 1 % (filter's count, the bound's expectation), runs
+    with every excited mode within 1 % (filter's count, the bound's expected
+    count), and shape RMS medians (filter, bound with frequencies unknown,
+    known-frequency filter, bound with frequencies known), each also over the
+    run's floor."""
+    rows = []
+    for j, first in enumerate(trials[0]["crb"]):
+        c = [t["crb"][j] for t in trials]
+        floor = np.array([t["shape_noise_floor_m"] for t in trials])
+        r = {"periods": first["periods"], "images": first["images"], "trials": len(trials),
+             "excited_modes": int(sum(x["n_excited"] for x in c)),
+             "filter_excited_within_1pct": int(sum(x["filter_excited_within_1pct"] for x in c)),
+             "crb_expected_excited_within_1pct": float(sum(x["crb_expected_excited_within_1pct"] for x in c)),
+             "filter_runs_all_excited_within_1pct": int(sum(x["filter_excited_within_1pct"] == x["n_excited"]
+                                                            for x in c)),
+             "crb_expected_runs_all_excited_within_1pct": float(sum(x["crb_p_all_excited_within_1pct"] for x in c))}
+        for key, name in (("shape_rms_filter_m", "filter"), ("crb_shape_rms_m", "crb"),
+                          ("shape_rms_known_omega_m", "known_omega"), ("crb_shape_rms_known_omega_m", "crb_known")):
+            v = np.array([x[key] for x in c])
+            r[f"{name}_median_m"] = float(np.median(v))
+            r[f"{name}_over_floor_median"] = float(np.median(v / floor))
+            r[f"{name}_within_2x_floor"] = int(np.sum(v <= 2.0 * floor))
+        # efficiency: the filter's mean squared shape error over the bound's (1 for an efficient estimator)
+        r["filter_over_crb_rms"] = float(np.sqrt(np.mean([x["shape_rms_filter_m"] ** 2 for x in c])
+                                                 / np.mean([x["crb_shape_rms_m"] ** 2 for x in c])))
+        rows.append(r)
+        print(f"at {r['periods']:.2f} periods ({r['images']} images), {len(trials)} runs: excited modes within 1 %: "
+              f"filter {r['filter_excited_within_1pct']} of {r['excited_modes']}, bound expects "
+              f"{r['crb_expected_excited_within_1pct']:.1f}; runs with all within 1 %: filter "
+              f"{r['filter_runs_all_excited_within_1pct']}, bound expects "
+              f"{r['crb_expected_runs_all_excited_within_1pct']:.1f}; shape RMS medians filter "
+              f"{r['filter_median_m']:.3f} m ({r['filter_over_floor_median']:.2f} x floor), bound "
+              f"{r['crb_median_m']:.3f} m ({r['crb_over_floor_median']:.2f} x), known omega "
+              f"{r['known_omega_median_m']:.3f} m, its bound {r['crb_known_median_m']:.3f} m; within 2x floor: "
+              f"filter {r['filter_within_2x_floor']}, bound {r['crb_within_2x_floor']}; RMS over runs, filter / bound "
+              f"{r['filter_over_crb_rms']:.2f}")
     return rows
 
 
@@ -230,9 +280,14 @@ def _flight_bindings(m, n, kind, repeats):
     return float(np.median(times))
 
 
+# Only the grid benchmarks (the per-point and frozen-base references are not part of Table I).
+GRID_FILTER = "^BM_(Decomposition|Decoupled|Joint)<[0-9]+>/[0-9]+$"
+
+
 def _run_bench_exe(exe):
     out = subprocess.run([exe, "--benchmark_repetitions=9", "--benchmark_report_aggregates_only=true",
-                          "--benchmark_format=json"], check=True, capture_output=True, text=True).stdout
+                          f"--benchmark_filter={GRID_FILTER}", "--benchmark_format=json"],
+                         check=True, capture_output=True, text=True).stdout
     res = {}
     for b in json.loads(out)["benchmarks"]:
         if b.get("aggregate_name") != "median":
@@ -244,6 +299,23 @@ def _run_bench_exe(exe):
         scale = {"us": 1e-6, "ms": 1e-3, "ns": 1e-9, "s": 1.0}[b["time_unit"]]
         res[(kind.replace("BM_", "").lower(), m, n)] = b["real_time"] * scale
     return res
+
+
+def _labelled_exes(specs):
+    """[LABEL=]PATH -> {label: path}; one unlabelled exe is "flight"."""
+    out = {}
+    for spec in specs:
+        label, sep, path = spec.partition("=")
+        if not sep:
+            label, path = "flight", spec
+        if not label.isidentifier():
+            raise SystemExit(f"--bench-exe {spec!r}: the label must be a word (letters, digits, _)")
+        if label in out:
+            raise SystemExit(f"--bench-exe: label {label!r} given twice")
+        if not Path(path).is_file():
+            raise SystemExit(f"--bench-exe {spec!r}: no such file {path}")
+        out[label] = path
+    return out
 
 
 def _fit(cells):
@@ -260,7 +332,12 @@ def timing_main(args):
     from bench import modal_numpy as mn
 
     ns = [n for n in GRID_N if n <= args.max_points]
-    flight = _run_bench_exe(args.bench_exe) if args.bench_exe else {}
+    exes = _labelled_exes(args.bench_exe)
+    flight = {}
+    for label, exe in exes.items():
+        print(f"flight grid, {label}: {exe} (9 repetitions per cell)", flush=True)
+        flight[label] = _run_bench_exe(exe)
+    labels = list(exes) or ["flight"]
     rows = []
     for m in sorted(PAPER_TABLE):
         for j, n in enumerate(ns):
@@ -268,22 +345,23 @@ def timing_main(args):
             for kind in ("bank", "joint"):
                 row[f"numpy_{kind}_s"] = mn.time_cell(m, n, kind, repeats=args.repeats)
                 key = ("decoupled" if kind == "bank" else "joint", m, n)
-                if key in flight:
-                    row[f"flight_{kind}_s"] = flight[key]
-                elif m in (10, 50):
-                    row[f"flight_{kind}_bindings_s"] = _flight_bindings(m, n, kind, args.repeats)
-            if ("decomposition", m, n) in flight:
-                row["flight_decomposition_s"] = flight[("decomposition", m, n)]
+                for label in exes:
+                    if key in flight[label]:
+                        row[f"{label}_{kind}_s"] = flight[label][key]
+                if not exes and m in (10, 50):
+                    row["flight_{kind}_bindings_s".format(kind=kind)] = _flight_bindings(m, n, kind, args.repeats)
+            for label in exes:
+                if ("decomposition", m, n) in flight[label]:
+                    row[f"{label}_decomposition_s"] = flight[label][("decomposition", m, n)]
             rows.append(row)
-            fl = row.get("flight_bank_s", row.get("flight_bank_bindings_s"))
-            fj = row.get("flight_joint_s", row.get("flight_joint_bindings_s"))
+            cols = "".join(f"  {label} bank {_s(_cell(row, label, 'bank'))} joint {_s(_cell(row, label, 'joint'))}"
+                           for label in labels)
             print(f"m={m:2d} n={n:6d}  paper {_s(row['paper_s'])}  numpy bank {_s(row['numpy_bank_s'])} "
-                  f"joint {_s(row['numpy_joint_s'])}  flight bank {_s(fl)} joint {_s(fj)}", flush=True)
-    out = {"rows": rows, "paper_fit": {"c1": 1.4e-6, "c2": 3.6e-5}}
+                  f"joint {_s(row['numpy_joint_s'])}{cols}", flush=True)
+    out = {"rows": rows, "builds": exes, "paper_fit": {"c1": 1.4e-6, "c2": 3.6e-5}}
     for kind in ("bank", "joint"):
-        for src in ("numpy", "flight"):
-            cells = [(r["modes"], r["points"], r.get(f"{src}_{kind}_s", r.get(f"{src}_{kind}_bindings_s")))
-                     for r in rows]
+        for src in ["numpy"] + labels:
+            cells = [(r["modes"], r["points"], _cell(r, src, kind)) for r in rows]
             cells = [c for c in cells if c[2] is not None]
             if len(cells) >= 2:
                 out[f"fit_{src}_{kind}"] = dict(zip(("c1", "c2"), _fit(cells)))
@@ -292,6 +370,10 @@ def timing_main(args):
     if args.json:
         write_json(args.json, out)
     return 0
+
+
+def _cell(row, src, kind):
+    return row.get(f"{src}_{kind}_s", row.get(f"{src}_{kind}_bindings_s"))
 
 
 def _s(v):
