@@ -16,7 +16,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MPLBACKEND ?= Agg
 
-.PHONY: run test test-cpp test-py setup bench clean
+.PHONY: run test test-cpp test-py setup bench bench-modal clean
 
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
@@ -70,6 +70,20 @@ bench: $(STAMPS)/cpp-configure
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -DPROXOPS_BUILD_BENCHMARKS=ON >/dev/null
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
 	for b in $(CPP_BUILD)/bench_*; do $$b --benchmark_repetitions=9 --benchmark_report_aggregates_only=true; done
+
+# Table I grid of the modal estimator (docs/perf/modal.md, about 15 minutes on
+# 2 cores once built): the portable and the x86-64-v3 build beside numpy and
+# the seed's figures, in one run. Needs nothing else running.
+MODAL_TIMING_JSON ?= docs/perf/data/modal_timing_grid.json
+bench-modal: $(STAMPS)/install
+	$(VENV)/bin/cmake -S . -B build/bench-rel -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) -DCMAKE_BUILD_TYPE=Release \
+	  -DPROXOPS_BUILD_TESTS=OFF -DPROXOPS_BUILD_BENCHMARKS=ON -DPROXOPS_BUILD_PYTHON=OFF -DPROXOPS_MARCH= >/dev/null
+	$(VENV)/bin/cmake -S . -B build/bench-v3 -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) -DCMAKE_BUILD_TYPE=Release \
+	  -DPROXOPS_BUILD_TESTS=OFF -DPROXOPS_BUILD_BENCHMARKS=ON -DPROXOPS_BUILD_PYTHON=OFF -DPROXOPS_MARCH=x86-64-v3 >/dev/null
+	$(VENV)/bin/cmake --build build/bench-rel --target bench_modal
+	$(VENV)/bin/cmake --build build/bench-v3 --target bench_modal
+	$(VENV)/bin/proxops modal-timing --bench-exe portable=build/bench-rel/bench_modal \
+	  --bench-exe v3=build/bench-v3/bench_modal --repeats 5 --json $(MODAL_TIMING_JSON)
 
 clean:
 	rm -rf build report
