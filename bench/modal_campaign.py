@@ -264,8 +264,15 @@ def _batch_ml_row(k, coarse, cov, t, w_prior, sigma_w, est, truth, phi_grid, sha
     """The batch ML reference on the first k images beside the filter at image k - 1."""
     from bench import modal_batch_ml
 
-    ml = modal_batch_ml.fit(coarse[:k], cov[:k], t[:k], w_prior, sigma_w, extra_starts=[("filter", est[k - 1, :, 2])])
+    ml = modal_batch_ml.fit(coarse[:k], cov[:k], t[:k], w_prior, sigma_w, extra_starts=[("filter", est[k - 1, :, 2])],
+                            reference_starts=[("truth", w_true)])
     err = phi_grid @ (ml["amplitude_end"] - truth[k - 1])
+    ref = ml["reference"]["truth"]
+    err_ref = phi_grid @ (ref["amplitude_end"] - truth[k - 1])
+
+    def excited_within_1pct(w):
+        return int(np.sum(np.abs(w / w_true - 1)[strong] <= 0.01))
+
     return {"images": int(k), "periods": float(t[k - 1] / period1),
             "shape_rms_batch_ml_m": float(np.sqrt(np.mean(err ** 2))),
             "shape_rms_filter_m": float(shape_rms[k - 1]),
@@ -275,7 +282,16 @@ def _batch_ml_row(k, coarse, cov, t, w_prior, sigma_w, est, truth, phi_grid, sha
             "freq_rel_err_max_excited_batch_ml": float(np.max(np.abs(ml["omega"] / w_true - 1)[strong], initial=0.0)),
             "freq_rel_err_max_excited_filter": float(np.max(np.abs(est[k - 1, :, 2] / w_true - 1)[strong],
                                                             initial=0.0)),
-            "batch_ml_start": ml["start"]}
+            "excited_within_1pct_batch_ml": excited_within_1pct(ml["omega"]),
+            "excited_within_1pct_filter": excited_within_1pct(est[k - 1, :, 2]),
+            "n_excited": int(np.sum(strong)),
+            "batch_ml_start": ml["start"],
+            "batch_ml_cost": ml["cost"],
+            # the optimum reached from the true frequencies (not an estimator: it tells whether the
+            # data hold a better optimum near the truth than the estimator's starts found)
+            "from_truth_cost": ref["cost"],
+            "from_truth_excited_within_1pct": excited_within_1pct(ref["omega"]),
+            "shape_rms_from_truth_m": float(np.sqrt(np.mean(err_ref ** 2)))}
 
 
 def plate_aliased_case(n_modes: int = 10):

@@ -141,6 +141,17 @@ def _batch_ml_summary(trials):
                           for t in trials])
         r["filter_over_batch_ml_median"] = float(np.median(ratio))
         r["filter_over_batch_ml_quartiles"] = [float(q) for q in np.percentile(ratio, [25, 75])]
+        c = [t["batch_ml"][j] for t in trials]
+        r["excited_modes"] = int(sum(x["n_excited"] for x in c))
+        for name in ("filter", "batch_ml"):
+            r[f"{name}_excited_within_1pct"] = int(sum(x[f"excited_within_1pct_{name}"] for x in c))
+            r[f"{name}_runs_all_excited_within_1pct"] = int(sum(x[f"excited_within_1pct_{name}"] == x["n_excited"]
+                                                               for x in c))
+        r["from_truth_excited_within_1pct"] = int(sum(x["from_truth_excited_within_1pct"] for x in c))
+        # runs where the optimum reached from the true frequencies is lower (by more than 1e-6
+        # relative) than the estimator's: its own starts missed the data's better optimum
+        r["runs_better_optimum_near_truth"] = int(sum(x["from_truth_cost"] < x["batch_ml_cost"] * (1 - 1e-6)
+                                                      for x in c))
         rows.append(r)
         print(f"at {r['periods']:.2f} periods ({r['images']} images), medians over {len(trials)} trials: shape RMS "
               f"filter {r['filter_median_m']:.3f} m ({r['filter_over_floor_median']:.2f} x floor), batch ML "
@@ -148,7 +159,10 @@ def _batch_ml_summary(trials):
               f"{r['known_omega_median_m']:.3f} m ({r['known_omega_over_floor_median']:.2f} x); filter / batch ML "
               f"{r['filter_over_batch_ml_median']:.2f} [{r['filter_over_batch_ml_quartiles'][0]:.2f}, "
               f"{r['filter_over_batch_ml_quartiles'][1]:.2f}]; within 2x floor: filter {r['filter_within_2x_floor']}, "
-              f"batch ML {r['batch_ml_within_2x_floor']}, known omega {r['known_omega_within_2x_floor']}")
+              f"batch ML {r['batch_ml_within_2x_floor']}, known omega {r['known_omega_within_2x_floor']}; excited "
+              f"modes within 1 %: filter {r['filter_excited_within_1pct']}, batch ML {r['batch_ml_excited_within_1pct']}, "
+              f"from the true frequencies {r['from_truth_excited_within_1pct']} of {r['excited_modes']}; runs with a "
+              f"lower optimum near the truth than the batch ML found: {r['runs_better_optimum_near_truth']}")
     return rows
 
 

@@ -88,3 +88,43 @@ def test_end_error_ratio_is_near_the_cramer_rao_ratio():
     # over 4000 runs); 400 runs have a sampling spread of about 0.08.
     r = modal_batch_ml.end_error_ratio(runs=400, seed=1)
     assert 1.3 < r["ratio"] < 1.8
+
+
+def test_analytic_jacobian_equals_finite_differences():
+    from scipy.optimize._numdiff import approx_derivative
+
+    t, w, truth, coarse, cov, amp = _synthetic(2, k=30)
+    wh = modal_batch_ml._whiteners(cov)
+    residual, jacobian = modal_batch_ml._residual_and_jacobian(wh, coarse, t, w, 0.1 * w)
+    x = np.concatenate([w * 1.03, [0.3, -0.2, 0.5], [0.1, 0.4, -0.6]])
+    # absolute steps: the frequency's default step (relative to max(1, |x|))
+    # would be 1e3 times the frequency's own scale
+    num = approx_derivative(residual, x, method="3-point", abs_step=np.r_[1e-9 * np.ones(3), 1e-6 * np.ones(6)])
+    np.testing.assert_allclose(jacobian(x), num, rtol=1e-5, atol=1e-6 * np.abs(num).max())
+
+
+def test_relax_start_uses_the_coupled_weights_where_a_per_mode_grid_cannot():
+    # Three modes whose coarse errors share one large common component (an
+    # ill-conditioned M_Y): each mode's own series is mostly that component,
+    # but conditioned on the others its noise is 0.01.
+    rng = np.random.default_rng(7)
+    k, dt = 100, 60.0
+    w = np.array([0.0030, 0.0061, 0.0112])
+    c, s = np.array([0.6, -0.5, 0.4]), np.array([0.3, 0.7, -0.5])
+    t = np.arange(k) * dt
+    u = np.ones(3) / np.sqrt(3)
+    cov1 = 30.0 ** 2 * np.outer(u, u) + 0.01 ** 2 * np.eye(3)
+    cov = np.broadcast_to(cov1, (k, 3, 3)).copy()
+    truth = np.cos(np.outer(t, w)) * c + np.sin(np.outer(t, w)) * s
+    coarse = truth + rng.standard_normal((k, 3)) @ np.linalg.cholesky(cov1).T
+    w_prior = w * np.array([1.08, 0.93, 1.06])
+    sigma_w = 0.1 * w_prior
+    var = np.diagonal(cov, axis1=1, axis2=2)
+    w_grid = modal_batch_ml._grid_start(coarse, var, t, w_prior, sigma_w, 201)
+    w_relax = modal_batch_ml._relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, 201)
+    assert np.max(np.abs(w_grid / w - 1)) > 0.02  # the per-mode grid is lost in the common component
+    assert np.max(np.abs(w_relax / w - 1)) < 0.005  # one grid step is 0.3 % of the prior
+    ml = modal_batch_ml.fit(coarse, cov, t, w_prior, sigma_w, reference_starts=[("truth", w)])
+    assert np.max(np.abs(ml["omega"] / w - 1)) < 1e-3
+    # from the truth the descent reaches the same optimum (no lower one was missed)
+    assert ml["reference"]["truth"]["cost"] == pytest.approx(ml["cost"], rel=1e-6)
