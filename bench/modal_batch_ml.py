@@ -154,9 +154,16 @@ def fit(coarse, cov, t, w_prior, sigma_w, extra_starts=(), n_grid=201, reference
     return out
 
 
+# Descents from a good start end in 5-30 evaluations; one from a poor start
+# can wander for thousands (minutes at 50 modes) and would not win anyway.
+MAX_NFEV = 200
+
+
 def _descend(residual, jacobian, w0, linear_amplitudes):
-    """Nonlinear least squares from frequencies w0 (amplitudes solved linearly first)."""
-    x = least_squares(residual, np.concatenate([w0, linear_amplitudes(w0)]), jac=jacobian, method="trf").x
+    """Nonlinear least squares from frequencies w0 (amplitudes solved linearly
+    first), at most MAX_NFEV evaluations."""
+    x = least_squares(residual, np.concatenate([w0, linear_amplitudes(w0)]), jac=jacobian, method="trf",
+                      max_nfev=MAX_NFEV).x
     return 0.5 * float(np.sum(residual(x) ** 2)), x
 
 
