@@ -108,7 +108,7 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
                 prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
-                batch_ml_periods=(), crb_periods=()):
+                batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
@@ -116,7 +116,13 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     and its shape error compared with the filter's at the same image.
     crb_periods: times [lowest-mode periods] at which the Cramer-Rao bounds
     of this run's coarse estimates (bench.modal_crb) are set beside the
-    filter's frequency and shape errors."""
+    filter's frequency and shape errors.
+    acquire_periods: a two-pass estimator set beside the filter: at that time
+    the batch ML (bench.modal_batch_ml, RELAX start included) fits every
+    coarse estimate so far; a new flight joint filter whose a priori
+    frequencies are that fit (1-sigma acquire_sigma_rel of each) then runs
+    over every image from the first, and is scored at the crb_periods
+    times. A bench prototype of frequency acquisition, not flight code."""
     fb = _fb()
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
@@ -140,7 +146,11 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     shape = getattr(fb, f"reconstruct_shape{n_modes}")
     est = np.zeros((n_images, n_modes, 4))
     coarse = np.full((n_images, n_modes), np.nan)
-    coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if batch_ml_periods or crb_periods else None
+    keep_cov = bool(batch_ml_periods or crb_periods or acquire_periods)
+    coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if keep_cov else None
+    if acquire_periods is not None:
+        (acquire_image,) = _images_at([acquire_periods], w_true[0], dt_s, n_images, "acquisition")
+    records = [] if acquire_periods is not None else None
     truth = np.zeros((n_images, n_modes))
     shape_rms = np.full(n_images, np.nan)
     shape_rms_oracle = np.full(n_images, np.nan)
@@ -160,6 +170,8 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
             if coarse_cov is not None:
                 coarse_cov[k] = rec.cov_a
         statuses.append(filt.step(dt_s, rec)["status"])
+        if records is not None:
+            records.append(rec)
         est[k] = filt.state
         truth[k] = a
         z_true = phi_grid @ a
@@ -222,9 +234,35 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     if crb_periods:
         out["crb"] = [_crb_row(k, coarse_cov, t, amp, phase, w_true, sigma_w_prior, est, phi_grid, shape_rms,
                                shape_rms_oracle, strong, period1) for k in crb_images]
+    if acquire_periods is not None:
+        out["acquisition"] = _acquire(acquire_image, records, coarse, coarse_cov, t, w_prior, sigma_w_prior,
+                                      acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth, w_true, strong,
+                                      crb_images, period1)
     if keep_series:
         out.update(t_s=t, est=est, coarse=coarse, truth=truth)
     return out
+
+
+def _acquire(k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
+             w_true, strong, score_images, period1):
+    """Two-pass prototype: batch ML on the first k0 images, then a flight
+    joint filter from those frequencies over every image."""
+    from bench import modal_batch_ml
+
+    ml = modal_batch_ml.fit(coarse[:k0], cov[:k0], t[:k0], w_prior, sigma_w)
+    filt = new_filter(ml["omega"], sigma_rel * ml["omega"])
+    rows, want = [], {k - 1 for k in score_images}
+    for k, rec in enumerate(records):
+        filt.step(dt_s, rec)
+        if k in want and filt.initialized:
+            z_hat, _ = shape(filt.amplitudes, filt.amplitude_cov, phi_grid)
+            rel = np.abs(filt.state[:, 2] / w_true - 1)
+            rows.append({"images": k + 1, "periods": float(t[k] / period1),
+                         "excited_within_1pct": int(np.sum(rel[strong] <= 0.01)),
+                         "shape_rms_m": float(np.sqrt(np.mean((z_hat - phi_grid @ truth[k]) ** 2)))})
+    return {"images": int(k0), "periods": float(t[k0 - 1] / period1), "batch_ml_start": ml["start"],
+            "batch_ml_excited_within_1pct": int(np.sum(np.abs(ml["omega"] / w_true - 1)[strong] <= 0.01)),
+            "sigma_rel": sigma_rel, "at": rows}
 
 
 def _images_at(periods, omega1, dt_s, n_images, what):

@@ -121,3 +121,26 @@ def test_cli_structure_with_crb(tmp_path, capsys):
     assert 0 <= row["crb_expected_excited_within_1pct"] <= row["excited_modes"]
     assert row["filter_over_crb_rms"] > 0
     assert "bound expects" in capsys.readouterr().out
+
+
+def test_two_pass_prototype_is_scored_beside_the_filter(tmp_path, capsys):
+    from bench import cli
+    from bench import modal_campaign as mc
+
+    tr = mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=1.0)
+    acq = tr["acquisition"]
+    assert acq["images"] == 41 and acq["periods"] == pytest.approx(1.0)
+    (row,) = acq["at"]
+    assert row["images"] == 81
+    n_exc = int(np.sum(tr["amp_true"] >= 0.2))
+    assert 0 <= row["excited_within_1pct"] <= n_exc and 0 <= acq["batch_ml_excited_within_1pct"] <= n_exc
+    # the replayed filter sees every image: its shape error is of the one-pass filter's size, not the prior's
+    assert row["shape_rms_m"] < 3 * tr["crb"][0]["shape_rms_filter_m"]
+    with pytest.raises(ValueError, match="acquisition at 3.0 lowest-mode periods needs 121 images"):
+        mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, acquire_periods=3.0)
+    out = tmp_path / "a.json"
+    assert cli.main(["modal", "--scenario", "structure", "--modes", "10", "--trials", "1", "--images", "81",
+                     "--filter", "joint", "--crb-at", "2", "--acquire-at", "1", "--json", str(out)]) == 0
+    (s,) = json.loads(out.read_text())["acquisition_summary"]
+    assert s["trials"] == 1 and s["images"] == 81
+    assert "two-pass" in capsys.readouterr().out
