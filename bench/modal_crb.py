@@ -23,6 +23,7 @@ So a run's shortfall can be read against what its own data permit.
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import erf
 
 
 def _derivatives(t, omega, c, s):
@@ -78,8 +79,6 @@ def bound(t, omega, c, s, cov, sigma_w_prior, phi_grid, strong=None, rel_band=0.
     p_all = np.linalg.inv(j)
     p_all = 0.5 * (p_all + p_all.T)
     sd_w = np.sqrt(np.diag(p_all)[:m])
-    from scipy.special import erf
-
     p_in = erf(rel_band * omega / (sd_w * np.sqrt(2.0)))
     g = amplitude_jacobian(t[-1], omega, c, s)
     cov_a = g @ p_all @ g.T

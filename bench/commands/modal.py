@@ -389,7 +389,7 @@ def timing_main(args):
                     if key in flight[label]:
                         row[f"{label}_{kind}_s"] = flight[label][key]
                 if not exes and m in (10, 50):
-                    row["flight_{kind}_bindings_s".format(kind=kind)] = _flight_bindings(m, n, kind, args.repeats)
+                    row[f"flight_{kind}_bindings_s"] = _flight_bindings(m, n, kind, args.repeats)
             for label in exes:
                 if ("decomposition", m, n) in flight[label]:
                     row[f"{label}_decomposition_s"] = flight[label][("decomposition", m, n)]

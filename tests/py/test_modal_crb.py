@@ -137,7 +137,9 @@ def test_two_pass_prototype_is_scored_beside_the_filter(tmp_path, capsys):
     # the replayed filter sees every image: its shape error is of the one-pass filter's size, not the prior's
     assert row["shape_rms_m"] < 3 * tr["crb"][0]["shape_rms_filter_m"]
     with pytest.raises(ValueError, match="acquisition at 3.0 lowest-mode periods needs 121 images"):
-        mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, acquire_periods=3.0)
+        mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=3.0)
+    with pytest.raises(ValueError, match="scored at the Cramer-Rao times"):
+        mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, acquire_periods=1.0)
     out = tmp_path / "a.json"
     assert cli.main(["modal", "--scenario", "structure", "--modes", "10", "--trials", "1", "--images", "81",
                      "--filter", "joint", "--crb-at", "2", "--acquire-at", "1", "--json", str(out)]) == 0
