@@ -124,6 +124,10 @@ def test_relax_start_uses_the_coupled_weights_where_a_per_mode_grid_cannot():
     w_relax = modal_batch_ml._relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, 201)
     assert np.max(np.abs(w_grid / w - 1)) > 0.02  # the per-mode grid is lost in the common component
     assert np.max(np.abs(w_relax / w - 1)) < 0.005  # one grid step is 0.3 % of the prior
+    # the coupled weights are what does it: with the diagonal alone RELAX is as lost as the grid
+    diag_info = np.broadcast_to(np.diag(1.0 / np.diag(cov1)), (k, 3, 3))
+    w_relax_diag = modal_batch_ml._relax_start(coarse, diag_info, t, w_prior, sigma_w, w_grid, 201)
+    assert np.max(np.abs(w_relax_diag / w - 1)) > 0.02
     ml = modal_batch_ml.fit(coarse, cov, t, w_prior, sigma_w, reference_starts=[("truth", w)])
     assert np.max(np.abs(ml["omega"] / w - 1)) < 1e-3
     # from the truth the descent reaches the same optimum (no lower one was missed)
