@@ -18,7 +18,7 @@ def _fb():
     return fb
 
 
-def make_filter(kind, m, omega, alpha, sigma_v0, sigma_w0, sigma_a0, q_a, q_v, q_w=None, q_al=None):
+def make_filter(kind, m, omega, alpha, sigma_v0, sigma_w0, sigma_a0, q_a, q_v, q_w=None, q_al=None, ut_alpha=1.0):
     fb = _fb()
     cls = getattr(fb, ("ModalUkfBank" if kind == "bank" else "ModalUkfJoint") + str(m))
     z = np.zeros(m)
@@ -32,6 +32,7 @@ def make_filter(kind, m, omega, alpha, sigma_v0, sigma_w0, sigma_a0, q_a, q_v, q
         q_v=np.broadcast_to(np.asarray(q_v, float), (m,)).copy(),
         q_omega=z if q_w is None else np.broadcast_to(np.asarray(q_w, float), (m,)).copy(),
         q_alpha=z if q_al is None else np.broadcast_to(np.asarray(q_al, float), (m,)).copy(),
+        ut_alpha=float(ut_alpha),
     )
 
 
@@ -108,7 +109,8 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
                 prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
-                batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01):
+                batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01,
+                ut_alpha=1.0):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
@@ -122,7 +124,9 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     coarse estimate so far; a new flight joint filter whose a priori
     frequencies are that fit (1-sigma acquire_sigma_rel of each) then runs
     over every image from the first, and is scored at the crb_periods
-    times. A bench prototype of frequency acquisition, not flight code."""
+    times. A bench prototype of frequency acquisition, not flight code.
+    ut_alpha: the unscented transform's spread parameter of the estimating
+    filters (sigma points at ut_alpha sqrt(n) standard deviations)."""
     fb = _fb()
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
@@ -137,7 +141,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
 
     def new_filter(w0, sw0):
         return make_filter(kind, n_modes, w0, np.zeros(n_modes), sigma_v0=w0 * 1.0, sigma_w0=sw0,
-                           sigma_a0=1e-6, q_a=0.0, q_v=0.0)
+                           sigma_a0=1e-6, q_a=0.0, q_v=0.0, ut_alpha=ut_alpha)
 
     sigma_w_prior = 0.1 * w_prior
     filt = new_filter(w_prior, sigma_w_prior)

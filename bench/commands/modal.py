@@ -46,6 +46,9 @@ def register(sub):
     p.add_argument("--acquire-at", type=float, default=None, metavar="PERIODS",
                    help="structure: also run a two-pass prototype: batch ML frequencies at this time [lowest-mode "
                         "periods], then a new flight joint filter from them over every image, scored at --crb-at")
+    p.add_argument("--ut-alpha", type=float, default=1.0,
+                   help="structure: unscented-transform spread alpha of the filters (default 1: sigma points at "
+                        "sqrt(n) standard deviations)")
     p.add_argument("--json", default=None)
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)
@@ -103,7 +106,8 @@ def main(args):
             trials.append(mc.plate_trial(args.seed + k, n_modes=args.modes, kind=args.filter, n_images=n_img,
                                          dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots),
                                          noise_frac=args.range_noise, batch_ml_periods=args.batch_ml_at,
-                                         crb_periods=args.crb_at, acquire_periods=args.acquire_at))
+                                         crb_periods=args.crb_at, acquire_periods=args.acquire_at,
+                                         ut_alpha=args.ut_alpha))
         out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "range_noise": args.range_noise,
                "trials": []}
         for tr in trials:

@@ -146,3 +146,13 @@ def test_two_pass_prototype_is_scored_beside_the_filter(tmp_path, capsys):
     (s,) = json.loads(out.read_text())["acquisition_summary"]
     assert s["trials"] == 1 and s["images"] == 81
     assert "two-pass" in capsys.readouterr().out
+
+
+def test_unscented_spread_reaches_the_filters():
+    from bench import modal_campaign as mc
+
+    a = mc.plate_trial(2, n_modes=10, kind="joint", n_images=21, oracle=False)
+    b = mc.plate_trial(2, n_modes=10, kind="joint", n_images=21, oracle=False, ut_alpha=0.5)
+    assert np.max(np.abs(np.asarray(a["omega_final_radps"]) - np.asarray(b["omega_final_radps"]))) > 1e-9
+    with pytest.raises(ValueError, match="ut_alpha"):
+        mc.plate_trial(2, n_modes=10, kind="joint", n_images=21, oracle=False, ut_alpha=0.0)
