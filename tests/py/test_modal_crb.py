@@ -57,6 +57,7 @@ def test_single_sinusoid_frequency_bound_is_the_textbook_formula():
     # moves with the phase by about 1 % (0.990 to 1.010 here)
     np.testing.assert_allclose(ratios, 1.0, atol=0.02)
     assert np.ptp(ratios) > 0  # the phase does enter
+    assert np.mean(ratios) == pytest.approx(1.0, abs=0.002)  # and averages out
     # a prior can only tighten the bound
     b_prior = modal_crb.bound(t, [w], [0.3], [0.5], np.full((n, 1, 1), sigma ** 2), [1e-6], np.ones((1, 1)))
     b_flat = modal_crb.bound(t, [w], [0.3], [0.5], np.full((n, 1, 1), sigma ** 2), None, np.ones((1, 1)))
