@@ -110,7 +110,7 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
                 prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
                 batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01,
-                ut_alpha=1.0):
+                acquire_with="flight", ut_alpha=1.0):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
@@ -119,12 +119,14 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     crb_periods: times [lowest-mode periods] at which the Cramer-Rao bounds
     of this run's coarse estimates (bench.modal_crb) are set beside the
     filter's frequency and shape errors.
-    acquire_periods: a two-pass estimator set beside the filter: at that time
-    the batch ML (bench.modal_batch_ml, RELAX start included) fits every
-    coarse estimate so far; a new flight joint filter whose a priori
-    frequencies are that fit (1-sigma acquire_sigma_rel of each) then runs
-    over every image from the first, and is scored at the crb_periods
-    times. A bench prototype of frequency acquisition, not flight code.
+    acquire_periods: frequency acquisition set beside the one-pass filter:
+    at that time a search over every image so far gives the frequencies; a
+    new flight joint filter from them (1-sigma acquire_sigma_rel of each) is
+    replayed over those images and then runs on, scored at the crb_periods
+    times. acquire_with "flight": the flight ModalAcquisition (RELAX on its
+    stored history, fsw/include/fsw/modal_acquisition.hpp) and its replay;
+    "batch-ml": the bench's batch ML fit (bench.modal_batch_ml), the
+    reference it is compared with.
     ut_alpha: the unscented transform's spread parameter of the estimating
     filters (sigma points at ut_alpha sqrt(n) standard deviations)."""
     fb = _fb()
@@ -241,33 +243,65 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         out["crb"] = [_crb_row(k, coarse_cov, t, amp, phase, w_true, sigma_w_prior, est, phi_grid, shape_rms,
                                shape_rms_oracle, strong, period1) for k in crb_images]
     if acquire_periods is not None:
-        out["acquisition"] = _acquire(acquire_image, records, coarse, coarse_cov, t, w_prior, sigma_w_prior,
-                                      acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth, w_true, strong,
-                                      crb_images, period1)
+        out["acquisition"] = _acquire(acquire_with, acquire_image, records, coarse, coarse_cov, t, w_prior,
+                                      sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
+                                      w_true, strong, crb_images, period1)
     if keep_series:
         out.update(t_s=t, est=est, coarse=coarse, truth=truth)
     return out
 
 
-def _acquire(k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
-             w_true, strong, score_images, period1):
-    """Two-pass prototype: batch ML on the first k0 images, then a flight
-    joint filter from those frequencies over every image."""
-    from bench import modal_batch_ml
+def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid,
+             truth, w_true, strong, score_images, period1):
+    """Frequencies from the first k0 images (method "flight" or "batch-ml"),
+    then a flight joint filter from them over every image."""
+    import time
 
-    ml = modal_batch_ml.fit(coarse[:k0], cov[:k0], t[:k0], w_prior, sigma_w)
-    filt = new_filter(ml["omega"], sigma_rel * ml["omega"])
-    rows, want = [], {k - 1 for k in score_images}
-    for k, rec in enumerate(records):
-        filt.step(dt_s, rec)
+    want = {k - 1 for k in score_images}
+    rows = []
+
+    def score(filt, k):
         if k in want and filt.initialized:
             z_hat, _ = shape(filt.amplitudes, filt.amplitude_cov, phi_grid)
             rows.append({"images": k + 1, "periods": float(t[k] / period1),
                          "excited_within_1pct": _excited_within_1pct(filt.state[:, 2], w_true, strong),
                          "shape_rms_m": float(np.sqrt(np.mean((z_hat - phi_grid @ truth[k]) ** 2)))})
-    return {"images": int(k0), "periods": float(t[k0 - 1] / period1), "batch_ml_start": ml["start"],
-            "batch_ml_excited_within_1pct": _excited_within_1pct(ml["omega"], w_true, strong),
-            "sigma_rel": sigma_rel, "at": rows}
+
+    out = {"method": method, "images": int(k0), "periods": float(t[k0 - 1] / period1), "sigma_rel": sigma_rel}
+    if method == "flight":
+        acq = getattr(_fb(), f"ModalAcquisition{len(w_prior)}")(w_prior, sigma_w)
+        for k in range(k0):
+            if records[k].ok:
+                acq.add(float(t[k]), records[k])
+        t0 = time.perf_counter()
+        status = acq.search()
+        out["search_s"] = time.perf_counter() - t0
+        if status != "ok":
+            raise RuntimeError(f"frequency acquisition at image {k0}: {status}")
+        omega = acq.omega
+        filt = new_filter(omega, sigma_rel * omega)
+        t0 = time.perf_counter()
+        out["replay_fused"] = acq.replay_into(filt)
+        out["replay_s"] = time.perf_counter() - t0
+        score(filt, k0 - 1)
+    elif method == "batch-ml":
+        from bench import modal_batch_ml
+
+        ml = modal_batch_ml.fit(coarse[:k0], cov[:k0], t[:k0], w_prior, sigma_w)
+        out["batch_ml_start"] = ml["start"]
+        omega = ml["omega"]
+        filt = new_filter(omega, sigma_rel * omega)
+        for k in range(k0):
+            filt.step(dt_s, records[k])
+        score(filt, k0 - 1)
+    else:
+        raise ValueError(f"acquire_with: 'flight' or 'batch-ml', got {method!r}")
+    for k in range(k0, len(records)):  # on from the acquisition, live; scored at times before it: nothing
+        filt.step(dt_s, records[k])
+        score(filt, k)
+    out["search_excited_within_1pct"] = _excited_within_1pct(omega, w_true, strong)
+    out["at"] = rows
+    return out
 
 
 def _excited_within_1pct(omega, w_true, strong):

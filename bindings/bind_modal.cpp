@@ -1,5 +1,6 @@
 // Modal estimator (seed 000): decomposition of a range image, the bank of
-// decoupled per-mode UKFs, the joint UKF, and shape reconstruction. Bound in
+// decoupled per-mode UKFs, the joint UKF, shape reconstruction, and the
+// frequency acquisition (256-image history). Bound in
 // double for the mode counts the bench uses: 3 (pendulum), 10 and 50
 // (structure); classes carry the count in their name (ModalDecomposition10).
 //
@@ -9,6 +10,7 @@
 #include <string>
 
 #include "bind.hpp"
+#include "fsw/modal_acquisition.hpp"
 #include "fsw/modal_decomposition.hpp"
 #include "fsw/modal_shape.hpp"
 #include "fsw/modal_ukf.hpp"
@@ -145,6 +147,66 @@ void bind_filter(py::module_& m, const std::string& name, const char* doc) {
       });
 }
 
+template <typename F, int M>
+int replay(fsw::ModalAcquisition<double, M, 256>& a, F& f) {
+  typename F::Record rec;
+  const auto cfg = f.config();  // copy: reset() takes it again
+  return a.replay_into(f, cfg, rec);
+}
+
+template <int M>
+void bind_acquisition(py::module_& m) {
+  using A = fsw::ModalAcquisition<double, M, 256>;
+  using R = fsw::ModalDecompositionRecord<double, M>;
+  auto vec_of = [](const A& a, double (A::*get)(int) const) {
+    Eigen::Matrix<double, M, 1> v;
+    for (int i = 0; i < M; ++i) v(i) = (a.*get)(i);
+    return to_numpy(v);
+  };
+  py::class_<A, std::unique_ptr<A>>(m, ("ModalAcquisition" + std::to_string(M)).c_str(),
+                                    "Frequency acquisition: RELAX over up to 256 images' coarse amplitudes.")
+      .def(py::init([](const Arr& omega, const Arr& sigma, double grid_sigmas, int cycles, int min_images) {
+             fsw::ModalAcquisitionConfig<double, M> c;
+             const auto w = mvec<M>(omega, "omega_prior_radps"), sw = mvec<M>(sigma, "sigma_omega_radps");
+             for (int i = 0; i < M; ++i) {
+               c.omega_prior_radps[i] = positive(w(i), "omega_prior_radps");
+               c.sigma_omega_radps[i] = positive(sw(i), "sigma_omega_radps");
+             }
+             c.grid_sigmas = positive(grid_sigmas, "grid_sigmas");
+             if (cycles < 1 || cycles > 100) throw py::value_error("cycles: must be in [1, 100]");
+             if (min_images < 3) throw py::value_error("min_images: must be at least 3");
+             c.cycles = cycles;
+             c.min_images = min_images;
+             return std::make_unique<A>(c);
+           }),
+           py::arg("omega_prior_radps"), py::arg("sigma_omega_radps"), py::arg("grid_sigmas") = 3.0,
+           py::arg("cycles") = 3, py::arg("min_images") = 3,
+           "A priori frequencies and their 1-sigma (M,) [rad/s]; the grid spans +-grid_sigmas sigma in 201 "
+           "points; cycles RELAX passes over the modes.")
+      .def("add", [](A& a, double t, const R& r) { return std::string(fsw::to_string(a.add(t, r))); },
+           py::arg("t_s"), py::arg("record"), "Stores one image's decomposition; returns the status.")
+      .def("search", [](A& a) { return std::string(fsw::to_string(a.search())); })
+      .def("start_search", [](A& a) { return std::string(fsw::to_string(a.start_search())); })
+      .def("search_step", [](A& a) { return std::string(fsw::to_string(a.search_step())); })
+      .def_property_readonly("images", &A::images)
+      .def_property_readonly("done", &A::done)
+      .def_property_readonly("omega", [vec_of](const A& a) { return vec_of(a, &A::omega); })
+      .def_property_readonly("cos_amp", [vec_of](const A& a) { return vec_of(a, &A::cos_amp); })
+      .def_property_readonly("sin_amp", [vec_of](const A& a) { return vec_of(a, &A::sin_amp); })
+      .def("coarse",
+           [](A& a, int k) {
+             if (k < 0 || k >= a.images()) throw py::index_error("coarse: image index out of range");
+             R r;
+             a.coarse(k, r);
+             return r;
+           },
+           py::arg("k"), "Image k's coarse amplitudes and covariance rebuilt from the stored information.")
+      .def("replay_into", &replay<fsw::ModalUkfJoint<double, M>, M>, py::arg("filter"),
+           "Resets the filter to its own configuration and steps it over every stored image; returns the "
+           "number fused.")
+      .def("replay_into", &replay<fsw::ModalUkfBank<double, M>, M>, py::arg("filter"));
+}
+
 template <int M>
 void bind_size(py::module_& m) {
   using D = fsw::ModalDecomposition<double, M>;
@@ -230,6 +292,7 @@ void bind_size(py::module_& m) {
         },
         py::arg("a"), py::arg("cov_a"), py::arg("phi"),
         "Eqs. 8-9: (z_m, var_m2) at the points whose mode-shape rows are phi (n, M).");
+  bind_acquisition<M>(m);
 }
 
 }  // namespace

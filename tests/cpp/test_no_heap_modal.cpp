@@ -1,11 +1,14 @@
 // The modal estimator's steps (decomposition of an image, bank and joint
-// filter steps, shape reconstruction) at 50 modes allocate nothing: the
-// objects are constructed before the guard, the steps run inside it.
+// filter steps, shape reconstruction, frequency acquisition: storing images,
+// the search, rebuilding an image and the replay) at 50 modes allocate
+// nothing: the objects are constructed before the guard, the steps run
+// inside it.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <memory>
 
+#include "fsw/modal_acquisition.hpp"
 #include "fsw/modal_decomposition.hpp"
 #include "fsw/modal_shape.hpp"
 #include "fsw/modal_ukf.hpp"
@@ -54,6 +57,15 @@ void modal_steps_without_heap() {
   Eigen::Matrix<S, kM, kM> pa;
   S z_out[kN], var_out[kN];
   ShapeRecord sr;
+  ModalAcquisitionConfig<S, kM> acfg;
+  for (int i = 0; i < kM; ++i) {
+    acfg.omega_prior_radps[i] = cfg.mode[i].omega_radps;
+    acfg.sigma_omega_radps[i] = S(0.1) * cfg.mode[i].omega_radps;
+  }
+  auto acq = std::make_unique<ModalAcquisition<S, kM, 256>>(acfg);
+  auto rebuilt = std::make_unique<ModalDecompositionRecord<S, kM>>();
+  auto replayed = std::make_unique<ModalUkfJoint<S, kM>>(cfg);
+  int n_added = 0;
 
   NoHeapGuard guard;
   for (const Image<S>* img : {img0.get(), img1.get()}) {
@@ -62,7 +74,11 @@ void modal_steps_without_heap() {
     ASSERT_EQ(decomp->solve(*rec), ModalStatus::Ok);
     EXPECT_EQ(bank->step(S(0.5), *rec, rb), StepStatus::Ok);
     EXPECT_EQ(joint->step(S(0.5), *rec, rj), StepStatus::Ok);
+    for (int r = 0; r < 2; ++r) n_added += acq->add(S(0.5) * S(n_added), *rec) == AcquisitionStatus::Ok;
   }
+  const AcquisitionStatus acq_status = acq->search();
+  const AcquisitionStatus rebuilt_status = acq->coarse(1, *rebuilt);
+  const int replay_fused = acq->replay_into(*replayed, cfg, rj);
   decomp->reset();
   decomp->add_points(img0->phi, img0->z, nullptr, kN);  // eq. 4b path
   EXPECT_EQ(decomp->solve(*rec), ModalStatus::Ok);
@@ -71,6 +87,10 @@ void modal_steps_without_heap() {
   sr = reconstruct_shape<S, kM>(a, pa, shape->phi, kN, z_out, var_out);
   EXPECT_EQ(guard.allocations(), 0);
   EXPECT_EQ(sr.status, StepStatus::Ok);
+  EXPECT_EQ(n_added, 4);
+  EXPECT_EQ(acq_status, AcquisitionStatus::Ok);
+  EXPECT_EQ(rebuilt_status, AcquisitionStatus::Ok);
+  EXPECT_EQ(replay_fused, 4);
   EXPECT_EQ(rec->n_nonfinite, 1);
   EXPECT_TRUE(std::isfinite(z_out[0]));
 }

@@ -124,29 +124,35 @@ def test_cli_structure_with_crb(tmp_path, capsys):
     assert "bound expects" in capsys.readouterr().out
 
 
-def test_two_pass_prototype_is_scored_beside_the_filter(tmp_path, capsys):
+@pytest.mark.parametrize("method", ["flight", "batch-ml"])
+def test_acquisition_is_scored_beside_the_filter(tmp_path, capsys, method):
     from bench import cli
     from bench import modal_campaign as mc
 
-    tr = mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=1.0)
+    tr = mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(0.5, 2.0), acquire_periods=1.0,
+                        acquire_with=method)
     acq = tr["acquisition"]
-    assert acq["images"] == 41 and acq["periods"] == pytest.approx(1.0)
-    (row,) = acq["at"]
+    assert acq["method"] == method and acq["images"] == 41 and acq["periods"] == pytest.approx(1.0)
+    (row,) = acq["at"]  # nothing is scored before the acquisition (0.5 periods)
     assert row["images"] == 81
     n_exc = int(np.sum(tr["amp_true"] >= 0.2))
-    assert 0 <= row["excited_within_1pct"] <= n_exc and 0 <= acq["batch_ml_excited_within_1pct"] <= n_exc
-    # the replayed filter sees every image: its shape error is of the one-pass filter's size, not the prior's
-    assert row["shape_rms_m"] < 3 * tr["crb"][0]["shape_rms_filter_m"]
+    assert 0 <= row["excited_within_1pct"] <= n_exc and 0 <= acq["search_excited_within_1pct"] <= n_exc
+    # the replayed filter has every image's information: its shape error is of the one-pass filter's size
+    assert row["shape_rms_m"] < 3 * tr["crb"][1]["shape_rms_filter_m"]
+    if method == "flight":
+        assert acq["replay_fused"] == 41 and acq["search_s"] > 0
     with pytest.raises(ValueError, match="acquisition at 3.0 lowest-mode periods needs 121 images"):
         mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=3.0)
     with pytest.raises(ValueError, match="scored at the Cramer-Rao times"):
         mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, acquire_periods=1.0)
     out = tmp_path / "a.json"
-    assert cli.main(["modal", "--scenario", "structure", "--modes", "10", "--trials", "1", "--images", "81",
-                     "--filter", "joint", "--crb-at", "2", "--acquire-at", "1", "--json", str(out)]) == 0
+    assert cli.main(["modal", "--scenario", "structure", "--modes", "10", "--trials", "1", "--seed", "1",
+                     "--images", "81", "--filter", "joint", "--crb-at", "0.5", "2", "--acquire-at", "1",
+                     "--acquire-with", method, "--json", str(out)]) == 0
     (s,) = json.loads(out.read_text())["acquisition_summary"]
-    assert s["trials"] == 1 and s["images"] == 81
-    assert "two-pass" in capsys.readouterr().out
+    assert s["trials"] == 1 and s["images"] == 81 and s["method"] == method
+    assert s["excited_within_1pct"] == row["excited_within_1pct"]  # same seed, same run
+    assert f"acquisition ({method})" in capsys.readouterr().out
 
 
 def test_unscented_spread_reaches_the_filters():
