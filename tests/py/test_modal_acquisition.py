@@ -5,49 +5,13 @@ checked."""
 import numpy as np
 import pytest
 
-from bench import modal_batch_ml
 from bench import modal_campaign as mc
-from bench import structure as st
-
-
-def _plate_records(seed, n_modes, n_images, dt_s):
-    fb = mc._fb()
-    rng = np.random.default_rng(seed)
-    plate = st.Plate(n_modes=n_modes)
-    sensor = st.plate_sensor(plate)
-    amp, phase = st.plate_truth(plate, rng)
-    w_prior = plate.omega_radps * (1 + rng.uniform(-0.1, 0.1, n_modes))
-    dec = getattr(fb, f"ModalDecomposition{n_modes}")()
-    recs, t = [], []
-    for k in range(n_images):
-        a = st.plate_coeffs(plate, amp, phase, k * dt_s)
-        r_meas, d = st.plate_range_image(plate, sensor, a, rng, noise_frac=0.03)
-        rec = dec.decompose(*st.plate_points(plate, sensor, r_meas, d, noise_frac=0.03))
-        if rec.ok:
-            recs.append(rec)
-            t.append(k * dt_s)
-    return recs, np.array(t), w_prior
-
-
-def _numpy_relax(coarse, cov, t, w_prior, sigma_w):
-    m = coarse.shape[1]
-    wh = modal_batch_ml._whiteners(cov)
-
-    def amplitudes(w):
-        basis = np.concatenate([np.cos(np.outer(t, w))[:, None, :] * np.eye(m)[None],
-                                np.sin(np.outer(t, w))[:, None, :] * np.eye(m)[None]], axis=2)
-        a = np.einsum("kij,kjl->kil", wh, basis).reshape(-1, 2 * m)
-        y = np.einsum("kij,kj->ki", wh, coarse).ravel()
-        return np.linalg.lstsq(a, y, rcond=None)[0]
-
-    var = np.diagonal(cov, axis1=1, axis2=2)
-    w0 = modal_batch_ml._grid_start(coarse, var, t, w_prior, sigma_w, 201)
-    return modal_batch_ml._relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w0, 201, amplitudes=amplitudes)
+from bench import perf_modal_acquisition as perf
 
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_flight_search_picks_the_numpy_relax_frequencies(seed):
-    recs, t, w_prior = _plate_records(seed, 10, 80, 60.0)
+    recs, t, w_prior = perf.plate_history(10, 80, 60.0, seed=seed)
     sigma_w = 0.1 * w_prior
     acq = mc._fb().ModalAcquisition10(w_prior, sigma_w)
     assert all(acq.add(tk, r) == "ok" for tk, r in zip(t, recs))
@@ -55,7 +19,7 @@ def test_flight_search_picks_the_numpy_relax_frequencies(seed):
     assert acq.search() == "ok" and acq.done
     coarse = np.array([r.a_coarse for r in recs])
     cov = np.array([r.cov_a for r in recs])
-    w_np = _numpy_relax(coarse, cov, t, w_prior, sigma_w)
+    w_np = perf.numpy_relax(coarse, cov, t, w_prior, sigma_w)
     # same grid point for every mode (one grid step is 0.3 % of the prior)
     np.testing.assert_allclose(acq.omega, w_np, rtol=1e-12)
     assert np.any(np.abs(w_np / w_prior - 1) > 0.01)  # the search moved off the prior
@@ -82,3 +46,15 @@ def test_inputs_are_checked():
         acq.coarse(0)
     bad = fb.ModalDecomposition10().decompose(np.ones((3, 10)), np.zeros(3))  # too few points
     assert acq.add(0.0, bad) == "not_usable" and acq.images == 0
+
+
+def test_timing_command_compares_like_with_like(tmp_path, monkeypatch):
+    import json
+
+    out = tmp_path / "t.json"
+    monkeypatch.setattr(perf, "CASES", ((10, 30, 60.0),))
+    assert perf.main(["--repeats", "1", "--numpy-repeats", "1", "--json", str(out)]) == 0
+    (case,) = json.loads(out.read_text())["cases"]
+    assert case["modes"] == 10 and case["images"] == 30 and case["replay_fused"] == 30
+    assert case["same_grid_frequencies"] is True
+    assert case["flight_search_s"] > 0 and case["numpy_search_s"] > 0
