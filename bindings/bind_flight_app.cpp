@@ -51,6 +51,8 @@ py::dict modal_counters(const App& app) {
   d["images_fused"] = c.images_fused;
   d["images_incomplete"] = c.images_incomplete;
   d["points_outside"] = c.points_outside;
+  d["acquisitions"] = c.acquisitions;
+  d["acquisitions_failed"] = c.acquisitions_failed;
   return d;
 }
 }  // namespace
@@ -79,5 +81,5 @@ void bind_flight_app(py::module_& m) {
           py::arg("data"), "Feeds link bytes (any chunking); returns the telemetry frames produced.")
       .def("link_counters", &link_counters, "Deframer counters, rejections by reason.")
       .def("counters", &app_counters, "Application counters.")
-      .def("modal_counters", &modal_counters, "Modal estimator counters (range-image segments and images).");
+      .def("modal_counters", &modal_counters, "Modal estimator counters (range-image segments, images, frequency acquisitions).");
 }

@@ -212,12 +212,16 @@ TEST(FlightAppModalTest, SettingsApplyAtTheModalResetAndBadOnesAreRefused) {
   up.config(0.0, ConfigParam::ModalPlateLx, 0.0);
   up.config(0.0, ConfigParam::ModalPeak1, 10.0);
   up.config(0.0, ConfigParam::ModalPeriod1, 1200.0);
+  up.config(0.0, ConfigParam::ModalAcquireAfterPeriods, -1.0);
+  up.config(0.0, ConfigParam::ModalAcquireAfterPeriods, 3.0);
   feed(app, up, tm);
-  EXPECT_EQ(app.counters().configs_rejected, 3u);
+  EXPECT_EQ(app.counters().configs_rejected, 4u);
+  EXPECT_EQ(app.modal().config().acquire_after_periods, 2.0);  // not yet
   EXPECT_NEAR(2 * 3.14159265358979323846 / app.modal().model().omega_radps(0), 2400.0, 1e-9);  // not yet
   modal_reset(up, 0.0);
   feed(app, up, tm);
   EXPECT_NEAR(2 * 3.14159265358979323846 / app.modal().model().omega_radps(0), 1200.0, 1e-9);
   EXPECT_NEAR(app.modal().model().scale_m(0), 10.0, 1e-12);
+  EXPECT_EQ(app.modal().config().acquire_after_periods, 3.0);
   EXPECT_FALSE(app.modal().filter().initialized());
 }

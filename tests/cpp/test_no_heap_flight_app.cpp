@@ -66,12 +66,17 @@ TEST(NoHeapTest, FlightAppReacquisitionDouble) { reacquire_without_heap<double>(
 TEST(NoHeapTest, FlightAppReacquisitionFloat) { reacquire_without_heap<float>(); }
 
 // Range images through the modal estimator (segments into the streaming
-// decomposition, one bank step per image, tm_modal out): no heap, float and
+// decomposition, one joint step per image, tm_modal out) and, at the third
+// image, the frequency acquisition (search and replay): no heap, float and
 // double. Three images of the plate's first mode, the second missing a segment.
 template <typename S>
 void modal_without_heap() {
   auto app = std::make_unique<FlightApp<S>>();
   Uplink up;
+  up.config(0.0, ConfigParam::ModalAcquireAfterPeriods, 0.04);  // 96 s of the 2400 s period
+  CmdResetMsg<double> reset;
+  reset.target_mask = 4;  // applies the modal settings
+  up.add(Apid::CmdReset, reset, 0.0);
   const double pi = 3.14159265358979323846;
   for (int k = 0; k < 3; ++k) {
     std::vector<Vec3<double>> p;
@@ -87,6 +92,7 @@ void modal_without_heap() {
   EXPECT_EQ(feed_counting_allocations(*app, up), 0);
   EXPECT_EQ(app->modal().counters().images, 3u);
   EXPECT_EQ(app->modal().counters().images_fused, 3u);
+  EXPECT_EQ(app->modal().counters().acquisitions, 1u);
 }
 
 TEST(NoHeapTest, FlightAppModalDouble) { modal_without_heap<double>(); }

@@ -86,6 +86,7 @@ enum class ConfigParam : std::uint32_t {
   ModalPeriod1 = 15,           // period of the lowest mode [s]
   ModalPeak1 = 16,             // peak deflection of the lowest mode at coefficient 1 [m]
   ModalPriorOmegaFrac = 17,    // 1-sigma of the a priori frequencies, fraction of the model's
+  ModalAcquireAfterPeriods = 18,  // frequency acquisition after this many lowest-mode periods (0: none)
 };
 
 // What a step did, as reported in tm_innovation.step_kind.
@@ -503,6 +504,7 @@ inline void FlightApp<S>::on_config(const PacketView& p) {
     case ConfigParam::ModalPeriod1: return set_modal(modal_cfg_.plate.period1_s, m.value);
     case ConfigParam::ModalPeak1: return set_modal(modal_cfg_.plate.peak1_m, m.value);
     case ConfigParam::ModalPriorOmegaFrac: return set_modal(modal_cfg_.prior_omega_frac, m.value);
+    case ConfigParam::ModalAcquireAfterPeriods: return set_modal(modal_cfg_.acquire_after_periods, m.value);
   }
   ++counters_.configs_rejected;
 }

@@ -422,11 +422,14 @@ int ModalAcquisition<S, M, H, G>::replay_into(Filter& filter, const ModalFilterC
   return fused;
 }
 
+// Compiled once, in fsw_core (instantiate_modal_acquisition.cpp).
+#ifndef FSW_IMPLICIT_INSTANTIATION
 extern template class ModalAcquisition<double, 3, 256>;
 extern template class ModalAcquisition<float, 3, 256>;
 extern template class ModalAcquisition<double, 10, 256>;
 extern template class ModalAcquisition<float, 10, 256>;
 extern template class ModalAcquisition<double, 50, 256>;
 extern template class ModalAcquisition<float, 50, 256>;
+#endif
 
 }  // namespace fsw

@@ -18,6 +18,15 @@
 // 2 after 4.5; test_modal_tracker.cpp); at 10 modes the joint step costs
 // tens of microseconds, nothing at one image a minute.
 //
+// Frequency acquisition (modal_acquisition.hpp): the fused images are also
+// stored, and once they span acquire_after_periods of the model's lowest
+// mode (or the history is full) a search over the stored history gives new
+// a priori frequencies and the filter is replayed over every stored image
+// from them; once per reset. Without it the joint filter can lock a high
+// mode onto a wrong frequency in the first period and keep it
+// (docs/perf/modal.md). At 10 modes the search and the replay take a few
+// milliseconds, inside the image step that triggers them.
+//
 // Point: p_m = [x, y, z] in the structure frame, z the measured deflection;
 // sigma_m its 1-sigma [m] (eq. 4a), or 0 for "not given" (eq. 4b with the
 // residual variance; an image must not mix the two). Points off the plate
@@ -30,6 +39,7 @@
 #include <cstdint>
 
 #include "fsw/apid.hpp"
+#include "fsw/modal_acquisition.hpp"
 #include "fsw/modal_decomposition.hpp"
 #include "fsw/modal_ukf.hpp"
 #include "fsw/plate_modes.hpp"
@@ -44,6 +54,13 @@ struct ModalTrackerConfig {
   // 1-sigma of the initial amplitude rate as a fraction of the mode's
   // frequency (a unit amplitude's peak rate).
   double prior_rate_frac = 1.0;
+  // Frequency acquisition once the stored images span this many periods of
+  // the lowest mode (0: none). The search's grid spans +-3 sigma of the a
+  // priori frequencies (prior_omega_frac).
+  double acquire_after_periods = 2.0;
+  // 1-sigma of the replayed filter's a priori frequencies, as a fraction
+  // of the acquired ones (a few grid steps of 0.3 sigma).
+  double acquire_omega_frac = 0.01;
 };
 
 inline const char* modal_tracker_config_invalid_field(const ModalTrackerConfig& c) {
@@ -51,6 +68,9 @@ inline const char* modal_tracker_config_invalid_field(const ModalTrackerConfig& 
   if (!(std::isfinite(c.prior_omega_frac) && c.prior_omega_frac > 0.0 && c.prior_omega_frac < 1.0))
     return "prior_omega_frac";
   if (!(std::isfinite(c.prior_rate_frac) && c.prior_rate_frac > 0.0)) return "prior_rate_frac";
+  if (!(std::isfinite(c.acquire_after_periods) && c.acquire_after_periods >= 0.0)) return "acquire_after_periods";
+  if (!(std::isfinite(c.acquire_omega_frac) && c.acquire_omega_frac > 0.0 && c.acquire_omega_frac < 1.0))
+    return "acquire_omega_frac";
   return nullptr;
 }
 
@@ -60,14 +80,17 @@ struct ModalImageReport {
   std::uint32_t image_id = 0;
   double t_s = 0.0;
   int n_outside = 0;  // points off the plate, skipped
+  bool acquired = false;  // this image completed the history: search done and the filter replayed
+  AcquisitionStatus acquisition = AcquisitionStatus::Ok;  // of the search, when acquired
   ModalDecompositionRecord<S, M> decomposition;
   ModalStepRecord<S, M> step;
 };
 
-template <typename S, int M, typename F = ModalUkfJoint<S, M>>
+template <typename S, int M, typename F = ModalUkfJoint<S, M>, int H = 256>
 class ModalTracker {
  public:
   using Filter = F;  // ModalUkfJoint (default) or ModalUkfBank
+  using Acquisition = ModalAcquisition<S, M, H>;  // H: images it can hold
   using Decomposition = ModalDecomposition<S, M>;
   using Report = ModalImageReport<S, M>;
   static constexpr int kModes = M;
@@ -79,6 +102,8 @@ class ModalTracker {
     std::uint32_t images_fused = 0;
     std::uint32_t images_incomplete = 0;  // closed by another image's segment (last segment lost)
     std::uint32_t points_outside = 0;
+    std::uint32_t acquisitions = 0;         // searches done and filters replayed
+    std::uint32_t acquisitions_failed = 0;  // searches that gave no frequencies (filter kept)
   };
 
   ModalTracker() { configure(ModalTrackerConfig()); }
@@ -104,6 +129,7 @@ class ModalTracker {
   bool add(const RangeImageSegmentMsg<S>& m, double t_s, Report& out);
 
   const Filter& filter() const { return filter_; }
+  const Acquisition& acquisition() const { return acq_; }
   const PlateModes<S, M>& model() const { return model_; }
   const ModalTrackerConfig& config() const { return cfg_; }
   const Counters& counters() const { return counters_; }
@@ -112,11 +138,17 @@ class ModalTracker {
  private:
   // Solves the open image and steps the filter to its time.
   void close(Report& out);
+  // Stores a fused image; runs the search and the replay when due.
+  void acquire(Report& out);
+  ModalAcquisitionConfig<S, M> acquisition_config() const;
 
   ModalTrackerConfig cfg_;
   PlateModes<S, M> model_;
   Decomposition dec_;
   Filter filter_;
+  Acquisition acq_;
+  typename Filter::Record replay_rec_;
+  bool acquiring_ = false;  // storing images for an acquisition still to come
   Counters counters_;
   bool open_ = false;
   std::uint32_t image_id_ = 0;
@@ -126,8 +158,8 @@ class ModalTracker {
   double last_t_s_ = 0.0;
 };
 
-template <typename S, int M, typename F>
-bool ModalTracker<S, M, F>::configure(const ModalTrackerConfig& cfg) {
+template <typename S, int M, typename F, int H>
+bool ModalTracker<S, M, F, H>::configure(const ModalTrackerConfig& cfg) {
   if (modal_tracker_config_invalid_field(cfg) != nullptr) return false;
   cfg_ = cfg;
   model_.configure(cfg.plate);
@@ -135,8 +167,8 @@ bool ModalTracker<S, M, F>::configure(const ModalTrackerConfig& cfg) {
   return true;
 }
 
-template <typename S, int M, typename F>
-auto ModalTracker<S, M, F>::filter_config(const PlateModes<S, M>& model, const ModalTrackerConfig& cfg)
+template <typename S, int M, typename F, int H>
+auto ModalTracker<S, M, F, H>::filter_config(const PlateModes<S, M>& model, const ModalTrackerConfig& cfg)
     -> ModalFilterConfig<S, M> {
   ModalFilterConfig<S, M> f;
   for (int i = 0; i < M; ++i) {
@@ -151,23 +183,35 @@ auto ModalTracker<S, M, F>::filter_config(const PlateModes<S, M>& model, const M
   return f;
 }
 
-template <typename S, int M, typename F>
-void ModalTracker<S, M, F>::reset() {
+template <typename S, int M, typename F, int H>
+auto ModalTracker<S, M, F, H>::acquisition_config() const -> ModalAcquisitionConfig<S, M> {
+  ModalAcquisitionConfig<S, M> a;
+  for (int i = 0; i < M; ++i) {
+    a.omega_prior_radps[i] = model_.omega_radps(i);
+    a.sigma_omega_radps[i] = S(cfg_.prior_omega_frac) * model_.omega_radps(i);
+  }
+  return a;
+}
+
+template <typename S, int M, typename F, int H>
+void ModalTracker<S, M, F, H>::reset() {
   filter_.reset(filter_config(model_, cfg_));
+  acq_.reset(acquisition_config());
+  acquiring_ = cfg_.acquire_after_periods > 0.0;
   open_ = false;
   have_last_ = false;
 }
 
-template <typename S, int M, typename F>
-bool ModalTracker<S, M, F>::close_other(std::uint32_t seg_image_id, Report& out) {
+template <typename S, int M, typename F, int H>
+bool ModalTracker<S, M, F, H>::close_other(std::uint32_t seg_image_id, Report& out) {
   if (!open_ || seg_image_id == image_id_) return false;
   ++counters_.images_incomplete;
   close(out);
   return true;
 }
 
-template <typename S, int M, typename F>
-bool ModalTracker<S, M, F>::add(const RangeImageSegmentMsg<S>& m, double t_s, Report& out) {
+template <typename S, int M, typename F, int H>
+bool ModalTracker<S, M, F, H>::add(const RangeImageSegmentMsg<S>& m, double t_s, Report& out) {
   ++counters_.segments;
   if (!open_) {
     if (have_last_ && !(t_s > last_t_s_)) {
@@ -198,8 +242,8 @@ bool ModalTracker<S, M, F>::add(const RangeImageSegmentMsg<S>& m, double t_s, Re
   return false;
 }
 
-template <typename S, int M, typename F>
-inline void ModalTracker<S, M, F>::close(Report& out) {
+template <typename S, int M, typename F, int H>
+inline void ModalTracker<S, M, F, H>::close(Report& out) {
   open_ = false;
   out = Report();
   out.image_id = image_id_;
@@ -228,7 +272,31 @@ inline void ModalTracker<S, M, F>::close(Report& out) {
     last_t_s_ = image_t_s_;
     have_last_ = true;
   }
-  if (out.step.fused) ++counters_.images_fused;
+  if (out.step.fused) {
+    ++counters_.images_fused;
+    if (acquiring_) acquire(out);
+  }
+}
+
+template <typename S, int M, typename F, int H>
+void ModalTracker<S, M, F, H>::acquire(Report& out) {
+  if (acq_.add(S(image_t_s_), out.decomposition) != AcquisitionStatus::Ok) return;
+  const double span_s = image_t_s_ - double(acq_.time(0));
+  const double period1_s = 2.0 * M_PI / double(model_.omega_radps(0));
+  const bool due = span_s >= cfg_.acquire_after_periods * period1_s || acq_.images() == H;
+  if (!due || acq_.images() < acq_.config().min_images) return;
+  acquiring_ = false;  // once per reset, whatever the outcome
+  out.acquired = true;
+  out.acquisition = acq_.search();
+  if (out.acquisition != AcquisitionStatus::Ok) {
+    ++counters_.acquisitions_failed;
+    return;
+  }
+  ModalFilterConfig<S, M> fc = filter_config(model_, cfg_);
+  acq_.apply(fc, S(cfg_.acquire_omega_frac));
+  // The replay ends at this image (the last stored), where the filter is now.
+  acq_.replay_into(filter_, fc, replay_rec_);
+  ++counters_.acquisitions;
 }
 
 // Compiled once, in fsw_core (instantiate_modal_tracker.cpp); see nav_ukf.hpp.
