@@ -110,7 +110,7 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
                 prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
                 batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01,
-                acquire_with="flight", ut_alpha=1.0):
+                acquire_with="flight", acquire_grid_sigmas=3.0, ut_alpha=1.0):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
@@ -126,7 +126,8 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     times. acquire_with "flight": the flight ModalAcquisition (RELAX on its
     stored history, fsw/include/fsw/modal_acquisition.hpp) and its replay;
     "batch-ml": the bench's batch ML fit (bench.modal_batch_ml), the
-    reference it is compared with.
+    reference it is compared with. acquire_grid_sigmas: the flight search's
+    frequency grid spans +- that many a priori sigmas (sigma 10 % here).
     ut_alpha: the unscented transform's spread parameter of the estimating
     filters (sigma points at ut_alpha sqrt(n) standard deviations)."""
     fb = _fb()
@@ -245,14 +246,14 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     if acquire_periods is not None:
         out["acquisition"] = _acquire(acquire_with, acquire_image, records, coarse, coarse_cov, t, w_prior,
                                       sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
-                                      w_true, strong, crb_images, period1)
+                                      w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas)
     if keep_series:
         out.update(t_s=t, est=est, coarse=coarse, truth=truth)
     return out
 
 
 def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid,
-             truth, w_true, strong, score_images, period1):
+             truth, w_true, strong, score_images, period1, grid_sigmas=3.0):
     """Frequencies from the first k0 images (method "flight" or "batch-ml"),
     then a flight joint filter from them over every image."""
     import time
@@ -269,7 +270,8 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
 
     out = {"method": method, "images": int(k0), "periods": float(t[k0 - 1] / period1), "sigma_rel": sigma_rel}
     if method == "flight":
-        acq = getattr(_fb(), f"ModalAcquisition{len(w_prior)}")(w_prior, sigma_w)
+        out["grid_sigmas"] = grid_sigmas
+        acq = getattr(_fb(), f"ModalAcquisition{len(w_prior)}")(w_prior, sigma_w, grid_sigmas=grid_sigmas)
         for k in range(k0):
             if records[k].ok:
                 acq.add(float(t[k]), records[k])
@@ -287,6 +289,8 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
     elif method == "batch-ml":
         from bench import modal_batch_ml
 
+        if grid_sigmas != 3.0:
+            raise ValueError("the batch ML searches +-3 sigma: acquire_grid_sigmas applies to the flight search only")
         ml = modal_batch_ml.fit(coarse[:k0], cov[:k0], t[:k0], w_prior, sigma_w)
         out["batch_ml_start"] = ml["start"]
         omega = ml["omega"]
@@ -299,6 +303,7 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
     for k in range(k0, len(records)):  # on from the acquisition, live; scored at times before it: nothing
         filt.step(dt_s, records[k])
         score(filt, k)
+    out["omega_radps"] = np.asarray(omega, float)
     out["search_excited_within_1pct"] = _excited_within_1pct(omega, w_true, strong)
     out["at"] = rows
     return out

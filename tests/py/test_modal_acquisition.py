@@ -58,3 +58,17 @@ def test_timing_command_compares_like_with_like(tmp_path, monkeypatch):
     assert case["modes"] == 10 and case["images"] == 30 and case["replay_fused"] == 30
     assert case["same_grid_frequencies"] is True
     assert case["flight_search_s"] > 0 and case["numpy_search_s"] > 0
+
+
+def test_grid_span_reaches_the_flight_search():
+    def searched(k):
+        tr = mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=1.0,
+                            acquire_grid_sigmas=k, oracle=False)
+        assert tr["acquisition"]["grid_sigmas"] == k
+        return np.abs(np.asarray(tr["acquisition"]["omega_radps"]) / np.asarray(tr["omega_prior_radps"]) - 1)
+
+    assert np.max(searched(0.2)) <= 0.02 * (1 + 1e-12)  # +-0.2 sigma of 10 %
+    assert np.max(searched(3.0)) > 0.02  # a priori errors up to 10 %: the full span moves off the prior
+    with pytest.raises(ValueError, match="flight search only"):
+        mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=1.0,
+                       acquire_with="batch-ml", acquire_grid_sigmas=2.0, oracle=False)
