@@ -210,10 +210,19 @@ TEST(ModalTrackerTest, InvalidConfigNamesTheFieldAndChangesNothing) {
   c.acquire_omega_frac = 0.0;
   EXPECT_STREQ(modal_tracker_config_invalid_field(c), "acquire_omega_frac");
   EXPECT_FALSE(tr.configure(c));
+  c = ModalTrackerConfig();
+  c.acquire_span_frac = 1.0;
+  EXPECT_STREQ(modal_tracker_config_invalid_field(c), "acquire_span_frac");
+  EXPECT_FALSE(tr.configure(c));
   EXPECT_EQ(tr.config().plate.lx_m, 2000.0);
   EXPECT_EQ(tr.config().prior_omega_frac, 0.1);
   EXPECT_EQ(tr.config().acquire_after_periods, 2.0);
+  // the search spans +-20 % of the model's frequencies: 2 a priori sigmas of 10 %
+  EXPECT_DOUBLE_EQ(tr.acquisition().config().grid_sigmas, 2.0);
+  EXPECT_DOUBLE_EQ(tr.acquisition().config().sigma_omega_radps[3], 0.1 * tr.model().omega_radps(3));
   c = ModalTrackerConfig();
   c.acquire_after_periods = 0.0;  // 0: no acquisition, valid
+  c.prior_omega_frac = 0.05;
   EXPECT_TRUE(tr.configure(c));
+  EXPECT_DOUBLE_EQ(tr.acquisition().config().grid_sigmas, 4.0);
 }

@@ -55,9 +55,11 @@ struct ModalTrackerConfig {
   // frequency (a unit amplitude's peak rate).
   double prior_rate_frac = 1.0;
   // Frequency acquisition once the stored images span this many periods of
-  // the lowest mode (0: none). The search's grid spans +-3 sigma of the a
-  // priori frequencies (prior_omega_frac).
+  // the lowest mode (0: none).
   double acquire_after_periods = 2.0;
+  // Half-width of the search's frequency interval, a fraction of the
+  // model's frequencies: the seed bounds the a priori error at about 20 %.
+  double acquire_span_frac = 0.2;
   // 1-sigma of the replayed filter's a priori frequencies, as a fraction
   // of the acquired ones (a few grid steps of 0.3 sigma).
   double acquire_omega_frac = 0.01;
@@ -71,6 +73,8 @@ inline const char* modal_tracker_config_invalid_field(const ModalTrackerConfig& 
   if (!(std::isfinite(c.acquire_after_periods) && c.acquire_after_periods >= 0.0)) return "acquire_after_periods";
   if (!(std::isfinite(c.acquire_omega_frac) && c.acquire_omega_frac > 0.0 && c.acquire_omega_frac < 1.0))
     return "acquire_omega_frac";
+  if (!(std::isfinite(c.acquire_span_frac) && c.acquire_span_frac > 0.0 && c.acquire_span_frac < 1.0))
+    return "acquire_span_frac";
   return nullptr;
 }
 
@@ -190,6 +194,7 @@ auto ModalTracker<S, M, F, H>::acquisition_config() const -> ModalAcquisitionCon
     a.omega_prior_radps[i] = model_.omega_radps(i);
     a.sigma_omega_radps[i] = S(cfg_.prior_omega_frac) * model_.omega_radps(i);
   }
+  a.grid_sigmas = S(cfg_.acquire_span_frac / cfg_.prior_omega_frac);
   return a;
 }
 
