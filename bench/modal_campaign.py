@@ -272,9 +272,7 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
     if method == "flight":
         out["grid_sigmas"] = grid_sigmas
         acq = getattr(_fb(), f"ModalAcquisition{len(w_prior)}")(w_prior, sigma_w, grid_sigmas=grid_sigmas)
-        for k in range(k0):
-            if records[k].ok:
-                acq.add(float(t[k]), records[k])
+        stored = [k for k in range(k0) if records[k].ok and acq.add(float(t[k]), records[k]) == "ok"]
         t0 = time.perf_counter()
         status = acq.search()
         out["search_s"] = time.perf_counter() - t0
@@ -285,6 +283,8 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
         t0 = time.perf_counter()
         out["replay_fused"] = acq.replay_into(filt)
         out["replay_s"] = time.perf_counter() - t0
+        if stored[-1] < k0 - 1:  # the replay ends at the last stored image: on to the acquisition's time
+            filt.predict(float(t[k0 - 1] - t[stored[-1]]))
         score(filt, k0 - 1)
     elif method == "batch-ml":
         from bench import modal_batch_ml

@@ -209,7 +209,8 @@ TEST(ModalAcquisitionTest, StoredImagesAreRebuiltAndReplayEqualsDirectStepping) 
     EXPECT_LT((out.a_coarse - recs[k].a_coarse).norm(), 1e-12);
     EXPECT_LT((out.cov_a - recs[k].cov_a).norm(), 1e-10 * recs[k].cov_a.norm());
   }
-  EXPECT_EQ(acq->coarse(60, out), AcquisitionStatus::TooFewImages);
+  EXPECT_EQ(acq->coarse(60, out), AcquisitionStatus::NoSuchImage);
+  EXPECT_EQ(acq->coarse(-1, out), AcquisitionStatus::NoSuchImage);
   ASSERT_EQ(acq->search(), AcquisitionStatus::Ok);
 
   ModalFilterConfig<double, kM> cfg;

@@ -64,6 +64,7 @@ enum class AcquisitionStatus : std::uint8_t {
   TooFewImages = 6,   // search(): fewer than min_images stored
   BadConfig = 7,      // a priori frequency or sigma not finite and > 0, or bad grid / cycles
   Searching = 8,      // search_step(): more mode searches remain
+  NoSuchImage = 9,    // coarse(): index outside the stored images
 };
 
 constexpr const char* to_string(AcquisitionStatus s) {
@@ -77,6 +78,7 @@ constexpr const char* to_string(AcquisitionStatus s) {
     case AcquisitionStatus::TooFewImages: return "too_few_images";
     case AcquisitionStatus::BadConfig: return "bad_config";
     case AcquisitionStatus::Searching: return "searching";
+    case AcquisitionStatus::NoSuchImage: return "no_such_image";
   }
   return "unknown";
 }
@@ -166,7 +168,8 @@ class ModalAcquisition {
     return cfg_.omega_prior_radps[i] +
            cfg_.sigma_omega_radps[i] * cfg_.grid_sigmas * (S(2 * g) / S(G - 1) - S(1));
   }
-  // Best grid frequency for one mode series: y_k = g_[k], weights wt_[k].
+  // Best grid frequency for mode i from its series: information-weighted
+  // residual g_[k] and information h_[k] per image.
   void grid_search(int i);
   void set_trig(int i);
   void update_normal(int i);
@@ -395,7 +398,7 @@ AcquisitionStatus ModalAcquisition<S, M, H, G>::search() {
 
 template <typename S, int M, int H, int G>
 AcquisitionStatus ModalAcquisition<S, M, H, G>::coarse(int k, Decomp& out) {
-  if (k < 0 || k >= n_) return AcquisitionStatus::TooFewImages;
+  if (k < 0 || k >= n_) return AcquisitionStatus::NoSuchImage;
   for (int i = 0; i < M; ++i)
     for (int j = 0; j <= i; ++j) work_(i, j) = work_(j, i) = packed(k, i, j);
   llt_.compute(work_);
