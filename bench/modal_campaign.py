@@ -110,7 +110,8 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
                 prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
                 batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01,
-                acquire_with="flight", acquire_grid_sigmas=3.0, ut_alpha=1.0):
+                acquire_with="flight", acquire_grid_sigmas=3.0, ut_alpha=1.0, points_at="measured",
+                coarse_check=False):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
@@ -129,7 +130,11 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     reference it is compared with. acquire_grid_sigmas: the flight search's
     frequency grid spans +- that many a priori sigmas (sigma 10 % here).
     ut_alpha: the unscented transform's spread parameter of the estimating
-    filters (sigma points at ut_alpha sqrt(n) standard deviations)."""
+    filters (sigma points at ut_alpha sqrt(n) standard deviations).
+    points_at: where the estimator evaluates the mode shapes
+    (bench.structure.plate_points). coarse_check: also compare every
+    image's coarse amplitudes with the truth (normalised estimation error
+    squared, per-mode bias in units of the reported sigma)."""
     fb = _fb()
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
@@ -153,7 +158,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     shape = getattr(fb, f"reconstruct_shape{n_modes}")
     est = np.zeros((n_images, n_modes, 4))
     coarse = np.full((n_images, n_modes), np.nan)
-    keep_cov = bool(batch_ml_periods or crb_periods or acquire_periods)
+    keep_cov = bool(batch_ml_periods or crb_periods or acquire_periods or coarse_check)
     coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if keep_cov else None
     if acquire_periods is not None:
         if not crb_periods:
@@ -169,7 +174,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         t = k * dt_s
         a = st.plate_coeffs(plate, amp, phase, t)
         r_meas, d = st.plate_range_image(plate, sensor, a, rng, noise_frac=noise_frac)
-        phi, z, var = st.plate_points(plate, sensor, r_meas, d, noise_frac=noise_frac)
+        phi, z, var = st.plate_points(plate, sensor, r_meas, d, noise_frac=noise_frac, at=points_at)
         rec = dec.decompose(phi, z, var)
         cond.append(rec.condition_number)
         n_used.append(rec.n_used)
@@ -247,9 +252,24 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         out["acquisition"] = _acquire(acquire_with, acquire_image, records, coarse, coarse_cov, t, w_prior,
                                       sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
                                       w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas)
+    if coarse_check:
+        out["coarse_check"] = _coarse_check(coarse, coarse_cov, truth)
+    out["points_at"] = points_at
     if keep_series:
         out.update(t_s=t, est=est, coarse=coarse, truth=truth)
     return out
+
+
+def _coarse_check(coarse, cov, truth):
+    """Coarse amplitudes (eq. 3) against the truth, with their covariance
+    (eq. 4): NEES e^T C^-1 e per image (chi-square with M dof if eq. 4 is
+    right) and e_i / sqrt(C_ii) per mode (zero mean, unit spread)."""
+    ok = np.all(np.isfinite(coarse), axis=1)
+    e = coarse[ok] - truth[ok]
+    c = cov[ok]
+    nees = np.einsum("ki,ki->k", e, np.linalg.solve(c, e[:, :, None])[:, :, 0])
+    z = e / np.sqrt(np.diagonal(c, axis1=1, axis2=2))
+    return {"images": int(ok.sum()), "nees": nees, "z_mean": z.mean(axis=0), "z_sq_sum": np.sum(z ** 2, axis=0)}
 
 
 def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid,

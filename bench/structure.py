@@ -137,12 +137,27 @@ def plate_range_image(plate: Plate, sensor: RangeSensor, coeffs, rng, noise_frac
     return r_meas, d
 
 
-def plate_points(plate: Plate, sensor: RangeSensor, r_meas, d, noise_frac=0.03):
+POINTS_AT = ("measured", "footprint")
+
+
+def plate_points(plate: Plate, sensor: RangeSensor, r_meas, d, noise_frac=0.03, at="measured"):
     """Estimator side: measured points -> (phi (n, M), z (n,), var (n,)).
     Deflection = height of the measured point; its variance is the range
-    variance projected on the vertical (eq. 4a inputs)."""
+    variance projected on the vertical (eq. 4a inputs). Mode shapes at
+    at = "measured": the measured point (the seed's "points actually seen").
+      Range noise moves it along the ray, so its horizontal position errs
+      together with its height (errors in variables): the coarse amplitudes
+      of modes symmetric about the view's centre are biased.
+    at = "footprint": where the ray meets the undeformed plane (needs the
+      ray, known to the sensor), independent of the range noise."""
+    if at not in POINTS_AT:
+        raise ValueError(f"at: one of {POINTS_AT}, got {at!r}")
     p = sensor.pos_m[None, :] + r_meas[:, None] * d
-    phi = plate.phi(p[:, 0], p[:, 1])
+    if at == "measured":
+        phi = plate.phi(p[:, 0], p[:, 1])
+    else:
+        f = sensor.pos_m[None, :] + (-sensor.pos_m[2] / d[:, 2])[:, None] * d
+        phi = plate.phi(f[:, 0], f[:, 1])
     z = p[:, 2]
     var = (noise_frac * r_meas * d[:, 2]) ** 2
     return phi, z, var

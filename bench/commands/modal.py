@@ -53,6 +53,12 @@ def register(sub):
     p.add_argument("--acquire-grid-sigmas", type=float, default=3.0, metavar="K",
                    help="structure: the flight search's frequency grid spans +-K a priori sigmas (default 3; the "
                         "a priori sigma is 10 %% of each frequency)")
+    p.add_argument("--points-at", choices=["measured", "footprint"], default="measured",
+                   help="structure: evaluate the mode shapes at the measured point (default, the seed's) or where "
+                        "the ray meets the undeformed plane")
+    p.add_argument("--coarse-check", action="store_true",
+                   help="structure: also check every image's coarse amplitudes against the truth with their "
+                        "covariance (NEES, per-mode bias)")
     p.add_argument("--ut-alpha", type=float, default=1.0,
                    help="structure: unscented-transform spread alpha of the filters (default 1: sigma points at "
                         "sqrt(n) standard deviations)")
@@ -115,9 +121,10 @@ def main(args):
                                          noise_frac=args.range_noise, batch_ml_periods=args.batch_ml_at,
                                          crb_periods=args.crb_at, acquire_periods=args.acquire_at,
                                          acquire_with=args.acquire_with,
-                                         acquire_grid_sigmas=args.acquire_grid_sigmas, ut_alpha=args.ut_alpha))
+                                         acquire_grid_sigmas=args.acquire_grid_sigmas, ut_alpha=args.ut_alpha,
+                                         points_at=args.points_at, coarse_check=args.coarse_check))
         out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "range_noise": args.range_noise,
-               "trials": []}
+               "points_at": args.points_at, "trials": []}
         for tr in trials:
             out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
             print(f"seed {tr['seed']}: all freqs within 1 % after {tr['measurements_to_converge_1pct']} images "
@@ -131,6 +138,8 @@ def main(args):
             out["crb_summary"] = _crb_summary(trials)
         if args.acquire_at is not None:
             out["acquisition_summary"] = _acquisition_summary(trials)
+        if args.coarse_check:
+            out["coarse_check_summary"] = _coarse_check_summary(trials, args.modes, args.points_at)
         out["ill_conditioned_cases"] = mc.plate_aliased_case(args.modes)
         print("ill-conditioned cases:", out["ill_conditioned_cases"])
         if args.plots:
@@ -255,6 +264,28 @@ def _acquisition_summary(trials):
               + (f" ({r['shape_x_floor_median']:.2f} x floor), within 2x floor in {r['runs_shape_within_2x_floor']} "
                  "runs" if "runs_shape_within_2x_floor" in r else ""))
     return rows
+
+
+def _coarse_check_summary(trials, m, points_at):
+    """Pooled over every image of every run: NEES mean against M (its
+    standard error from the chi-square's 2M variance), and per mode the mean
+    error in reported sigmas with its standard error."""
+    cc = [t["coarse_check"] for t in trials]
+    nees = np.concatenate([np.asarray(c["nees"]) for c in cc])
+    n = int(sum(c["images"] for c in cc))
+    z_mean = sum(np.asarray(c["z_mean"]) * c["images"] for c in cc) / n
+    z_sd = np.sqrt(np.maximum(sum(np.asarray(c["z_sq_sum"]) for c in cc) / n - z_mean ** 2, 0.0))
+    se = z_sd / np.sqrt(n)
+    biased = np.nonzero(np.abs(z_mean) > 4 * se)[0]
+    worst = int(np.argmax(np.abs(z_mean)))
+    r = {"points_at": points_at, "images": n, "nees_mean": float(nees.mean()), "nees_expected": m,
+         "nees_mean_se": float(np.sqrt(2 * m / n)), "bias_sigma": z_mean.tolist(), "spread_sigma": z_sd.tolist(),
+         "modes_biased_4se": [int(i) + 1 for i in biased], "worst_mode": worst + 1,
+         "worst_bias_sigma": float(z_mean[worst])}
+    print(f"coarse amplitudes vs truth (mode shapes at the {points_at} point), {n} images: NEES mean "
+          f"{r['nees_mean']:.2f} (expected {m} +- {r['nees_mean_se']:.2f}); modes biased beyond 4 standard errors: "
+          f"{len(biased)} of {m}, the largest {r['worst_bias_sigma']:+.2f} sigma (mode {worst + 1})")
+    return r
 
 
 def _fmt(v):

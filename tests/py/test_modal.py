@@ -102,3 +102,43 @@ def test_plate_10_modes_frequencies_and_shape_converge():
     assert tr["time_to_converge_1pct_excited_periods"] is not None
     assert tr["time_to_converge_1pct_excited_periods"] <= 3.0
     assert tr["shape_converge_periods"] is not None and tr["shape_converge_periods"] <= 3.0
+
+
+def test_footprint_mode_shapes_do_not_move_with_the_range_noise():
+    plate = st.Plate(n_modes=10)
+    sensor = st.plate_sensor(plate)
+    a = np.linspace(0.5, -0.5, 10)
+    r1, d = st.plate_range_image(plate, sensor, a, np.random.default_rng(1))
+    r2, _ = st.plate_range_image(plate, sensor, a, np.random.default_rng(2))
+    keep = np.isfinite(r1) & np.isfinite(r2)
+    f1, z1, _ = st.plate_points(plate, sensor, r1[keep], d[keep], at="footprint")
+    f2, z2, _ = st.plate_points(plate, sensor, r2[keep], d[keep], at="footprint")
+    m1, _, _ = st.plate_points(plate, sensor, r1[keep], d[keep])
+    m2, _, _ = st.plate_points(plate, sensor, r2[keep], d[keep])
+    np.testing.assert_array_equal(f1, f2)
+    assert np.max(np.abs(m1 - m2)) > 0.02 * np.max(np.abs(m1))  # at the measured point they do
+    assert np.max(np.abs(z1 - z2)) > 1.0  # the deflection is measured either way
+    with pytest.raises(ValueError, match="at: one of"):
+        st.plate_points(plate, sensor, r1, d, at="centre")
+
+
+def test_coarse_amplitudes_are_consistent_at_the_footprint_and_biased_at_the_measured_point(capsys):
+    # Pooled over 3 runs of 60 images (10 modes): with the mode shapes at the
+    # measured point the range noise enters the regressors too (errors in
+    # variables) and eq. 4's covariance no longer describes the error; at the
+    # ray's footprint it does. NEES standard error here: sqrt(20 / 180) = 0.33.
+    from bench.commands import modal as cmd
+
+    rows = {}
+    for at in ("measured", "footprint"):
+        trials = [mc.plate_trial(s, n_modes=10, kind="joint", n_images=60, oracle=False, points_at=at,
+                                 coarse_check=True) for s in range(3)]
+        assert all(t["points_at"] == at for t in trials)
+        rows[at] = cmd._coarse_check_summary(trials, 10, at)
+    assert rows["footprint"]["images"] == 180
+    assert abs(rows["footprint"]["nees_mean"] - 10) < 4 * rows["footprint"]["nees_mean_se"]
+    assert rows["footprint"]["modes_biased_4se"] == []
+    assert rows["measured"]["nees_mean"] > 12.0
+    assert 1 in rows["measured"]["modes_biased_4se"]  # the (1, 1) mode, symmetric about the view's centre
+    assert rows["measured"]["bias_sigma"][0] < -0.5
+    assert "NEES mean" in capsys.readouterr().out
