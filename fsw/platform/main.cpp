@@ -92,11 +92,11 @@ int main(int argc, char** argv) {
   if (!quiet) {
     std::fprintf(stderr,
                  "fsw_node: stopped; frames %u, packets accepted %u, rejected %u, imu steps %u, "
-                 "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u), "
-                 "telemetry packets %u (dropped %u)\n",
+                 "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u, "
+                 "frequency acquisitions %u), telemetry packets %u (dropped %u)\n",
                  l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates,
-                 c.pose_fused, c.poses_deferred, c.learner_samples, m.images, m.images_fused, c.tx_packets,
-                 c.tx_dropped);
+                 c.pose_fused, c.poses_deferred, c.learner_samples, m.images, m.images_fused, m.acquisitions,
+                 c.tx_packets, c.tx_dropped);
   }
   return exit_code;
 }

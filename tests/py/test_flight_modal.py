@@ -88,3 +88,45 @@ def test_flight_app_steps_each_bench_image_like_the_library():
     # 2 % of them (1.5 % at most, measured).
     strong = amp >= 0.5
     np.testing.assert_allclose(got[-1]["omega"][strong], w0[strong], rtol=0.02)
+
+
+def test_flight_app_acquires_frequencies_like_the_library():
+    # The app's tracker runs the frequency acquisition once the fused images
+    # span 2 periods of its model's lowest mode (2400 s: the 81st image of one
+    # a minute); every answer before and after it equals the library's
+    # decomposition, joint filter, ModalAcquisition10 (search over +-20 % =
+    # 2 a priori sigmas of 10 %) and replay, called directly.
+    rng = np.random.default_rng(8)
+    plate = st.Plate(n_modes=10)
+    sensor = st.plate_sensor(plate)
+    amp, phase = st.plate_truth(plate, rng)
+    app = fb.FlightApp(fb.NavConfig())
+    sender, down = P.Sender(), P.Deframer(P.FROM_FLIGHT)
+    w0 = plate.omega_radps
+    ref = make_filter("joint", 10, w0, np.zeros(10), sigma_v0=w0, sigma_w0=0.1 * w0, sigma_a0=1e-6, q_a=0.0, q_v=0.0)
+    acq = fb.ModalAcquisition10(w0, 0.1 * w0, grid_sigmas=2.0)
+    dec = fb.ModalDecomposition10()
+    dt, acquired_at = 60.0, None
+    for k in range(84):
+        t = k * dt
+        r_meas, d = st.plate_range_image(plate, sensor, st.plate_coeffs(plate, amp, phase, t), rng)
+        keep = np.isfinite(r_meas)
+        p = sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
+        sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])
+        data = b"".join(sender.frame(SEG, t, pl, seq_flags=f) for f, pl in P.range_image_segments(k, p, sigma))
+        (tm,) = _tm_modal(down, app.on_bytes(data))
+        rec = dec.decompose(*st.plate_points(plate, sensor, r_meas[keep], d[keep]))
+        ref.step(dt, rec)
+        assert acq.add(t, rec) == "ok"
+        if acquired_at is None and app.modal_counters()["acquisitions"] == 1:
+            acquired_at = k
+            assert acq.search() == "ok"
+            omega = acq.omega
+            ref = make_filter("joint", 10, omega, np.zeros(10), sigma_v0=w0, sigma_w0=0.01 * omega, sigma_a0=1e-6,
+                              q_a=0.0, q_v=0.0)
+            assert acq.replay_into(ref) == k + 1
+        np.testing.assert_allclose(tm["omega"], ref.state[:, 2], rtol=1e-9)
+        np.testing.assert_allclose(tm["amplitude"], ref.state[:, 0], rtol=1e-7, atol=1e-9)
+    assert acquired_at in (80, 81)  # 2 periods = 4800 s, to the rounding of the model's period
+    assert app.modal_counters()["acquisitions"] == 1 and app.modal_counters()["acquisitions_failed"] == 0
+    assert np.max(np.abs(omega / w0 - 1)) > 1e-3  # the search moved the frequencies: the comparison has teeth
