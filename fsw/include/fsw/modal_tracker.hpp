@@ -61,7 +61,8 @@ struct ModalTrackerConfig {
   // model's frequencies: the seed bounds the a priori error at about 20 %.
   double acquire_span_frac = 0.2;
   // 1-sigma of the replayed filter's a priori frequencies, as a fraction
-  // of the acquired ones (a few grid steps of 0.3 sigma).
+  // of the acquired ones (five of the search's grid steps, 0.2 % each at
+  // +-20 % in 201 points).
   double acquire_omega_frac = 0.01;
 };
 
