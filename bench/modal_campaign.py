@@ -251,7 +251,8 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     if acquire_periods is not None:
         out["acquisition"] = _acquire(acquire_with, acquire_image, records, coarse, coarse_cov, t, w_prior,
                                       sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
-                                      w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas)
+                                      w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas,
+                                      shape_rms_known=shape_rms_oracle)
     if coarse_check:
         out["coarse_check"] = _coarse_check(coarse, coarse_cov, truth)
     out["points_at"] = points_at
@@ -273,7 +274,7 @@ def _coarse_check(coarse, cov, truth):
 
 
 def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid,
-             truth, w_true, strong, score_images, period1, grid_sigmas=3.0):
+             truth, w_true, strong, score_images, period1, grid_sigmas=3.0, shape_rms_known=None):
     """Frequencies from the first k0 images (method "flight" or "batch-ml"),
     then a flight joint filter from them over every image."""
     import time
@@ -286,7 +287,9 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
             z_hat, _ = shape(filt.amplitudes, filt.amplitude_cov, phi_grid)
             rows.append({"images": k + 1, "periods": float(t[k] / period1),
                          "excited_within_1pct": _excited_within_1pct(filt.state[:, 2], w_true, strong),
-                         "shape_rms_m": float(np.sqrt(np.mean((z_hat - phi_grid @ truth[k]) ** 2)))})
+                         "shape_rms_m": float(np.sqrt(np.mean((z_hat - phi_grid @ truth[k]) ** 2))),
+                         "shape_rms_known_omega_m": float("nan") if shape_rms_known is None
+                         else float(shape_rms_known[k])})
 
     out = {"method": method, "images": int(k0), "periods": float(t[k0 - 1] / period1), "sigma_rel": sigma_rel}
     if method == "flight":

@@ -121,7 +121,11 @@ def test_cli_structure_with_crb(tmp_path, capsys):
     assert 0 <= row["filter_excited_within_1pct"] <= row["excited_modes"]
     assert 0 <= row["crb_expected_excited_within_1pct"] <= row["excited_modes"]
     assert row["filter_over_crb_rms"] > 0
-    assert "bound expects" in capsys.readouterr().out
+    trials = json.loads(out.read_text())["trials"]
+    filt = [t["crb"][0]["shape_rms_filter_m"] <= 2 * t["crb"][0]["shape_rms_known_omega_m"] for t in trials]
+    assert row["filter_within_2x_known_same_image"] == sum(filt)
+    assert 0 <= row["crb_within_2x_known_same_image"] <= 2
+    assert "within 2x the known-frequency filter at that image" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("method", ["flight", "batch-ml"])
@@ -152,6 +156,9 @@ def test_acquisition_is_scored_beside_the_filter(tmp_path, capsys, method):
     (s,) = json.loads(out.read_text())["acquisition_summary"]
     assert s["trials"] == 1 and s["images"] == 81 and s["method"] == method
     assert s["excited_within_1pct"] == row["excited_within_1pct"]  # same seed, same run
+    # against the known-frequency filter at the same image
+    assert row["shape_rms_known_omega_m"] == pytest.approx(tr["shape_rms_oracle_m"][80])
+    assert s["runs_shape_within_2x_known_same_image"] == int(row["shape_rms_m"] <= 2 * row["shape_rms_known_omega_m"])
     assert f"acquisition ({method})" in capsys.readouterr().out
 
 
