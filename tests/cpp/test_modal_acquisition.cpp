@@ -179,9 +179,15 @@ TEST(ModalAcquisitionTest, SteppedSearchEqualsOneCall) {
     EXPECT_EQ(a->cos_amp(i), b->cos_amp(i));
     EXPECT_EQ(a->sin_amp(i), b->sin_amp(i));
   }
-  // a new image makes the fit stale
+  // a new image makes the fit stale: stepping on needs a new start
   EXPECT_EQ(b->add(60.0 * 80, record<double>(truth_at(4800.0), common_cov())), AcquisitionStatus::Ok);
   EXPECT_FALSE(b->done());
+  EXPECT_EQ(b->search_step(), AcquisitionStatus::NotStarted);
+  EXPECT_EQ(b->search(), AcquisitionStatus::Ok);
+  for (int i = 0; i < kM; ++i) EXPECT_TRUE(std::isfinite(b->omega(i)) && std::isfinite(b->cos_amp(i)));
+  auto fresh = std::make_unique<Acq>(config<double>(prior));
+  fill_common(*fresh, 80, 3);
+  EXPECT_EQ(fresh->search_step(), AcquisitionStatus::NotStarted);  // never started
 }
 
 TEST(ModalAcquisitionTest, StoredImagesAreRebuiltAndReplayEqualsDirectStepping) {

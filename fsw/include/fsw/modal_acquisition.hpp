@@ -65,6 +65,7 @@ enum class AcquisitionStatus : std::uint8_t {
   BadConfig = 7,      // a priori frequency or sigma not finite and > 0, or bad grid / cycles
   Searching = 8,      // search_step(): more mode searches remain
   NoSuchImage = 9,    // coarse(): index outside the stored images
+  NotStarted = 10,    // search_step(): no start_search() since the last image was stored
 };
 
 constexpr const char* to_string(AcquisitionStatus s) {
@@ -79,6 +80,7 @@ constexpr const char* to_string(AcquisitionStatus s) {
     case AcquisitionStatus::BadConfig: return "bad_config";
     case AcquisitionStatus::Searching: return "searching";
     case AcquisitionStatus::NoSuchImage: return "no_such_image";
+    case AcquisitionStatus::NotStarted: return "not_started";
   }
   return "unknown";
 }
@@ -127,7 +129,8 @@ class ModalAcquisition {
   // Full search: start_search() then search_step() until done.
   AcquisitionStatus search();
   // Grid start (step 1). Then search_step() runs one mode search of step 2
-  // per call and returns Searching until the last, then Ok.
+  // per call and returns Searching until the last, then Ok. A stored image
+  // makes the search stale: search_step() then wants start_search() again.
   AcquisitionStatus start_search();
   AcquisitionStatus search_step();
 
@@ -185,6 +188,7 @@ class ModalAcquisition {
   alignas(64) S var_[H * M];         // diag(C_k)
   // Search state.
   bool done_ = false;
+  bool started_ = false;  // start_search() ran on the images stored now
   int next_ = 0;  // next mode search: cycle = next_ / M, mode = next_ % M
   S w_[M], c_[M], s_[M];
   alignas(64) S cw_[H * M];  // cos(w_j t_k)
@@ -204,6 +208,7 @@ AcquisitionStatus ModalAcquisition<S, M, H, G>::reset(const Config& cfg) {
   config_ok_ = acquisition_config_ok(cfg);
   n_ = 0;
   done_ = false;
+  started_ = false;
   next_ = 0;
   for (int i = 0; i < M; ++i) {
     w_[i] = cfg_.omega_prior_radps[i];
@@ -234,6 +239,7 @@ AcquisitionStatus ModalAcquisition<S, M, H, G>::add(S t_s, const Decomp& meas) {
   t_[k] = t_s;
   ++n_;
   done_ = false;
+  started_ = false;
   return AcquisitionStatus::Ok;
 }
 
@@ -355,6 +361,7 @@ AcquisitionStatus ModalAcquisition<S, M, H, G>::start_search() {
     set_trig(i);
   }
   for (int i = 0; i < M; ++i) update_normal(i);
+  started_ = true;
   return AcquisitionStatus::Searching;
 }
 
@@ -363,6 +370,7 @@ AcquisitionStatus ModalAcquisition<S, M, H, G>::search_step() {
   if (done_) return AcquisitionStatus::Ok;
   if (!config_ok_) return AcquisitionStatus::BadConfig;
   if (n_ < cfg_.min_images) return AcquisitionStatus::TooFewImages;
+  if (!started_) return AcquisitionStatus::NotStarted;  // its tables do not cover every stored image
   const int i = next_ % M;
   // Step 2 for mode i: what the other modes' fit leaves, exact weights.
   for (int k = 0; k < n_; ++k) {
