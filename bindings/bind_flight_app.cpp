@@ -53,6 +53,7 @@ py::dict modal_counters(const App& app) {
   d["points_outside"] = c.points_outside;
   d["acquisitions"] = c.acquisitions;
   d["acquisitions_failed"] = c.acquisitions_failed;
+  d["acquisition_refused"] = c.acquisition_refused;
   return d;
 }
 }  // namespace

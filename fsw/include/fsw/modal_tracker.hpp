@@ -109,6 +109,11 @@ class ModalTracker {
     std::uint32_t points_outside = 0;
     std::uint32_t acquisitions = 0;         // searches done and filters replayed
     std::uint32_t acquisitions_failed = 0;  // searches that gave no frequencies (filter kept)
+    // Fused images the acquisition could not store (left out of the replay).
+    // Only fused images reach it (decomposition Ok, finite, times
+    // increasing) and it runs once H are stored, so this stays 0 unless a
+    // covariance that the filter took fails to factor there.
+    std::uint32_t acquisition_refused = 0;
   };
 
   ModalTracker() { configure(ModalTrackerConfig()); }
@@ -286,7 +291,10 @@ inline void ModalTracker<S, M, F, H>::close(Report& out) {
 
 template <typename S, int M, typename F, int H>
 void ModalTracker<S, M, F, H>::acquire(Report& out) {
-  if (acq_.add(S(image_t_s_), out.decomposition) != AcquisitionStatus::Ok) return;
+  if (acq_.add(S(image_t_s_), out.decomposition) != AcquisitionStatus::Ok) {
+    ++counters_.acquisition_refused;
+    return;
+  }
   const double span_s = image_t_s_ - double(acq_.time(0));
   const double period1_s = 2.0 * M_PI / double(model_.omega_radps(0));
   const bool due = span_s >= cfg_.acquire_after_periods * period1_s || acq_.images() == H;
