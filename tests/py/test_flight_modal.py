@@ -48,34 +48,53 @@ def test_range_image_segments_split_and_flag_as_the_link_requires():
         P.range_image_segments(1, np.zeros((5, 2)), np.ones(5))
 
 
+class _PlateOverLink:
+    """The seed's plate imaged once a minute, each image segmented into the
+    in-process flight app; per image the app's tm_modal and the same image's
+    decomposition by the library, and the library's joint filter from the
+    model's frequencies (10 % sigma), as the app starts."""
+
+    def __init__(self, seed):
+        self.rng = np.random.default_rng(seed)
+        self.plate = st.Plate(n_modes=10)
+        self.sensor = st.plate_sensor(self.plate)
+        self.amp, self.phase = st.plate_truth(self.plate, self.rng)
+        self.app = fb.FlightApp(fb.NavConfig())
+        self.sender, self.down = P.Sender(), P.Deframer(P.FROM_FLIGHT)
+        self.w0 = self.plate.omega_radps
+        self.dec = fb.ModalDecomposition10()
+
+    def filter(self, omega, sigma_omega):
+        return make_filter("joint", 10, omega, np.zeros(10), sigma_v0=self.w0, sigma_w0=sigma_omega, sigma_a0=1e-6,
+                           q_a=0.0, q_v=0.0)
+
+    def image(self, k, t):
+        """(tm_modal answers, library record, points sent)."""
+        r_meas, d = st.plate_range_image(self.plate, self.sensor, st.plate_coeffs(self.plate, self.amp, self.phase, t),
+                                         self.rng)
+        keep = np.isfinite(r_meas)  # missed rays are not sent
+        p = self.sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
+        sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])
+        data = b"".join(self.sender.frame(SEG, t, pl, seq_flags=f) for f, pl in P.range_image_segments(k, p, sigma))
+        tm = _tm_modal(self.down, self.app.on_bytes(data))
+        rec = self.dec.decompose(*st.plate_points(self.plate, self.sensor, r_meas[keep], d[keep]))
+        return tm, rec, int(keep.sum())
+
+
 def test_flight_app_steps_each_bench_image_like_the_library():
-    rng = np.random.default_rng(4)
-    plate = st.Plate(n_modes=10)
-    sensor = st.plate_sensor(plate)
-    amp, phase = st.plate_truth(plate, rng)
-    app = fb.FlightApp(fb.NavConfig())
-    sender, down = P.Sender(), P.Deframer(P.FROM_FLIGHT)
-    w0 = plate.omega_radps
-    ref = make_filter("joint", 10, w0, np.zeros(10), sigma_v0=w0, sigma_w0=0.1 * w0, sigma_a0=1e-6,
-                      q_a=0.0, q_v=0.0)
-    dec = fb.ModalDecomposition10()
+    scene = _PlateOverLink(4)
+    app, w0, amp = scene.app, scene.w0, scene.amp
+    ref = scene.filter(w0, 0.1 * w0)
     n_img, dt = 40, 60.0
     got = []
     for k in range(n_img):
         t = k * dt
-        r_meas, d = st.plate_range_image(plate, sensor, st.plate_coeffs(plate, amp, phase, t), rng)
-        keep = np.isfinite(r_meas)  # missed rays are not sent
-        p = sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
-        sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])
-        data = b"".join(sender.frame(SEG, t, pl, seq_flags=f) for f, pl in P.range_image_segments(k, p, sigma))
-        tm = _tm_modal(down, app.on_bytes(data))
+        tm, rec, n_sent = scene.image(k, t)
         assert len(tm) == 1 and tm[0]["image_id"] == k and tm[0]["t_s"] == t
         got.append(tm[0])
-        phi, z, var = st.plate_points(plate, sensor, r_meas[keep], d[keep])
-        rec = dec.decompose(phi, z, var)
         ref.step(dt, rec)
         m = tm[0]
-        assert m["fused"] == 1 and m["n_used"] == keep.sum() and m["n_skipped"] == 0
+        assert m["fused"] == 1 and m["n_used"] == n_sent and m["n_skipped"] == 0
         assert m["rcond"] == pytest.approx(1.0 / rec.condition_number, rel=1e-9)
         np.testing.assert_allclose(m["amplitude"], ref.state[:, 0], rtol=1e-7, atol=1e-9)
         np.testing.assert_allclose(m["omega"], ref.state[:, 2], rtol=1e-9)
@@ -96,37 +115,25 @@ def test_flight_app_acquires_frequencies_like_the_library():
     # a minute); every answer before and after it equals the library's
     # decomposition, joint filter, ModalAcquisition10 (search over +-20 % =
     # 2 a priori sigmas of 10 %) and replay, called directly.
-    rng = np.random.default_rng(8)
-    plate = st.Plate(n_modes=10)
-    sensor = st.plate_sensor(plate)
-    amp, phase = st.plate_truth(plate, rng)
-    app = fb.FlightApp(fb.NavConfig())
-    sender, down = P.Sender(), P.Deframer(P.FROM_FLIGHT)
-    w0 = plate.omega_radps
-    ref = make_filter("joint", 10, w0, np.zeros(10), sigma_v0=w0, sigma_w0=0.1 * w0, sigma_a0=1e-6, q_a=0.0, q_v=0.0)
+    scene = _PlateOverLink(8)
+    app, w0 = scene.app, scene.w0
+    ref = scene.filter(w0, 0.1 * w0)
     acq = fb.ModalAcquisition10(w0, 0.1 * w0, grid_sigmas=2.0)
-    dec = fb.ModalDecomposition10()
     dt, acquired_at = 60.0, None
     for k in range(84):
         t = k * dt
-        r_meas, d = st.plate_range_image(plate, sensor, st.plate_coeffs(plate, amp, phase, t), rng)
-        keep = np.isfinite(r_meas)
-        p = sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
-        sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])
-        data = b"".join(sender.frame(SEG, t, pl, seq_flags=f) for f, pl in P.range_image_segments(k, p, sigma))
-        (tm,) = _tm_modal(down, app.on_bytes(data))
-        rec = dec.decompose(*st.plate_points(plate, sensor, r_meas[keep], d[keep]))
+        (tm,), rec, _ = scene.image(k, t)
         ref.step(dt, rec)
         assert acq.add(t, rec) == "ok"
         if acquired_at is None and app.modal_counters()["acquisitions"] == 1:
             acquired_at = k
             assert acq.search() == "ok"
             omega = acq.omega
-            ref = make_filter("joint", 10, omega, np.zeros(10), sigma_v0=w0, sigma_w0=0.01 * omega, sigma_a0=1e-6,
-                              q_a=0.0, q_v=0.0)
+            ref = scene.filter(omega, 0.01 * omega)
             assert acq.replay_into(ref) == k + 1
         np.testing.assert_allclose(tm["omega"], ref.state[:, 2], rtol=1e-9)
         np.testing.assert_allclose(tm["amplitude"], ref.state[:, 0], rtol=1e-7, atol=1e-9)
     assert acquired_at in (80, 81)  # 2 periods = 4800 s, to the rounding of the model's period
-    assert app.modal_counters()["acquisitions"] == 1 and app.modal_counters()["acquisitions_failed"] == 0
+    c = app.modal_counters()
+    assert c["acquisitions"] == 1 and c["acquisitions_failed"] == 0 and c["acquisition_refused"] == 0
     assert np.max(np.abs(omega / w0 - 1)) > 1e-3  # the search moved the frequencies: the comparison has teeth
