@@ -121,6 +121,12 @@ def _signed_draw(rng, size):
     return np.array([size * rng.choice([-1.0, 1.0])])
 
 
+def _draw_drag(rng, size):
+    # Both ballistic coefficients non-negative: B_inspector = dB + B_host.
+    db = size * rng.choice([-1.0, 1.0])
+    return np.array([db, max(0.0, -db) + rng.uniform(0.0, 1.0) * abs(db)])
+
+
 # Parameters that do not scale with an effect's size (EffectSpec.at).
 _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": (1,)}
 
@@ -162,9 +168,10 @@ EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
     EffectSpec("differential_j2", "dynamics", True, 1, "1",
                "J2 coefficient acting on host and inspector (differential acceleration)",
                1.08262668e-3, 100.0, ("j2",), _first, _pos_draw),
-    EffectSpec("differential_drag", "dynamics", True, 1, "m^2/kg",
-               "ballistic coefficient C_d A / m of the inspector minus the host's (rho = 5e-13 kg/m^3)",
-               0.015, 18.7, ("dB",), _first, _signed_draw),
+    EffectSpec("differential_drag", "dynamics", True, 2, "m^2/kg",
+               "ballistic coefficient C_d A / m of the inspector minus the host's, and the host's own "
+               "(rho = 5e-13 kg/m^3); the inspector's accelerometer senses its own drag (size: the difference)",
+               0.015, 18.7, ("dB", "B_host"), _first, _draw_drag),
     # No diagnoser candidate models a flexible mode: out of its library.
     EffectSpec("flex_mode", "dynamics", False, 2, "Hz, rad",
                "flexible appendage mode about body z: coupled frequency and body-angle amplitude (size: amplitude)",
@@ -215,6 +222,8 @@ def canonical(name: str, params) -> np.ndarray:
     p = np.atleast_1d(np.asarray(params, dtype=float)).ravel()
     if name == "thrust_loss" and p.size == 1:
         p = np.full(N_THRUSTERS, p[0])
+    if name == "differential_drag" and p.size == 1:
+        p = np.array([p[0], max(0.0, -p[0])])  # a host with no drag of its own, or the least that keeps B_inspector >= 0
     if p.size != spec.n_params:
         raise ValueError(f"effect {name!r} takes {spec.n_params} parameters, got {p.size}")
     if not np.all(np.isfinite(p)):
@@ -285,7 +294,9 @@ def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: i
         pfx.j2 = float(e["differential_j2"][0])
         plant_on = True
     if "differential_drag" in e:
-        pfx.diff_ballistic_m2pkg = float(e["differential_drag"][0])
+        pfx.diff_ballistic_m2pkg, pfx.host_ballistic_m2pkg = (float(x) for x in e["differential_drag"])
+        if pfx.diff_ballistic_m2pkg + pfx.host_ballistic_m2pkg < 0.0 or pfx.host_ballistic_m2pkg < 0.0:
+            raise ValueError("differential_drag: B_host and B_inspector = dB + B_host must be >= 0")
         plant_on = True
     if "flex_mode" in e:
         pfx.flex_freq_hz, pfx.flex_amplitude_rad = (float(x) for x in e["flex_mode"])

@@ -14,17 +14,21 @@ import json
 import numpy as np
 
 FORMAT_NAME = "proxops-flight-log"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READ_VERSIONS = (1, 2)
 QUAT_NORM_TOL = 1e-6
+PER_THRUSTER = -1  # FieldSpec.width: one column per thruster of the described vehicle
 
 
 @dataclass(frozen=True)
 class FieldSpec:
     name: str
-    width: int | None  # None: one value per row; k: k values per row
+    width: int | None  # None: one value per row; k: k values per row; PER_THRUSTER: one per thruster
     unit: str
     quaternion: bool = False
     integer: bool = False
+    optional: bool = False  # the stream is valid without it (see the stream's own rule)
+    nonnegative: bool = False
 
 
 @dataclass(frozen=True)
@@ -54,9 +58,11 @@ STREAMS = (
     ), True, "LED pose measurements: inspector position in the Hill frame and attitude body->Hill"),
     StreamSpec("valves", "t_s", (
         FieldSpec("t_s", None, "s"),
-        FieldSpec("interval_s", None, "s"),
-        FieldSpec("mask", None, "bit i = thruster i open", integer=True),
-    ), False, "thruster valve states held from t_s for interval_s"),
+        FieldSpec("on_time_s", PER_THRUSTER, "s", optional=True, nonnegative=True),
+        FieldSpec("interval_s", None, "s", optional=True, nonnegative=True),
+        FieldSpec("mask", None, "bit i = thruster i open", integer=True, optional=True, nonnegative=True),
+    ), False, "valve commands: thruster i open from t_s for on_time_s[i] (pulse-width modulation), "
+              "or every thruster in mask open from t_s for interval_s"),
     StreamSpec("estimate", "t_s", (
         FieldSpec("t_s", None, "s"),
         FieldSpec("r_hill_m", 3, "m"),
@@ -107,6 +113,9 @@ class FlightLog:
 
     streams: dict = field(default_factory=dict)
     config: dict = field(default_factory=dict)
+    # Format version 2: the vehicle, IMU, pose sensor, orbit and segments
+    # (bench/log_description.py); None: everything at the bench's defaults.
+    description: dict | None = None
 
     def has(self, stream: str) -> bool:
         return stream in self.streams
@@ -115,21 +124,25 @@ class FlightLog:
         return self.streams[stream]
 
 
-def _check_stream(name: str, data: dict) -> list:
+def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
     spec = STREAM_BY_NAME[name]
     problems = []
     lengths = {}
+    if not isinstance(data, dict):
+        return [Problem(name, None, "expected a group of fields, not a single dataset")]
     for f in spec.fields:
         where = f"{name}/{f.name}"
         if f.name not in data:
-            problems.append(Problem(where, None, "missing field"))
+            if not f.optional:
+                problems.append(Problem(where, None, "missing field"))
             continue
         arr = np.asarray(data[f.name])
         if not np.issubdtype(arr.dtype, np.number):
             problems.append(Problem(where, None, f"not numeric (dtype {arr.dtype})"))
             continue
-        expected = "(N,)" if f.width is None else f"(N, {f.width})"
-        if (f.width is None and arr.ndim != 1) or (f.width is not None and (arr.ndim != 2 or arr.shape[1] != f.width)):
+        width = n_thrusters if f.width == PER_THRUSTER else f.width
+        expected = "(N,)" if width is None else f"(N, {width})" + (" (one column per thruster)" if f.width == PER_THRUSTER else "")
+        if (width is None and arr.ndim != 1) or (width is not None and (arr.ndim != 2 or arr.shape[1] != width)):
             problems.append(Problem(where, None, f"wrong shape {arr.shape}, expected {expected}"))
             continue
         lengths[f.name] = arr.shape[0]
@@ -147,6 +160,11 @@ def _check_stream(name: str, data: dict) -> list:
         if f.integer and np.any(arr != np.round(arr)):
             row = int(np.argmax(arr != np.round(arr)))
             problems.append(Problem(where, row, f"expected an integer, got {arr[row]}"))
+        if f.nonnegative and np.any(arr < 0):
+            row = int(np.argmax(arr < 0 if arr.ndim == 1 else np.any(arr < 0, axis=1)))
+            problems.append(Problem(where, row, f"negative ({arr[row]})"))
+    if name == "valves":
+        problems.extend(_check_valve_form(data, n_thrusters))
     if len(set(lengths.values())) > 1:
         problems.append(Problem(name, None, "fields differ in length: " + ", ".join(f"{k}={v}" for k, v in lengths.items())))
     t = data.get(spec.time_field)
@@ -162,15 +180,59 @@ def _check_stream(name: str, data: dict) -> list:
     return problems
 
 
+def _check_valve_form(data: dict, n_thrusters: int) -> list:
+    """Exactly one of the two forms; a mask names only described thrusters."""
+    has_on, has_mask = "on_time_s" in data, ("mask" in data or "interval_s" in data)
+    if has_on and has_mask:
+        return [Problem("valves", None, "give on_time_s or mask with interval_s, not both")]
+    if not has_on and not has_mask:
+        return [Problem("valves/on_time_s", None, "missing field (or give mask with interval_s)")]
+    t = np.asarray(data.get("t_s", []))
+    if t.ndim == 1 and t.size > 1 and np.issubdtype(t.dtype, np.number) and np.all(np.isfinite(t)):
+        dur = np.asarray(data["on_time_s"] if has_on else data.get("interval_s", np.zeros(t.size)))
+        if np.issubdtype(dur.dtype, np.number) and dur.shape[:1] == t.shape:
+            longest = dur.reshape(t.size, -1).max(axis=1)
+            over = longest[:-1] > np.diff(t) + 1e-9
+            if np.any(over):
+                row = int(np.argmax(over))
+                field_ = "on_time_s" if has_on else "interval_s"
+                return [Problem(f"valves/{field_}", row, f"pulse of {float(longest[row]):.6g} s runs past the next "
+                                                        f"command ({float(np.diff(t)[row]):.6g} s later)")]
+    if has_mask:
+        missing = [k for k in ("mask", "interval_s") if k not in data]
+        if missing:
+            return [Problem(f"valves/{missing[0]}", None, "missing field (mask and interval_s go together)")]
+        m = np.asarray(data["mask"])
+        if np.issubdtype(m.dtype, np.number) and m.ndim == 1 and m.size and np.all(np.isfinite(m)):
+            over = m.astype(np.int64) >> n_thrusters
+            if np.any(over != 0):
+                row = int(np.argmax(over != 0))
+                return [Problem("valves/mask", row, f"opens a thruster beyond the vehicle's {n_thrusters} "
+                                                    f"({int(m[row])})")]
+    return []
+
+
 def validate_log(log: FlightLog) -> list:
     """Every contract violation in an in-memory log (empty list: valid)."""
+    from bench.log_description import DescriptionError, resolve
+
     problems = []
+    n_thr = 8
+    try:
+        n_thr = resolve(log.description, log.config).n_thrusters
+    except DescriptionError as exc:
+        problems.append(Problem("/description_json", None, str(exc)))
     for spec in STREAMS:
         if spec.name not in log.streams:
             if spec.required:
                 problems.append(Problem(spec.name, None, "missing stream"))
             continue
-        problems.extend(_check_stream(spec.name, log.streams[spec.name]))
+        problems.extend(_check_stream(spec.name, log.streams[spec.name], n_thr))
+    for spec in STREAMS:
+        data = log.streams.get(spec.name)
+        if spec.required and isinstance(data, dict) and spec.time_field in data and np.size(data[spec.time_field]) < 2:
+            problems.append(Problem(f"{spec.name}/{spec.time_field}", None,
+                                    f"{np.size(data[spec.time_field])} samples (at least 2 needed)"))
     for name in log.streams:
         if name not in STREAM_BY_NAME:
             problems.append(Problem(name, None, f"unknown stream (known: {', '.join(STREAM_BY_NAME)})"))
@@ -193,6 +255,8 @@ def write_flight_log(path, log: FlightLog, validate: bool = True) -> Path:
         h.attrs["quaternion_order"] = "wxyz"
         h.attrs["frame"] = "hill: x radial, y along-track, z orbit normal"
         h.attrs["config_json"] = json.dumps(log.config, sort_keys=True)
+        if log.description is not None:
+            h.attrs["description_json"] = json.dumps(_plain(log.description), sort_keys=True)
         for name, data in log.streams.items():
             g = h.create_group(name)
             spec = STREAM_BY_NAME.get(name)
@@ -202,6 +266,32 @@ def write_flight_log(path, log: FlightLog, validate: bool = True) -> Path:
                 if key in units:
                     ds.attrs["unit"] = units[key]
     return path
+
+
+def _plain(x):
+    """numpy values to JSON-ready Python."""
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _json_attr(h, name: str, path) -> dict:
+    raw = h.attrs.get(name, "{}")
+    if isinstance(raw, bytes):
+        raw = raw.decode()
+    try:
+        val = json.loads(raw)
+    except (TypeError, ValueError) as exc:
+        raise FlightLogError(f"{path}: /{name}: not valid JSON ({exc})") from None
+    if not isinstance(val, dict):
+        raise FlightLogError(f"{path}: /{name}: expected a JSON object, got {type(val).__name__}")
+    return val
 
 
 def read_flight_log(path, validate: bool = True) -> FlightLog:
@@ -221,12 +311,28 @@ def read_flight_log(path, validate: bool = True) -> FlightLog:
             fmt = fmt.decode()
         if fmt != FORMAT_NAME:
             raise FlightLogError(f"/: attribute 'format' is {fmt!r}, expected {FORMAT_NAME!r}")
-        version = int(h.attrs.get("format_version", -1))
-        if version != FORMAT_VERSION:
-            raise FlightLogError(f"/: format_version {version} not supported (this reader: {FORMAT_VERSION})")
-        config = json.loads(h.attrs.get("config_json", "{}"))
-        streams = {name: {k: np.asarray(ds[()]) for k, ds in g.items()} for name, g in h.items()}
-    log = FlightLog(streams=streams, config=config)
+        raw = h.attrs.get("format_version", None)
+        try:
+            version = int(raw)
+        except (TypeError, ValueError):
+            raise FlightLogError(f"{path}: /format_version: {raw!r} is not an integer "
+                                 f"(this reader: {', '.join(map(str, READ_VERSIONS))})") from None
+        if version not in READ_VERSIONS:
+            raise FlightLogError(f"{path}: /format_version: {version} not supported "
+                                 f"(this reader: {', '.join(map(str, READ_VERSIONS))})")
+        config = _json_attr(h, "config_json", path)
+        description = _json_attr(h, "description_json", path) if version >= 2 else None
+        if version < 2 and "description_json" in h.attrs:
+            raise FlightLogError(f"{path}: /description_json: needs format_version 2")
+        streams = {}
+        for name, g in h.items():
+            if not hasattr(g, "items"):
+                raise FlightLogError(f"{path}: {name}: expected a group of fields, not a single dataset")
+            try:
+                streams[name] = {k: np.asarray(ds[()]) for k, ds in g.items()}
+            except OSError as exc:
+                raise FlightLogError(f"{path}: {name}: unreadable ({exc})") from None
+    log = FlightLog(streams=streams, config=config, description=description)
     if validate:
         problems = validate_log(log)
         if problems:

@@ -158,7 +158,11 @@ class PlantEffects:
     j2: float = 0.0
     j2_inclination_rad: float = np.deg2rad(51.6)
     # Differential drag: a = -1/2 rho v^2 (B_inspector - B_host) along-track.
+    # The inspector's own drag, -1/2 rho v^2 B_inspector along-track, is a
+    # non-gravitational force on it: its accelerometer senses it
+    # (B_inspector = diff_ballistic_m2pkg + host_ballistic_m2pkg).
     diff_ballistic_m2pkg: float = 0.0
+    host_ballistic_m2pkg: float = 0.0
     air_density_kgpm3: float = 5e-13
     # Propellant use [kg per valve-second].
     mass_flow_kgps_per_valve: float = 0.0
@@ -363,7 +367,9 @@ class Plant:
             self._internal[0] = fx.flex_amplitude_rad / np.linalg.norm(self._j_inv @ delta)
         self._slosh_on = fx.slosh_mass_kg > 0.0
         self._slosh_w = 2.0 * np.pi * fx.slosh_freq_hz
-        self._drag_y = -0.5 * fx.air_density_kgpm3 * (self.n_radps * self.radius_m) ** 2 * fx.diff_ballistic_m2pkg
+        q_dyn = 0.5 * fx.air_density_kgpm3 * (self.n_radps * self.radius_m) ** 2
+        self._drag_y = -q_dyn * fx.diff_ballistic_m2pkg
+        self._drag_insp_y = -q_dyn * (fx.diff_ballistic_m2pkg + fx.host_ballistic_m2pkg)
 
     @property
     def internal_state(self) -> np.ndarray:
@@ -433,6 +439,8 @@ class Plant:
             acc = acc + self._j2_accel_hill(t_s, r)
         if self._drag_y != 0.0:
             acc = acc + np.array([0.0, self._drag_y, 0.0])
+        if self._drag_insp_y != 0.0:
+            a_b = a_b + c_hb.T @ np.array([0.0, self._drag_insp_y, 0.0])  # sensed, not added again to acc
         w_bh = w - c_hb.T @ np.array([0.0, 0.0, thd])
         qdot = 0.5 * qmul(q, np.concatenate([[0.0], w_bh]))
         rhs = torque_b - cross3(w, self._j @ w)

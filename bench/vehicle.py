@@ -88,23 +88,31 @@ ALL_VALVES = np.array([config_valves(k) for k in range(N_CONFIGS)])  # (256, 8)
 
 @dataclass
 class Vehicle:
-    """Mass properties and thruster geometry. ``thrust_scale`` (8,) multiplies
-    each valve's thrust (1 = nominal): the truth plant can differ from the
-    controller's nominal model through it and ``directions_b``."""
+    """Mass properties and thruster geometry about the centre of mass.
+    ``thrust_n`` is one thrust for every valve or one per valve (K,);
+    ``thrust_scale`` (K,) multiplies each valve's thrust (1 = nominal): the
+    truth plant can differ from the controller's nominal model through it and
+    ``directions_b``. Any number of thrusters K (the bench's inspector has 8;
+    a flight log can describe another vehicle, bench/log_description.py)."""
 
     mass_kg: float = MASS_KG
     inertia_kgm2: np.ndarray = field(default_factory=lambda: INERTIA_KGM2.copy())
-    thrust_n: float = THRUST_N
+    thrust_n: float | np.ndarray = THRUST_N
     positions_b_m: np.ndarray = field(default_factory=lambda: POSITIONS_B_M.copy())
     directions_b: np.ndarray = field(default_factory=lambda: DIRECTIONS_B.copy())
     thrust_scale: np.ndarray = field(default_factory=lambda: np.ones(N_THRUSTERS))
 
     def thruster_forces_b_n(self) -> np.ndarray:
-        """(8, 3) force of each valve on the vehicle, body frame [N]."""
-        return self.thrust_n * self.thrust_scale[:, None] * self.directions_b
+        """(K, 3) force of each valve on the vehicle, body frame [N]."""
+        thrust = np.broadcast_to(np.asarray(self.thrust_n, dtype=float), (self.n_thrusters,))
+        return (thrust * np.asarray(self.thrust_scale, dtype=float))[:, None] * self.directions_b
+
+    @property
+    def n_thrusters(self) -> int:
+        return int(np.asarray(self.directions_b).shape[0])
 
     def thruster_torques_b_nm(self) -> np.ndarray:
-        """(8, 3) torque of each valve about the centre of mass, body frame [N m]."""
+        """(K, 3) torque of each valve about the centre of mass, body frame [N m]."""
         return np.cross(self.positions_b_m, self.thruster_forces_b_n())
 
     def wrench(self, valves) -> tuple[np.ndarray, np.ndarray]:
@@ -117,5 +125,6 @@ class Vehicle:
         return ALL_VALVES @ self.thruster_forces_b_n(), ALL_VALVES @ self.thruster_torques_b_nm()
 
     def one_thruster_accel_mps2(self) -> float:
-        """Acceleration of one nominal valve [m/s^2] (0.020 N / 3 kg)."""
-        return self.thrust_n / self.mass_kg
+        """Acceleration of one nominal valve [m/s^2] (0.020 N / 3 kg; the
+        mean valve when their thrusts differ)."""
+        return float(np.mean(self.thrust_n)) / self.mass_kg

@@ -1,74 +1,107 @@
 """`proxops diagnose LOG --report DIR --json OUT`: where the sim-to-real gap
-lies, which unmodelled effect causes it, how far it shrinks on held-out data."""
+lies, which unmodelled effect causes it, how far it shrinks on held-out data,
+and what the log let it examine."""
 from __future__ import annotations
 
+import json
+import os
+import shutil
+import tempfile
 from pathlib import Path
-
-import numpy as np
 
 
 def register(sub):
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a flight log (where, which, how far)")
-    p.add_argument("log", help="flight log (HDF5, docs/FLIGHT_LOG.md)")
+    p.add_argument("log", help="flight log (HDF5, format version 1 or 2, docs/FLIGHT_LOG.md)")
     p.add_argument("--report", default=None, help="write the Markdown report and plots into this folder")
     p.add_argument("--json", default=None, help="write the diagnosis as JSON here")
     p.add_argument("--calibration", default=None,
-                   help="null calibration JSON (default: the committed one for docking logs; "
-                        "bench/gap/data/null_calibration_characterisation.json for logs that also fly the "
-                        "thruster characterisation)")
+                   help="null calibration JSON, checked against the log (default: the committed one when the log is "
+                        "the bench inspector flying the bench's manoeuvres, else one made for the log and cached)")
+    p.add_argument("--null-runs", type=int, default=None,
+                   help="simulated flights in a calibration made for the log (default 40)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=main)
 
 
+def _check_output(path: str | None, what: str) -> None:
+    if path is None:
+        return
+    p = Path(path)
+    if what == "json" and p.is_dir():
+        raise ValueError(f"--json {path}: is a folder; give a file name")
+    if what == "report" and p.exists() and not p.is_dir():
+        raise ValueError(f"--report {path}: is a file; give a folder")
+
+
+def _load_calibration(path: str) -> dict:
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"--calibration {path}: no such file")
+    try:
+        cal = json.loads(p.read_text())
+    except ValueError as exc:
+        raise ValueError(f"--calibration {path}: not JSON ({exc})") from None
+    if not isinstance(cal, dict):
+        raise ValueError(f"--calibration {path}: expected a JSON object")
+    return cal
+
+
 def main(args):
     from bench.flight_log import read_flight_log
-    from bench.gap import null as nullmod
     from bench.gap.diagnose import diagnose, public
+    from bench.gap.log_null import CalibrationMismatch
     from bench.report import write_json
 
+    _check_output(args.json, "json")
+    _check_output(args.report, "report")
+    if args.null_runs is not None and not 10 <= args.null_runs <= 100000:
+        raise ValueError(f"--null-runs {args.null_runs}: must be between 10 and 100000")
     log = read_flight_log(args.log)
-    cal = nullmod.load(args.calibration) if args.calibration else nullmod.load()
-    if not cal:
-        print("warning: no null calibration found; detection thresholds are infinite")
-    res = diagnose(log, calibration=cal, progress=not args.quiet)
+    cal = _load_calibration(args.calibration) if args.calibration else None
+    try:
+        res = diagnose(log, calibration=cal, progress=not args.quiet, calibration_source=args.calibration,
+                       calibration_runs=args.null_runs)
+    except CalibrationMismatch as exc:
+        raise ValueError(str(exc)) from None
+    out = public(res)
     if args.report:
         from bench.gap.report import write_report
 
-        page = write_report(res, args.report, Path(args.log).name)
+        page = _write_report_atomically(res, args.report, Path(args.log).name, write_report)
         print(f"report: {page}")
-    out = public(res)
     if args.json:
-        write_json(args.json, out)
+        tmp = Path(args.json).with_name(f".{Path(args.json).name}.tmp")
+        write_json(tmp, out)
+        os.replace(tmp, args.json)
     print_answers(out)
     print(f"diagnosed in {out['elapsed_s']:.1f} s")
     return 0
 
 
+def _write_report_atomically(res, folder, name, write_report) -> Path:
+    """The report goes into a fresh folder that replaces ``folder`` only once complete."""
+    dest = Path(folder)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", dir=dest.parent))
+    try:
+        write_report(res, tmp, name)
+        if dest.exists():
+            old = dest.with_name(f".{dest.name}.old")
+            shutil.rmtree(old, ignore_errors=True)
+            dest.rename(old)
+            tmp.rename(dest)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            tmp.rename(dest)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return dest / "README.md"
+
+
 def print_answers(out: dict, indent: str = "") -> None:
-    """The three answers: where, which, how far."""
-    w = (out["location"]["where"] or {})
-    print(f"{indent}gap detected: {'yes' if out['gap_detected'] else 'no'}")
-    if out["gap_detected"]:
-        acts = out["location"].get("effect_acts_while")
-        # While which regime: from the fitted effect's signature when one explains
-        # the gap, else from the gap map's strongest regime cell.
-        regime = (f"acting while {acts['peak']}" if acts and acts["peak"]
-                  else f"strongest while {w.get('regime_peak')}")
-        print(f"{indent}  where:   {w.get('stream')} {w.get('axis')} ({w.get('stat')}), {regime}; "
-              f"a {out['location']['dynamics_or_sensor']} gap")
-        best = out["attribution"][0] if out["attribution"] else None
-        which = best["effect"] if best is not None and out["verdict"] != "unexplained" else "unexplained"
-        print(f"{indent}  which:   {which} ({out['verdict']})")
-        if best is not None and out["verdict"] != "unexplained":
-            pars = ", ".join(f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in best["parameters"].items()
-                             if abs(v["value"]) > 2 * v["sigma"])
-            if pars:
-                print(f"{indent}           fitted (beyond 2 sigma): {pars}")
-        if out["shrink_heldout"]:
-            s = out["shrink_heldout"]
-            print(f"{indent}  how far: held-out deficit shrinks {100 * s['fraction']:.0f} % "
-                  f"[{100 * s['ci95'][0]:.0f}, {100 * s['ci95'][1]:.0f}] with {s['effect']}")
-        r = out.get("shrink_heldout_runs")
-        if r and r.get("fraction") is not None and np.isfinite(r["fraction"]):
-            print(f"{indent}           on held-out runs ({r['heldout_runs']} of {r['runs']}, fitted on the others): "
-                  f"{100 * r['fraction']:.0f} % [{100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}]")
+    """The three answers (where, which, how far) and what was examined."""
+    from bench.gap.answers import answer_lines
+
+    for label, text in answer_lines(out):
+        print(f"{indent}{(label + ':') if label else '':<18}{text}")

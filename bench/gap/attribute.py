@@ -86,6 +86,11 @@ class Fit:
     after_dyn: np.ndarray | None = None  # (R, 3) dynamics rows with the candidate
 
 
+def _cand(d: LogData, name: str) -> Candidate:
+    """Candidate ``name`` sized for the log's vehicle (its number of thrusters)."""
+    return (d.cands or CANDIDATES)[name]
+
+
 def _dyn_jac(ctx: Context, name: str):
     if ctx.ch is None:
         return None
@@ -107,7 +112,7 @@ def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
     (finite differences through the filter, closed form on the dynamics
     channel), and the dynamics Jacobian on every row (None without one)."""
     d = ctx.d
-    c = CANDIDATES[name]
+    c = _cand(d, name)
     e_nav = ctx.nominal.white[ctx.train_nav][rows_ok].ravel()
     n_dyn = int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0
     Jn = np.zeros((e_nav.size, c.n_params))
@@ -210,7 +215,7 @@ def screen(ctx: Context, names=None, progress=None) -> list:
     n_obs = e0.size
     fits = []
     for name in names or CANDIDATES:
-        c = CANDIDATES[name]
+        c = _cand(ctx.d, name)
         J, Jd_full = signature(ctx, name, rows_ok, progress)
         rank = numerical_rank(J)
         if rank == 0:
@@ -243,7 +248,7 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
     from scipy.optimize import least_squares
 
     d, nominal = ctx.d, ctx.nominal
-    c: Candidate = CANDIDATES[fit.name]
+    c: Candidate = _cand(d, fit.name)
     Jd_full = getattr(fit, "Jd_full", None)
     if Jd_full is None:
         Jd_full = _dyn_jac(ctx, fit.name)

@@ -13,7 +13,7 @@ no candidate yet (``NOT_MODELLED``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,13 +58,12 @@ def _t(d: LogData) -> np.ndarray:
 def _rate_derivative(d: LogData) -> np.ndarray:
     """d(gyro)/dt by central differences within each run (one-sided at its
     ends): a chained log's next run starts from rest, not from the last
-    run's final rate."""
-    brk = np.flatnonzero(np.diff(d.imu_t) > 1.5 * d.dt_s) + 1
-    out = np.zeros_like(d.gyro)
-    for a, b in zip(np.r_[0, brk], np.r_[brk, d.imu_t.size]):
-        if b - a > 1:
-            out[a:b] = np.gradient(d.gyro[a:b], d.dt_s, axis=0)
-    return out
+    run's final rate. Differences over the time stamps (jitter, dropped samples)."""
+    from bench.gap.replay import _rate_derivative as rate_derivative
+
+    seg = d.imu_seg if d.imu_seg is not None else np.concatenate(
+        [[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
+    return rate_derivative(d.gyro, d.imu_t, seg)
 
 
 def _ecc(theta, d: LogData) -> Corrections:
@@ -91,9 +90,13 @@ def _j2(theta, d: LogData) -> Corrections:
 
 
 def _drag(theta, d: LogData) -> Corrections:
-    # Differential drag: a constant along-track acceleration [m/s^2].
+    # Drag: along-track accelerations of the inspector (theta[0]) and of the
+    # host (theta[1]) [m/s^2]. The inspector's accelerometer senses its own
+    # drag, so the filter already integrates it; the relative motion lacks
+    # only the host's, -theta[1]. The inspector's shows in the dynamics
+    # channel (bench/gap/dyn.py).
     a = np.zeros((d.imu_t.size, 3))
-    a[:, 1] = theta[0]
+    a[:, 1] = -theta[1]
     return Corrections(hill_accel=a)
 
 
@@ -119,6 +122,19 @@ _BUILDERS = {
     "differential_j2": _j2,
     "differential_drag": _drag,
 }
+
+def candidates_for(n_thrusters: int = 8) -> dict:
+    """The candidate models for a vehicle with ``n_thrusters`` valves (the
+    per-valve effects have one parameter, or three, per valve)."""
+    if n_thrusters == 8:
+        return CANDIDATES
+    k = int(n_thrusters)
+    out = dict(CANDIDATES)
+    tl, tm = CANDIDATES["thrust_loss"], CANDIDATES["thruster_misalignment"]
+    out["thrust_loss"] = replace(tl, params=tuple(f"loss_{i} [1]" for i in range(k)))
+    out["thruster_misalignment"] = replace(tm, params=tuple(f"phi_{i}{a} [rad]" for i in range(k) for a in "xyz"))
+    return out
+
 
 CANDIDATES = {c.name: c for c in (
     Candidate("thrust_loss", "dynamics", tuple(f"loss_{i} [1]" for i in range(8)), 0.1,
@@ -149,8 +165,9 @@ CANDIDATES = {c.name: c for c in (
               "a long coast at larger radial offset: the terms scale with position and orbit phase", bound=0.3),
     Candidate("differential_j2", "dynamics", ("K_xx", "K_yy", "K_xy", "K_xz", "K_yz [1/s^2]"), 1e-5,
               "coasts at offsets along each Hill axis: a gradient scales with the offset", bound=1e-3),
-    Candidate("differential_drag", "dynamics", ("a_y [m/s^2]",), 1e-4,
-              "a coast near the host: drag is constant along-track, independent of position and attitude", bound=1e-2),
+    Candidate("differential_drag", "dynamics", ("a_inspector_y [m/s^2]", "a_host_y [m/s^2]"), 1e-4,
+              "a coast near the host: drag is constant along-track, independent of position and attitude; "
+              "a slew shows the inspector's own drag turning in the accelerometer", bound=1e-2),
 )}
 
 NOT_MODELLED = ("flex_mode",)

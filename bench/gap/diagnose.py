@@ -26,6 +26,7 @@ Without a detected gap the verdict is "no_gap".
 """
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -33,7 +34,7 @@ import numpy as np
 from bench.gap import dyn, localise, null as nullmod, quantify
 from bench.gap.attribute import BF_AMBIGUOUS, Context, Pass, bounded_fit, confirm, screen
 from bench.gap.candidates import CANDIDATES, NOT_MODELLED
-from bench.gap.replay import LogData, prepare, reference
+from bench.gap.replay import LogData, prepare, reference, rotmats
 from bench.gap.separability import DELTA2_95
 
 HELDOUT_DLL_MIN = 3.0
@@ -71,11 +72,11 @@ class _Progress:
         if self.enabled and time.time() - self.t_last > 0.5:
             self.t_last = time.time()
             print(f"\r  {self.label}: {min(self.done, self.total)}/{self.total} replays, "
-                  f"{time.time() - self.t0:5.1f} s", end="", flush=True)
+                  f"{time.time() - self.t0:5.1f} s", end="", flush=True, file=sys.stderr)
 
     def close(self):
         if self.enabled:
-            print(f"\r  {self.label}: {self.done} replays, {time.time() - self.t0:5.1f} s")
+            print(f"\r  {self.label}: {self.done} replays, {time.time() - self.t0:5.1f} s", file=sys.stderr)
 
 
 def _pass_from(res, d: LogData) -> Pass:
@@ -113,8 +114,8 @@ def context(d: LogData) -> Context:
 
 
 def segment_of(d: LogData, t: np.ndarray) -> np.ndarray:
-    """Which chained run (segment: the IMU stream restarts) each time falls in."""
-    brk = np.flatnonzero(np.diff(d.imu_t) > 1.5 * d.dt_s) + 1
+    """Which chained run (segment) each time falls in."""
+    brk = np.flatnonzero(np.diff(d.imu_seg) != 0) + 1
     return np.searchsorted(d.imu_t[brk], np.asarray(t, float), side="right")
 
 
@@ -170,16 +171,31 @@ def heldout_runs_shrink(ctx: Context, name: str) -> dict:
     sh = quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], f.after_nav.nis[held], t_d, q0, q1,
                                   cells=cells, lab_dyn=None if lab is None else lab[hd])
     return {"runs": n_runs, "train_runs": int((n_runs + 1) // 2), "heldout_runs": int(n_runs // 2), **sh,
-            "parameters": {p: float(v) for p, v in zip(CANDIDATES[name].params, f.theta)}}
+            "parameters": {p: float(v) for p, v in zip(d.cands[name].params, f.theta)}}
 
 
 def diagnose(log, calibration: dict | None = None, progress: bool = False, n_confirm: int = N_CONFIRM,
-             confirm_always: bool = False) -> dict:
+             confirm_always: bool = False, make_calibration: bool = True, calibration_source: str | None = None,
+             calibration_runs: int | None = None) -> dict:
     """Diagnose one log. Returns a JSON-ready dict; ``result["_internal"]``
-    holds arrays for the report (drop it before writing JSON)."""
+    holds arrays for the report (drop it before writing JSON).
+
+    ``calibration``: a null calibration (checked against the log; refused
+    with log_null.CalibrationMismatch when it does not hold), ``{}`` for no
+    thresholds (the null runs themselves), or None: the committed one when
+    the log is the bench's vehicle and manoeuvres, else one made for the log
+    (``make_calibration``; bench/gap/log_null.py)."""
+    from bench.gap import log_null
+
     t_start = time.time()
-    cal = calibration if calibration is not None else nullmod.load()
     d = prepare(log)
+    if calibration == {}:
+        cal, cal_info = {}, {"source": "none (no thresholds)", "runs": 0, "note": None}
+    elif calibration is None and not make_calibration:
+        cal, cal_info = nullmod.load(), {"source": "committed (docking logs of the bench inspector)", "note": None}
+    else:
+        cal, cal_info = log_null.choose(log, d, calibration, calibration_source,
+                                        runs=calibration_runs or log_null.DEFAULT_RUNS, progress=progress)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
     prog = _Progress(1 + n_screen, progress)
     ctx = context(d)
@@ -246,7 +262,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             consistent = all(c["z"] >= -Z_CONTRADICT for c in contra.values())
             explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok and consistent
                             and map_after <= max(thr_map, MAP_REMAINDER * t_map))
-            c = CANDIDATES[f.name]
+            c = d.cands[f.name]
             ranking.append({
                 "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
                                                               "screen_bic": f.screen_bic, "dll_heldout": dll_held},
@@ -327,14 +343,65 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                            if best else None),
         "replay_rms_heldout_before": quantify.channel_rms(nominal.innovation[held]),
         "not_modelled": list(NOT_MODELLED),
+        "examined": examined(d, ctx, detected),
+        "calibration": cal_info,
         "log": {"duration_s": d.duration_s, "imu_samples": int(d.imu_t.size), "pose_updates": int(d.pose_tc.size),
                 "segments": int(d.pose_start.sum()), "valves": d.valves is not None,
+                "thrusters": int(d.desc.n_thrusters), "manoeuvres": d.desc.manoeuvres() or None,
+                "defaults_used": list(d.desc.defaults), "dropped": dict(d.dropped),
                 "train_updates": int(train.sum()), "heldout_updates": int(held.sum())},
         "elapsed_s": time.time() - t_start,
     }
     out["_internal"] = {"d": d, "nominal": nominal, "fits": fits, "train": train, "held": held, "cells": cells,
                         "ctx": ctx, "held_shrink": held_shrink}
     return out
+
+
+MIN_RUN_UPDATES = 10  # fewer fused pose updates than this: a run too short to show a gap
+RATE_EXCITED_RPS = 0.01  # a body axis never turned faster than this relative to Hill: not excited
+
+
+def examined(d: LogData, ctx: Context, detected: bool) -> dict:
+    """What the diagnosis could and could not look at in this log: the
+    channels (the dynamics need the valve stream), runs too short to show a
+    gap, thrusters that never fired and body axes that never turned (their
+    effects are not examined), and the defaults taken for what the log does
+    not state."""
+    ok = np.isfinite(ctx.nominal.nis)
+    channels = {"pose": {"examined": bool(ok.sum() > 0), "rows": int(ok.sum())}}
+    not_examined = []
+    if ctx.ch is None:
+        for name in ("accelerometer vs valves", "gyro vs valve torques"):
+            channels[name] = {"examined": False, "why": "no valves stream"}
+        not_examined.append("dynamics (accelerometer and gyro against the commanded thrust): no valves stream, so "
+                            "thrust loss, thruster misalignment and mass depletion cannot be seen")
+    else:
+        n_a = int(np.sum(ctx.ch.kind == 0))
+        channels["accelerometer vs valves"] = {"examined": True, "rows": n_a}
+        channels["gyro vs valve torques"] = {"examined": True, "rows": int(ctx.ch.rows - n_a)}
+        fired = d.valves.sum(axis=0) * d.dt_s
+        idle = [int(i) for i in np.flatnonzero(fired <= 0.0)]
+        if idle:
+            not_examined.append(f"thruster{'s' if len(idle) > 1 else ''} {', '.join(map(str, idle))} never fired: "
+                                "their loss and tilt are not examined")
+    seg = segment_of(d, d.pose_tc)
+    short = [int(k) for k in np.unique(seg) if int(np.sum(ok & (seg == k))) < MIN_RUN_UPDATES]
+    if short:
+        not_examined.append(f"run{'s' if len(short) > 1 else ''} {', '.join(map(str, short))}: fewer than "
+                            f"{MIN_RUN_UPDATES} pose updates each")
+    if d.ref_q is not None:
+        w_h = np.einsum("nji,j->ni", rotmats(d.ref_q), np.array([0.0, 0.0, d.n_radps]))
+        w_bh = np.abs(d.gyro - w_h)
+        still = [a for i, a in enumerate("xyz") if np.percentile(w_bh[:, i], 99) < RATE_EXCITED_RPS]
+        if still:
+            not_examined.append(f"rotation about body {', '.join(still)} never exceeded {RATE_EXCITED_RPS} rad/s: "
+                                "gyro scale on that axis is not examined")
+    looked = [k for k, v in channels.items() if v["examined"]]
+    missing = [k for k, v in channels.items() if not v["examined"]]
+    summary = (f"{'gap' if detected else 'no gap'} in {', '.join(looked)}"
+               + (f"; not examined: {', '.join(missing)} ({channels[missing[0]]['why']})" if missing else ""))
+    return {"summary": summary, "channels": channels, "not_examined": not_examined,
+            "defaults_used": list(d.desc.defaults) if d.desc is not None else [], "dropped": dict(d.dropped)}
 
 
 def public(result: dict) -> dict:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cholesky_banded, solve_banded
 
-from bench.gap.replay import LogData
+from bench.gap.replay import LogData, rotmats
 
 
 def _skew_rows(v: np.ndarray) -> np.ndarray:
@@ -84,18 +84,17 @@ class DynChannel:
 
 
 def build(d: LogData) -> DynChannel | None:
-    """The channel for a log with a valve stream (None without one)."""
+    """The channel for a log with a valve stream (None without one), for the
+    vehicle the log describes (bench/log_description.py)."""
     if d.valves is None:
         return None
-    from bench.vehicle import ALL_VALVES, Vehicle
+    from bench.log_description import resolve
 
-    veh = Vehicle()
-    noise = d.config.get("noise", {}) if isinstance(d.config.get("noise"), dict) else {}
-    sig_a = float(noise.get("accel_sigma_mps2", d.config.get("accel_sigma_mps2", 0.25 * veh.thrust_n / veh.mass_kg)))
-    sig_g = float(noise.get("gyro_sigma_rps", d.config.get("gyro_sigma_rps", 0.005)))
-    cfg = np.asarray(d.valves, dtype=np.int64) & 0xFF
-    open_ = ALL_VALVES[cfg].astype(float)
-    Fi = veh.thruster_forces_b_n()  # (8, 3)
+    desc = d.desc if d.desc is not None else resolve(None, d.config)
+    veh = desc.vehicle()
+    sig_a, sig_g = desc.accel_sigma_mps2, desc.gyro_sigma_rps
+    open_ = np.asarray(d.valves, float)  # (N, K) open fraction of each interval
+    Fi = veh.thruster_forces_b_n()  # (K, 3)
     Ti = veh.thruster_torques_b_nm()
     F = open_ @ Fi
     tau = open_ @ Ti
@@ -104,10 +103,10 @@ def build(d: LogData) -> DynChannel | None:
     w = d.gyro
     alpha = (tau - np.cross(w, w @ J.T)) @ Jinv.T
     e_a = (d.accel - F / veh.mass_kg) / sig_a
-    # Segments: breaks in the IMU stream (a new run) reset the gyro differences and the mass.
-    dtk = np.diff(d.imu_t)
-    brk = np.concatenate([[True], dtk > 1.5 * d.dt_s])
-    seg_id = np.cumsum(brk) - 1
+    # Segments (runs) reset the gyro differences and the mass.
+    seg_id = d.imu_seg if d.imu_seg is not None else np.concatenate(
+        [[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
+    brk = np.concatenate([[True], np.diff(seg_id) != 0])
     n_open = open_.sum(axis=1) * d.dt_s
     vs = np.zeros_like(n_open)
     for s in np.unique(seg_id):
@@ -115,7 +114,10 @@ def build(d: LogData) -> DynChannel | None:
         c = np.cumsum(n_open[m])
         vs[m] = c - n_open[m]
     k = np.flatnonzero(~brk)  # difference k-1 -> k within a segment
-    dg = (w[k] - w[k - 1] - 0.5 * (alpha[k - 1] + alpha[k]) * d.dt_s) / sig_g
+    # Consecutive interval means are their centres' spacing apart (the time
+    # stamps' difference: jitter and dropped samples included).
+    h = (d.imu_t[k] - d.imu_t[k - 1])[:, None]
+    dg = (w[k] - w[k - 1] - 0.5 * (alpha[k - 1] + alpha[k]) * h) / sig_g
     bounds, chols = [], []
     start = 0
     seg_of_row = seg_id[k]
@@ -130,6 +132,8 @@ def build(d: LogData) -> DynChannel | None:
     ch = DynChannel(t=None, e0=None, kind=None, sig_a=sig_a, gyro_rows=k, seg_bounds=bounds, chol=chols, F=F,
                     open_=open_, alpha=alpha, w=w, vs=vs, mass=veh.mass_kg, dt=d.dt_s, veh=veh)
     ch.sig_g = sig_g
+    ch.h = h
+    ch.c_bh = rotmats(d.ref_q) if d.ref_q is not None else None
     e_g = ch.whiten_gyro(dg)
     ch.e0 = np.vstack([e_a, e_g])
     ch.t = np.concatenate([d.imu_t, d.imu_t[k]])
@@ -149,7 +153,7 @@ def _stack(ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None) -> 
         out[:n] = -da / ch.sig_a
     if dalpha is not None:
         g = ch.gyro_rows
-        dd = 0.5 * (dalpha[g - 1] + dalpha[g]) * ch.dt / ch.sig_g
+        dd = 0.5 * (dalpha[g - 1] + dalpha[g]) * ch.h[:, :, None] / ch.sig_g
         out[n:] = -ch.whiten_gyro(dd.reshape(g.size, -1)).reshape(g.size, 3, k)
     return out
 
@@ -172,12 +176,12 @@ def _jac_thrust_loss(ch):
 def _jac_misalign(ch):
     # d_i -> d_i + phi_i x d_i: force change -T [d_i]x phi_i, torque r_i x that.
     veh = ch.veh
-    T = veh.thrust_n * np.asarray(getattr(veh, "thrust_scale", np.ones(8)), float)
+    T = np.linalg.norm(veh.thruster_forces_b_n(), axis=1)
     Jinv = np.linalg.inv(np.asarray(veh.inertia_kgm2, float))
-    n = ch.F.shape[0]
-    da = np.zeros((n, 3, 24))
-    dal = np.zeros((n, 3, 24))
-    for i in range(8):
+    n, nt = ch.F.shape[0], veh.n_thrusters
+    da = np.zeros((n, 3, 3 * nt))
+    dal = np.zeros((n, 3, 3 * nt))
+    for i in range(nt):
         d = veh.directions_b[i]
         r = veh.positions_b_m[i]
         Sd = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
@@ -217,6 +221,16 @@ def _jac_imu_misalign(ch):
     return _stack(ch, _skew_rows(a_nom), _skew_rows(ch.alpha))
 
 
-_JAC = {"accel_bias": _jac_accel_bias, "thrust_loss": _jac_thrust_loss, "thruster_misalignment": _jac_misalign,
+def _jac_drag(ch):
+    # The accelerometer senses the inspector's own drag, along Hill y:
+    # C_bh e_y = row 1 of C_hb. The host's drag has no signature here.
+    n = ch.F.shape[0]
+    da = np.zeros((n, 3, 2))
+    if ch.c_bh is not None:
+        da[:, :, 0] = ch.c_bh[:, 1, :]
+    return _stack(ch, da, None)
+
+
+_JAC = {"differential_drag": _jac_drag, "accel_bias": _jac_accel_bias, "thrust_loss": _jac_thrust_loss, "thruster_misalignment": _jac_misalign,
         "com_offset": _jac_com, "mass_depletion": _jac_mass, "gyro_scale": _jac_gyro_scale,
         "imu_misalignment": _jac_imu_misalign}

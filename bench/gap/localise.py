@@ -32,9 +32,10 @@ def regimes(d: LogData, res: ReplayResult) -> dict:
     win = max(1, int(round(1.0 / d.dt_s)))
     k = np.clip(d.pose_tick[res.index], 0, d.imu_t.size - 1)
     if d.valves is not None:
-        on = (d.valves != 0).astype(float)
+        on = d.firing.astype(float)
     else:
-        on = (np.linalg.norm(d.accel, axis=1) > 2.5e-3).astype(float)
+        sig = d.desc.accel_sigma_mps2 if d.desc is not None else 1.667e-3
+        on = (np.linalg.norm(d.accel, axis=1) > 1.5 * sig).astype(float)
     c = np.concatenate([[0.0], np.cumsum(on)])
     lo = np.clip(k - win + 1, 0, None)
     firing = (c[k + 1] - c[lo]) > 0
@@ -133,7 +134,7 @@ def dyn_regimes(d: LogData, ch) -> dict:
     (rate relative to Hill above 0.01 rad/s), coasting (neither)."""
     n = d.imu_t.size
     k = np.concatenate([np.arange(n), ch.gyro_rows])
-    firing = (d.valves[k] != 0) if d.valves is not None else np.zeros(k.size, bool)
+    firing = d.firing[k]
     # Slewing from the gyro averaged over 1 s (a single sample's noise would
     # select the noisy rows and bias the regime cells).
     win = max(1, int(round(1.0 / d.dt_s)))

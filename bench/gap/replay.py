@@ -83,17 +83,17 @@ def qexp_many(phi: np.ndarray) -> np.ndarray:
 @dataclass
 class LogData:
     imu_t: np.ndarray
-    accel: np.ndarray
-    gyro: np.ndarray
-    pose_tc: np.ndarray
+    accel: np.ndarray  # specific force at the centre of mass, body axes
+    gyro: np.ndarray  # body axes
+    pose_tc: np.ndarray  # capture time on the IMU clock, moved to the nearest IMU tick
     pose_tf: np.ndarray  # replay time at which the pose is fused
-    pose_r: np.ndarray
+    pose_r: np.ndarray  # centre of mass in the Hill frame
     pose_q: np.ndarray
     pose_R: np.ndarray  # (M, 6, 6)
     pose_tick: np.ndarray  # IMU index at the capture time (-1: before the first sample)
     pose_start: np.ndarray  # bool: this pose starts a new segment (the flight filter was reset)
-    valves: np.ndarray | None  # (N,) valve mask over each IMU interval, or None
-    dt_s: float
+    valves: np.ndarray | None  # (N, K) fraction of each IMU interval each valve was open, or None
+    dt_s: float  # IMU sample interval (each sample is the mean over it)
     n_radps: float
     t_init: float
     # Reference trajectory at the IMU ticks, from the nominal replay.
@@ -102,45 +102,181 @@ class LogData:
     ref_q: np.ndarray | None = None
     truth: dict | None = None
     config: dict = field(default_factory=dict)
+    desc: object = None  # bench.log_description.Resolved
+    imu_seg: np.ndarray | None = None  # (N,) run (segment) of each IMU sample
+    pose_align_s: np.ndarray | None = None  # (M,) IMU tick minus the pose's capture time
+    pose_v0_sigma: np.ndarray | None = None  # (M,) initial velocity sigma where a pose starts a run
+    cands: dict | None = None  # the candidate models for this vehicle (bench/gap/candidates.py)
+    dropped: dict = field(default_factory=dict)  # samples the replay could not use, and why
 
     @property
     def duration_s(self) -> float:
         return float(self.imu_t[-1] - self.t_init)
 
+    @property
+    def firing(self) -> np.ndarray:
+        """(N,) a valve was open during the IMU interval."""
+        if self.valves is None:
+            return np.zeros(self.imu_t.size, bool)
+        return self.valves.sum(axis=1) > 0.0
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.imu_seg.max()) + 1 if self.imu_seg is not None and self.imu_seg.size else 1
+
+
+POSE_V0_SIGMA_MOVING_MPS = 0.05  # a run that does not start at rest
+
 
 def prepare(log) -> LogData:
-    """Arrays of a FlightLog, ready to replay (the first pose initialises)."""
+    """Arrays of a FlightLog, ready to replay (the first pose of each run
+    initialises it). Everything the log's description states (format
+    version 2) is applied here: IMU mounting and lever arm, pose reference
+    point and clock, orbit, vehicle, segments; pose capture times are moved
+    to the nearest IMU tick (the flight filter fuses a pose at a stored tick),
+    the motion over that shift corrected like a known latency."""
+    from bench.gap.candidates import candidates_for
+    from bench.log_description import resolve
+
+    desc = resolve(getattr(log, "description", None), log.config)
     imu, pose = log["imu"], log["pose"]
-    t = np.asarray(imu["t_s"], float)
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.1
+    t = np.asarray(imu["t_s"], np.float64)
+    dt = 1.0 / desc.imu_rate_hz if desc.imu_rate_hz else (float(np.median(np.diff(t))) if t.size > 1 else 0.1)
     cfg = dict(log.config or {})
-    radius = float(cfg.get("orbit_radius_m", ORBIT_RADIUS_DEFAULT_M))
-    n = float(np.sqrt(MU_EARTH / radius**3))
-    tc = np.asarray(pose["t_capture_s"], float)
-    td = np.asarray(pose["t_delivered_s"], float)
+    n = desc.mean_motion_radps
+    dropped = {}
+    # IMU axes -> body axes.
+    c_bi = rotmats(desc.imu_q_body_imu[None])[0]
+    accel = np.asarray(imu["accel_b_mps2"], float) @ c_bi.T
+    gyro = np.asarray(imu["omega_bi_b_rps"], float) @ c_bi.T
+    # Runs: explicit segments, or a skipped IMU tick (version 1 rule).
+    if desc.segments:
+        starts = np.array([sg.t_start_s for sg in desc.segments])
+        ends = np.array([sg.t_end_s for sg in desc.segments])
+        seg = np.searchsorted(starts, t, side="right") - 1
+        inside = (seg >= 0) & (t <= ends[np.clip(seg, 0, None)] + 1e-9)
+        if not np.all(inside):
+            dropped["imu samples outside every segment"] = int(np.sum(~inside))
+            t, accel, gyro, seg = t[inside], accel[inside], gyro[inside], seg[inside]
+        # Renumber to 0.. over the segments that hold samples.
+        _, imu_seg = np.unique(seg, return_inverse=True)
+        seg_desc = [desc.segments[i] for i in np.unique(seg)]
+    else:
+        imu_seg = np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * dt)]) if t.size else np.zeros(0, int)
+        seg_desc = None
+    valves = None
+    if log.has("valves"):
+        valves = open_fractions(log["valves"], t, dt, desc.n_thrusters)
+    # Accelerometer away from the centre of mass (a known lever arm): the
+    # interval's mean angular acceleration from the valve torques when the
+    # valves are known (exact under the nominal model; a finite difference
+    # of the gyro would smear every valve's on and off edges), else from the gyro.
+    rho = desc.imu_position_b_m - desc.com_b_m
+    if np.any(rho != 0.0):
+        if valves is not None:
+            veh = desc.vehicle()
+            J = np.asarray(veh.inertia_kgm2, float)
+            wdot = (valves @ veh.thruster_torques_b_nm() - np.cross(gyro, gyro @ J.T)) @ np.linalg.inv(J).T
+        else:
+            wdot = _rate_derivative(gyro, t, imu_seg)
+        accel = accel - np.cross(wdot, rho) - np.cross(gyro, np.cross(gyro, rho))
+    # Pose: onto the IMU clock, about the centre of mass.
+    tc = np.asarray(pose["t_capture_s"], np.float64) + desc.pose_time_offset_s - desc.pose_latency_s
+    td = np.asarray(pose["t_delivered_s"], np.float64) + desc.pose_time_offset_s
+    pr = np.asarray(pose["r_hill_m"], float)
+    pq = np.asarray(pose["q_hb"], float)
     rs = np.asarray(pose["r_sigma_m"], float)
     asg = np.asarray(pose["att_sigma_rad"], float)
+    pref = desc.pose_reference_b_m - desc.com_b_m
+    if np.any(pref != 0.0):
+        pr = pr - rotmats(pq) @ pref
+    # Nearest tick: the IMU samples and the start of the first interval.
+    grid = np.concatenate([[t[0] - dt], t])
+    gseg = np.concatenate([[imu_seg[0]], imu_seg])
+    j = np.clip(np.searchsorted(grid, tc), 1, grid.size - 1)
+    j = np.where(np.abs(grid[j - 1] - tc) <= np.abs(grid[j] - tc), j - 1, j)
+    align = grid[j] - tc
+    keep = np.abs(align) <= 0.5 * dt + 1e-9
+    if desc.segments:
+        pseg = np.searchsorted(starts, tc, side="right") - 1
+        pin = (pseg >= 0) & (tc <= ends[np.clip(pseg, 0, None)] + 1e-9)
+        keep &= pin
+        # the tick must belong to the pose's own run
+        keep &= np.searchsorted(starts, grid[j], side="right") - 1 == pseg
+    _drop(dropped, "poses more than half an IMU interval from every IMU tick", ~keep & (np.abs(align) > 0.5 * dt + 1e-9))
+    dup = np.zeros(tc.size, bool)
+    dup[1:] = j[1:] == j[:-1]
+    _drop(dropped, "poses on an IMU tick already taken by an earlier pose", dup & keep)
+    keep &= ~dup
+    j, align, tc, td, pr, pq, rs, asg = (x[keep] for x in (j, align, tc, td, pr, pq, rs, asg))
+    tc_tick = grid[j]
+    tick = j - 1
     R = np.zeros((tc.size, 6, 6))
     R[:, [0, 1, 2], [0, 1, 2]] = (rs**2)[:, None]
     R[:, [3, 4, 5], [3, 4, 5]] = (asg**2)[:, None]
-    tick = np.searchsorted(t, tc - 1e-6)
-    tick = np.where(np.abs(t[np.minimum(tick, t.size - 1)] - tc) < 1e-6, tick, -1)
-    start = segment_starts(tc, np.asarray(pose["r_hill_m"], float), rs, t)
-    valves = None
-    if log.has("valves"):
-        vt = np.asarray(log["valves"]["t_s"], float)
-        vm = np.asarray(log["valves"]["mask"]).astype(np.int64)
-        # IMU interval (t_k - dt, t_k] is covered by the valve record that
-        # starts at or before t_k - dt.
-        idx = np.searchsorted(vt, t - dt + 1e-6, side="right") - 1
-        valves = np.where(idx >= 0, vm[np.clip(idx, 0, None)], 0)
+    v0 = np.full(tc.size, V0_SIGMA_MPS)
+    if seg_desc is not None:
+        ps = gseg[j]
+        start = np.concatenate([[True], ps[1:] != ps[:-1]]) if ps.size else np.zeros(0, bool)
+        for i in np.flatnonzero(start):
+            if not seg_desc[ps[i]].starts_at_rest:
+                v0[i] = POSE_V0_SIGMA_MOVING_MPS
+    else:
+        start = segment_starts(tc_tick, pr, rs, t)
     truth = None
     if log.has("truth"):
         truth = {k: np.asarray(v) for k, v in log["truth"].items()}
-    return LogData(imu_t=t, accel=np.asarray(imu["accel_b_mps2"], float), gyro=np.asarray(imu["omega_bi_b_rps"], float),
-                   pose_tc=tc, pose_tf=np.maximum(td, tc), pose_r=np.asarray(pose["r_hill_m"], float),
-                   pose_q=np.asarray(pose["q_hb"], float), pose_R=R, pose_tick=tick, pose_start=start, valves=valves, dt_s=dt,
-                   n_radps=n, t_init=float(max(t[0] - dt, tc[0])), truth=truth, config=cfg)
+    d = LogData(imu_t=t, accel=accel, gyro=gyro, pose_tc=tc_tick, pose_tf=np.maximum(td, tc_tick), pose_r=pr,
+                pose_q=pq, pose_R=R, pose_tick=tick, pose_start=start, valves=valves, dt_s=dt, n_radps=n,
+                t_init=float(max(t[0] - dt, tc_tick[0])), truth=truth, config=cfg, desc=desc, imu_seg=imu_seg,
+                pose_align_s=align, pose_v0_sigma=v0, cands=candidates_for(desc.n_thrusters), dropped=dropped)
+    return d
+
+
+def _drop(dropped: dict, why: str, mask) -> None:
+    k = int(np.sum(mask))
+    if k:
+        dropped[why] = dropped.get(why, 0) + k
+
+
+def _rate_derivative(gyro: np.ndarray, t: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """d(gyro)/dt by differences within each run (one-sided at its ends)."""
+    out = np.zeros_like(gyro)
+    brk = np.flatnonzero(np.diff(seg) != 0) + 1
+    for a, b in zip(np.r_[0, brk], np.r_[brk, t.size]):
+        if b - a > 1:
+            out[a:b] = np.gradient(gyro[a:b], t[a:b], axis=0)
+    return out
+
+
+def open_fractions(valves: dict, t: np.ndarray, dt: float, n_thrusters: int) -> np.ndarray:
+    """(N, K): the fraction of each IMU interval (t_k - dt, t_k] that each
+    valve was open. Valve i opens at t_s for on_time_s[i] (or, in the mask
+    form, every valve of the mask for interval_s); pulses of any length, also
+    shorter than an IMU interval or across its ends, are integrated exactly."""
+    vt = np.asarray(valves["t_s"], np.float64)
+    if "on_time_s" in valves:
+        on = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
+    else:
+        mask = np.asarray(valves["mask"]).astype(np.int64)
+        bits = (mask[:, None] >> np.arange(n_thrusters)[None, :]) & 1
+        on = bits * np.asarray(valves["interval_s"], float)[:, None]
+    out = np.zeros((t.size, n_thrusters))
+    if vt.size == 0:
+        return out
+    for i in range(n_thrusters):
+        out[:, i] = (_open_time(vt, on[:, i], t) - _open_time(vt, on[:, i], t - dt)) / dt
+    return np.clip(out, 0.0, 1.0)
+
+
+def _open_time(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Total open time up to each t of pulses [start_j, start_j + dur_j)
+    (pulses do not overlap)."""
+    cum = np.concatenate([[0.0], np.cumsum(dur)])
+    j = np.searchsorted(start, t, side="right") - 1
+    jj = np.clip(j, 0, None)
+    part = np.clip(t - start[jj], 0.0, dur[jj])
+    return np.where(j >= 0, cum[jj] + part, 0.0)
 
 
 def segment_starts(tc: np.ndarray, r: np.ndarray, r_sigma: np.ndarray, imu_t: np.ndarray | None = None) -> np.ndarray:
@@ -198,7 +334,8 @@ class Corrections:
 def corrected_inputs(d: LogData, c: Corrections | None):
     """(accel (N,3), gyro (N,3), pose_r (M,3), pose_q (M,4)) with ``c`` applied."""
     if c is None:
-        return d.accel, d.gyro, d.pose_r, d.pose_q
+        r, q = _shift_poses(d, d.gyro, d.pose_r, d.pose_q, 0.0)
+        return d.accel, d.gyro, r, q
     acc = (d.accel - c.accel_bias) / (1.0 + c.accel_scale)
     gyr = (d.gyro - c.gyro_bias) / (1.0 + c.gyro_scale)
     if np.any(c.imu_misalign != 0.0):
@@ -214,17 +351,30 @@ def corrected_inputs(d: LogData, c: Corrections | None):
     r, q = d.pose_r, d.pose_q
     if np.any(c.lever_arm_b != 0.0):
         r = r - rotmats(q) @ c.lever_arm_b
-    if c.latency_s != 0.0:
-        if d.ref_v is None:
+    r, q = _shift_poses(d, gyr, r, q, c.latency_s)
+    return acc, gyr, r, q
+
+
+def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, latency_s: float):
+    """Each pose moved over ``latency_s`` plus its own shift to the IMU tick
+    (LogData.pose_align_s), along the reference motion: r + tau v_ref,
+    q (+) tau omega_bh. Needs the reference (replay.reference) unless every
+    shift is zero."""
+    tau = latency_s + (d.pose_align_s if d.pose_align_s is not None else 0.0)
+    if not np.any(tau != 0.0):
+        return r, q
+    if d.ref_v is None:
+        if latency_s != 0.0:
             raise ValueError("latency corrections need the reference trajectory (replay.reference)")
-        k = np.clip(d.pose_tick, 0, d.imu_t.size - 1)
-        r = r + c.latency_s * d.ref_v[k]
-        # The body rate over the latency: the IMU interval that ends at the
-        # pose's tick (sample k), never the next one, which at a run's last
-        # pose belongs to the next run.
-        w_bh = gyr[k] - np.einsum(
-            "nji,j->ni", rotmats(d.ref_q[k]), np.array([0.0, 0.0, d.n_radps]))
-        q = qmul_many(q, qexp_many(c.latency_s * w_bh))
+        return r, q  # the first nominal pass: shifts follow once the reference exists
+    tau = np.broadcast_to(tau, (r.shape[0],))
+    k = np.clip(d.pose_tick, 0, d.imu_t.size - 1)
+    r = r + tau[:, None] * d.ref_v[k]
+    # The body rate over the latency: the IMU interval that ends at the
+    # pose's tick (sample k), never the next one, which at a run's last
+    # pose belongs to the next run.
+    w_bh = gyr[k] - np.einsum("nji,j->ni", rotmats(d.ref_q[k]), np.array([0.0, 0.0, d.n_radps]))
+    q = qmul_many(q, qexp_many(tau[:, None] * w_bh))
     return acc, gyr, r, q
 
 
@@ -252,13 +402,18 @@ def nav_config(d: LogData, gate_chi2: float = 0.0):
 
     from bench.sensors import NoiseProfile
 
-    prof = NoiseProfile.paper()
-    noise = d.config.get("noise") if isinstance(d.config.get("noise"), dict) else {}
     nc = fb.NavConfig()
     nc.n_radps = d.n_radps
     nc.dt_imu_s = d.dt_s
-    nc.accel_sigma_mps2 = float(noise.get("accel_sigma_mps2", d.config.get("accel_sigma_mps2", prof.accel_sigma_mps2)))
-    nc.gyro_sigma_rps = float(noise.get("gyro_sigma_rps", d.config.get("gyro_sigma_rps", prof.gyro_sigma_rps)))
+    if d.desc is not None:
+        nc.accel_sigma_mps2, nc.gyro_sigma_rps = d.desc.accel_sigma_mps2, d.desc.gyro_sigma_rps
+    else:
+        prof = NoiseProfile.paper()
+        nc.accel_sigma_mps2, nc.gyro_sigma_rps = prof.accel_sigma_mps2, prof.gyro_sigma_rps
+    # Jittered time stamps: a step may be longer than the nominal interval.
+    steps = np.diff(d.imu_t)
+    if steps.size:
+        nc.max_dt_s = max(float(nc.max_dt_s), float(np.max(steps)) * 1.01)
     nc.gate_chi2 = gate_chi2
     nc.max_delay_s = max(0.5, float(np.max(d.pose_tf - d.pose_tc, initial=0.0)) + 2 * d.dt_s)
     return nc
@@ -269,12 +424,14 @@ def replay(d: LogData, c: Corrections | None = None, record_states: bool = False
     import fsw_bindings as fb
 
     acc, gyr, pr, pq = corrected_inputs(d, c)
-    ukf = fb.NavUkf(nav_config(d, gate_chi2))
+    nc = nav_config(d, gate_chi2)
+    ukf = fb.NavUkf(nc)
+    v0sig = d.pose_v0_sigma if d.pose_v0_sigma is not None else np.full(d.pose_tc.size, V0_SIGMA_MPS)
     t = d.imu_t
     # Initialise from the first pose at (or before) the first IMU interval.
     P0 = np.zeros((9, 9))
     P0[0:3, 0:3], P0[6:9, 6:9] = d.pose_R[0, 0:3, 0:3], d.pose_R[0, 3:6, 3:6]
-    P0[3:6, 3:6] = V0_SIGMA_MPS**2 * np.eye(3)
+    P0[3:6, 3:6] = v0sig[0] ** 2 * np.eye(3)
     ukf.init(d.t_init, pr[0], np.zeros(3), pq[0], P0)
     m = d.pose_tc.size
     start = d.pose_start
@@ -296,7 +453,8 @@ def replay(d: LogData, c: Corrections | None = None, record_states: bool = False
         if j < m and start[j] and tc[j] <= tk + eps:
             # A new approach (the flight filter was reset): start again from its first pose.
             P0[0:3, 0:3], P0[6:9, 6:9] = R[j, 0:3, 0:3], R[j, 3:6, 3:6]
-            ukf = fb.NavUkf(nav_config(d, gate_chi2))
+            P0[3:6, 3:6] = v0sig[j] ** 2 * np.eye(3)
+            ukf = fb.NavUkf(nc)
             ukf.init(tc[j], pr[j], np.zeros(3), pq[j], P0)
             predict, update = ukf.predict, ukf.update_pose
             j += 1
@@ -325,4 +483,8 @@ def reference(d: LogData) -> ReplayResult:
     reference trajectory (needed by the latency and Hill-frame corrections)."""
     res = replay(d, None, record_states=True)
     d.ref_r, d.ref_v, d.ref_q = res.states[:, 0:3], res.states[:, 3:6], res.states[:, 6:10]
+    if d.pose_align_s is not None and np.any(d.pose_align_s != 0.0):
+        # Poses moved to their IMU ticks along the first pass's motion.
+        res = replay(d, None, record_states=True)
+        d.ref_r, d.ref_v, d.ref_q = res.states[:, 0:3], res.states[:, 3:6], res.states[:, 6:10]
     return res

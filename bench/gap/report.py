@@ -40,31 +40,63 @@ def _gap_map_png(cells, path: Path):
     plt.close(fig)
 
 
-def _residuals_png(t, before, after, held, label, path: Path):
+def _residuals_png(series, label, path: Path, what: str):
+    """series: [(name, t, before, after or None, held mask, sample interval)],
+    one row each: whitened residuals over time (held-out blocks shaded) and
+    their periodogram (1 = white)."""
     plt = matplotlib_agg()
-    fig, ax = plt.subplots(6, 2, figsize=(11, 10), sharex="col")
-    for i in range(6):
+    fig, ax = plt.subplots(len(series), 2, figsize=(11, 1.7 * len(series)), sharex="col", squeeze=False)
+    for i, (name, t, before, after, held, dt) in enumerate(series):
         a = ax[i, 0]
-        a.plot(t, before[:, i], ".", ms=3, color="0.5", label="nominal")
+        a.plot(t, before, ".", ms=2, color="0.5", label="nominal")
         if after is not None:
-            a.plot(t, after[:, i], ".", ms=3, color="C3", label=f"with {label}")
+            a.plot(t, after, ".", ms=2, color="C3", label=f"with {label}")
         a.axhline(0, color="k", lw=0.5)
-        a.set_ylabel(f"{CH[i]} (whitened)")
+        a.set_ylabel(f"{name}", fontsize=8)
         for t0, t1 in _spans(t, held):
             a.axvspan(t0, t1, color="C0", alpha=0.08, lw=0)
         b = ax[i, 1]
-        ok = np.isfinite(before[:, i])
-        f = np.fft.rfftfreq(int(ok.sum()), 1.0)[1:]
-        b.semilogy(f, (np.abs(np.fft.rfft(before[ok, i])) ** 2 / ok.sum())[1:], color="0.5")
-        if after is not None:
-            b.semilogy(f, (np.abs(np.fft.rfft(after[ok, i])) ** 2 / ok.sum())[1:], color="C3")
+        for vals, color in ((before, "0.5"), (after, "C3")):
+            if vals is None:
+                continue
+            ok = np.isfinite(vals)
+            if ok.sum() < 4:
+                continue
+            f = np.fft.rfftfreq(int(ok.sum()), dt)[1:]
+            b.semilogy(f, (np.abs(np.fft.rfft(vals[ok])) ** 2 / ok.sum())[1:], color=color, lw=0.8)
         b.axhline(1.0, color="k", lw=0.5, ls=":")
     ax[0, 0].legend(loc="upper right", fontsize=7)
-    ax[-1, 0].set_xlabel("capture time [s] (shaded: held-out blocks)")
+    ax[0, 0].set_title(what, fontsize=9)
+    ax[-1, 0].set_xlabel("time [s] (shaded: held-out blocks)")
     ax[-1, 1].set_xlabel("frequency [Hz] (periodogram; 1 = white)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def residual_series(result: dict) -> tuple:
+    """The channels the named effect acts on, before and after it: the pose
+    innovations for an effect seen by the navigation replay, the accelerometer
+    and gyro against the valve model for one seen only in the dynamics."""
+    it = result["_internal"]
+    d, nominal, held, ctx = it["d"], it["nominal"], it["held"], it["ctx"]
+    best = result["attribution"][0] if result["attribution"] and result["verdict"] != "unexplained" else None
+    fit = next(x for x in it["fits"] if x.name == best["effect"]) if best else None
+    nav = fit is None or d.cands[fit.name].nav or ctx.ch is None
+    if nav:
+        after = fit.after_nav.white if fit is not None else None
+        series = [(f"{CH[i]} (whitened)", d.pose_tc, nominal.white[:, i], None if after is None else after[:, i],
+                   held, float(np.median(np.diff(d.pose_tc))) if d.pose_tc.size > 1 else 1.0) for i in range(6)]
+        return series, "pose innovations (whitened)"
+    ch = ctx.ch
+    series = []
+    for kind, name in ((0, "accel"), (1, "gyro diff")):
+        m = ch.kind == kind
+        hd = ctx.held_dyn[m] if ctx.held_dyn is not None else np.zeros(int(m.sum()), bool)
+        for i, ax in enumerate("xyz"):
+            series.append((f"{name} {ax}", ch.t[m], ch.e0[m, i],
+                           fit.after_dyn[m, i] if fit.after_dyn is not None else None, hd, d.dt_s))
+    return series, "accelerometer and gyro against the valve model (whitened rows)"
 
 
 def _spans(t, mask):
@@ -87,45 +119,21 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     d, nominal, held = it["d"], it["nominal"], it["held"]
     _gap_map_png(it["cells"], out / "gap_map.png")
     best = result["attribution"][0] if result["attribution"] else None
-    after = None
-    if best is not None:
-        f = next(x for x in it["fits"] if x.name == best["effect"])
-        after = f.after_nav.white
-    _residuals_png(d.pose_tc, nominal.white, after, held, best["effect"] if best else "", out / "residuals.png")
+    series, what = residual_series(result)
+    named = best["effect"] if best and result["verdict"] != "unexplained" else ""
+    _residuals_png(series, named, out / "residuals.png", what)
 
     st = result["statistics"]
     loc = result["location"]
     w = loc["where"] or {}
     lines = [f"# Gap diagnosis: {log_name}", ""]
     lines += ["## The three answers", ""]
+    from bench.gap.answers import answer_lines
+
+    for label, text in answer_lines(result):
+        lines.append(f"- **{label.capitalize()}**: {text}" if label else f"  {text}")
     if not result["gap_detected"]:
-        lines.append("**No gap detected**: the log is consistent with the nominal model at the calibrated "
-                     f"false-alarm rate ({st['false_alarm_rate']}).")
-    else:
-        lines.append(f"- **Where**: {w.get('stream')} axis {w.get('axis')} ({w.get('frame')}), statistic "
-                     f"`{w.get('stat')}`, strongest while {w.get('regime_peak')}; a **{loc['dynamics_or_sensor']}** gap.")
-        acts = loc.get("effect_acts_while")
-        if acts and acts["peak"]:
-            lines.append(f"- The fitted effect acts mostly while **{acts['peak']}** (its signature's energy per row: "
-                         + ", ".join(f"{r} {v:.3g}" for r, v in acts["energy_per_row"].items()) + ").")
-        if result["verdict"] == "unexplained":
-            lines.append("- **Which**: **unexplained**: no effect in the library accounts for the gap on held-out data.")
-        else:
-            amb = ", ".join(a["effect"] for a in result["ambiguous_with"])
-            lines.append(f"- **Which**: **{best['effect']}** ({result['verdict']}"
-                         + (f"; cannot be told apart from {amb}" if amb else "") + ")")
-        if best is not None:
-            sh = best["shrink_heldout"]
-            lines.append(f"- **How far**: adding {best['effect']} shrinks the held-out deficit by "
-                         f"{100 * sh['fraction']:.0f} % (95 % CI {100 * sh['ci95'][0]:.0f} to {100 * sh['ci95'][1]:.0f} %).")
-            rr = result.get("shrink_heldout_runs")
-            if rr and rr.get("fraction") is not None and np.isfinite(rr["fraction"]):
-                lines.append(f"  On held-out runs ({rr['heldout_runs']} of the log's {rr['runs']} chained runs, the "
-                             f"effect fitted on the others): {100 * rr['fraction']:.0f} % (95 % CI "
-                             f"{100 * rr['ci95'][0]:.0f} to {100 * rr['ci95'][1]:.0f} %).")
-            elif rr:
-                why = rr.get("reason", "no deficit left on the held-out runs to shrink")
-                lines.append(f"  Held-out runs: not measured ({why}).")
+        lines.append(f"- No gap at the calibrated false-alarm rate ({st['false_alarm_rate']}).")
     lines += ["", f"Detection: gap-map max |z| = {st['map_max_abs_z']:.2f} (threshold {st['map_threshold']:.2f}); "
               f"best screening -log10 p = {st['screen_logp_max']:.2f} (threshold {st['screen_logp_threshold']:.2f}); "
               f"thresholds from {st['calibration_runs']} null runs, false-alarm rate {st['false_alarm_rate']}.", ""]
@@ -154,12 +162,13 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
         lines.append(f"- {c['stream']} {c['axis']} {c['regime']} {c['stat']}: z = {c['z']:.2f}"
                      + (f", p {'<=' if c.get('p_beyond_null') else '='} {c['p_familywise']:.3f}"
                         if "p_familywise" in c else ""))
-    lines += ["", "## Residuals and spectra, before and after", "", "![residuals](residuals.png)", "",
-              "Replay RMS per channel on held-out blocks (nominal): " + ", ".join(
-                  f"{k} {v:.3g}" for k, v in result["replay_rms_heldout_before"].items())]
-    if best is not None:
-        lines.append("; with the best candidate: " + ", ".join(
-            f"{k} {v:.3g}" for k, v in best["replay_rms_heldout_after"].items()))
+    lines += ["", "## Residuals and spectra, before and after", "", f"Shown: {what}.", "",
+              "![residuals](residuals.png)", ""]
+    rms = [(nm, float(np.sqrt(np.nanmean(b[h] ** 2))) if np.any(h) else float("nan"),
+            float(np.sqrt(np.nanmean(a[h] ** 2))) if a is not None and np.any(h) else None)
+           for nm, _, b, a, h, _ in series]
+    lines.append("RMS on held-out rows, nominal" + (f" -> with {named}" if named else "") + ": " + ", ".join(
+        f"{nm} {b:.3g}" + (f" -> {a:.3g}" if a is not None else "") for nm, b, a in rms))
     lines += ["", f"In the library but without a candidate model yet: {', '.join(result['not_modelled'])}.", "",
               f"Log: {result['log']['duration_s']:.0f} s, {result['log']['pose_updates']} pose updates "
               f"({result['log']['train_updates']} train / {result['log']['heldout_updates']} held out); "

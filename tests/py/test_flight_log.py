@@ -102,3 +102,89 @@ def test_reader_names_problem_in_file_written_by_plain_h5py(tmp_path):
         del h["imu/omega_bi_b_rps"]
     with pytest.raises(FlightLogError, match="imu/omega_bi_b_rps: missing field"):
         read_flight_log(p)
+
+
+# --- format version 2 ------------------------------------------------------
+
+def v2_log(n_thr=12):
+    from bench.vehicles import inspector_12kg
+
+    log = minimal_log()
+    log.description = inspector_12kg()
+    t = np.arange(0.0, 5.0, 0.1)
+    on = np.zeros((t.size, n_thr))
+    on[::3, 2] = 0.03
+    log.streams["valves"] = {"t_s": t, "on_time_s": on}
+    return log
+
+
+def test_v2_round_trip_keeps_description_and_on_times(tmp_path):
+    log = v2_log()
+    back = read_flight_log(write_flight_log(tmp_path / "v2.h5", log))
+    assert back.description == log.description
+    np.testing.assert_array_equal(back["valves"]["on_time_s"], log["valves"]["on_time_s"])
+
+
+def test_v2_on_times_need_one_column_per_described_thruster():
+    log = v2_log(n_thr=8)  # the description has 12 thrusters
+    msgs = [str(p) for p in validate_log(log)]
+    assert "valves/on_time_s: wrong shape (50, 8), expected (N, 12) (one column per thruster)" in msgs, msgs
+
+
+def test_v2_valve_forms_and_pulses_checked():
+    log = v2_log()
+    log["valves"]["mask"] = np.zeros(50, dtype=np.int64)
+    assert "valves: give on_time_s or mask with interval_s, not both" in [str(p) for p in validate_log(log)]
+    log = v2_log()
+    log["valves"]["on_time_s"][4, 1] = 0.25  # the next command is 0.1 s later
+    msgs = [str(p) for p in validate_log(log)]
+    assert any(m.startswith("valves/on_time_s row 4: pulse of 0.25 s runs past the next command") for m in msgs), msgs
+    log = v2_log()
+    log["valves"]["on_time_s"][7, 0] = -0.01
+    assert any(str(p).startswith("valves/on_time_s row 7: negative") for p in validate_log(log))
+    log = minimal_log()  # the bench inspector: 8 thrusters
+    log.streams["valves"] = {"t_s": np.arange(3.0), "interval_s": np.full(3, 0.5), "mask": np.array([1, 256, 0])}
+    assert "valves/mask row 1: opens a thruster beyond the vehicle's 8 (256)" in [str(p) for p in validate_log(log)]
+
+
+def test_v2_bad_description_named_by_the_validator(tmp_path):
+    log = v2_log()
+    log.description["vehicle"]["thrusters"][0]["thrust_n"] = 0.0
+    msgs = [str(p) for p in validate_log(log)]
+    assert "/description_json: vehicle.thrusters[0].thrust_n: 0.0 must be > 0.0" in msgs, msgs
+
+
+def test_v1_file_with_a_description_is_refused(tmp_path):
+    p = write_flight_log(tmp_path / "a.h5", minimal_log())
+    with h5py.File(p, "a") as h:
+        h.attrs["format_version"] = 1
+        h.attrs["description_json"] = "{}"
+    with pytest.raises(FlightLogError, match="description_json: needs format_version 2"):
+        read_flight_log(p)
+
+
+@pytest.mark.parametrize("attr, value, message", [
+    ("format_version", "abc", "/format_version: 'abc' is not an integer"),
+    ("format_version", 7, "/format_version: 7 not supported"),
+    ("config_json", "{not json", "/config_json: not valid JSON"),
+    ("description_json", "[1, 2]", "/description_json: expected a JSON object"),
+])
+def test_header_problems_named(tmp_path, attr, value, message):
+    p = write_flight_log(tmp_path / "a.h5", minimal_log())
+    with h5py.File(p, "a") as h:
+        h.attrs[attr] = value
+    with pytest.raises(FlightLogError, match=message.replace("[", r"\[").replace("]", r"\]").replace("{", r"\{")):
+        read_flight_log(p)
+
+
+def test_stream_stored_as_a_dataset_is_named(tmp_path):
+    p = write_flight_log(tmp_path / "a.h5", minimal_log())
+    with h5py.File(p, "a") as h:
+        h["truth"] = np.zeros(3)
+    with pytest.raises(FlightLogError, match="truth: expected a group of fields"):
+        read_flight_log(p)
+
+
+def test_one_row_stream_is_refused():
+    log = minimal_log(n=1, m=5)
+    assert "imu/t_s: 1 samples (at least 2 needed)" in [str(p) for p in validate_log(log)]

@@ -1,0 +1,105 @@
+"""The diagnosis in words: the three answers (where, which, how far) and
+what was and was not examined, written once for the command line and the
+report, so both say the same thing.
+
+A number is shown only where the JSON has it as measured: no shrink or
+interval that is not finite or not measurable, and none for a candidate the
+verdict rejected.
+"""
+from __future__ import annotations
+
+import math
+
+
+def _finite(*xs) -> bool:
+    return all(x is not None and isinstance(x, (int, float)) and math.isfinite(x) for x in xs)
+
+
+def where_text(out: dict) -> str | None:
+    """One "where": the gap map's strongest cell, and the regime in which the
+    named effect acts (its signature's) or, without one, where the gap map is
+    strongest."""
+    if not out["gap_detected"]:
+        return None
+    loc = out["location"]
+    w = loc["where"] or {}
+    acts = loc.get("effect_acts_while")
+    regime = (f"the effect acts mostly while {acts['peak']}" if acts and acts.get("peak")
+              else f"strongest while {w.get('regime_peak')}")
+    kind = loc.get("dynamics_or_sensor")
+    return (f"{w.get('stream')} {w.get('axis')} ({w.get('stat')}); {regime}"
+            + (f"; a {kind} gap" if kind else ""))
+
+
+def which_text(out: dict) -> str | None:
+    if not out["gap_detected"]:
+        return None
+    v = out["verdict"]
+    if v == "unexplained":
+        return "unexplained: no effect in the library accounts for the gap on held-out data"
+    best = out["attribution"][0]
+    amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []))
+    return f"{best['effect']} ({v}" + (f"; cannot be told apart from {amb}" if amb else "") + ")"
+
+
+def fitted_text(out: dict) -> str | None:
+    if not out["gap_detected"] or out["verdict"] == "unexplained" or not out["attribution"]:
+        return None
+    best = out["attribution"][0]
+    pars = ", ".join(f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in best["parameters"].items()
+                     if _finite(v["value"], v["sigma"]) and abs(v["value"]) > 2 * v["sigma"])
+    return f"fitted (beyond 2 sigma): {pars}" if pars else None
+
+
+def how_far_lines(out: dict) -> list:
+    if not out["gap_detected"]:
+        return []
+    if out["verdict"] == "unexplained":
+        return ["no shrink to report: no candidate explains the held-out data"]
+    best = out["attribution"][0]
+    sh = best["shrink_heldout"]
+    lines = []
+    if sh.get("measurable", True) and _finite(sh.get("fraction")) and _finite(*sh.get("ci95", [None, None])):
+        lines.append(f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
+                     f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] with {best['effect']}")
+    else:
+        lines.append(f"held-out shrink not measurable: the held-out blocks' deficit does not stand out of its noise "
+                     f"(the effect is named from the training fit and the held-out likelihood gain "
+                     f"{best['evidence']['dll_heldout']:.1f})")
+    r = out.get("shrink_heldout_runs")
+    if r and _finite(r.get("fraction")) and _finite(*r.get("ci95", [None, None])):
+        lines.append(f"on held-out runs ({r['heldout_runs']} of {r['runs']}, fitted on the others): "
+                     f"{100 * r['fraction']:.0f} % [95 % CI {100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}]")
+    elif r and r.get("runs", 0) >= 2:
+        lines.append(f"on held-out runs: not measured ({r.get('reason', 'no deficit left there to shrink')})")
+    return lines
+
+
+def examined_lines(out: dict) -> list:
+    ex = out.get("examined") or {}
+    lines = []
+    if ex.get("summary"):
+        lines.append(ex["summary"])
+    lines += [f"not examined: {x}" for x in ex.get("not_examined", [])]
+    for why, n in (ex.get("dropped") or {}).items():
+        lines.append(f"left out: {n} {why}")
+    d = ex.get("defaults_used") or []
+    if d:
+        lines.append("defaults taken (the log does not state them): " + "; ".join(d))
+    cal = out.get("calibration") or {}
+    if cal.get("note"):
+        lines.append(cal["note"])
+    return lines
+
+
+def answer_lines(out: dict) -> list:
+    """(label, text) pairs of the whole answer, in reading order."""
+    rows = [("gap detected", "yes" if out["gap_detected"] else "no")]
+    for label, text in (("where", where_text(out)), ("which", which_text(out)), ("", fitted_text(out))):
+        if text:
+            rows.append((label, text))
+    for i, t in enumerate(how_far_lines(out)):
+        rows.append(("how far" if i == 0 else "", t))
+    for i, t in enumerate(examined_lines(out)):
+        rows.append(("examined" if i == 0 else "", t))
+    return rows

@@ -1,0 +1,41 @@
+"""Manoeuvre plans for any described vehicle (bench/vehicle_sim.py), flown
+open loop: what a team would fly to characterise its vehicle.
+
+``characterisation_plan``: every thruster alone, pulse-width modulated
+(``duty`` of each ``cycle_s`` control cycle, never below the thruster's
+minimum on-time) for ``fire_s``, then a coast of ``coast_s`` that holds the
+rate change; ``per_run`` thrusters per run, each run from rest at a seeded
+start about 1.5 m from the host with a seeded attitude.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bench.log_description import resolve
+from bench.plant import qexp, qnormalize
+from bench.vehicle_sim import PlanSegment
+
+
+def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.5, coast_s: float = 6.0,
+                          lead_s: float = 1.5, duty: float = 0.4, cycle_s: float = 0.1, per_run: int = 4) -> list:
+    desc = resolve(description)
+    k = desc.n_thrusters
+    rng = np.random.default_rng([int(seed), 0x91A7])
+    plan = []
+    for first in range(0, k, per_run):
+        group = list(range(first, min(first + per_run, k)))
+        t_cmd, on = [], []
+        t = lead_s
+        for i in group:
+            n_cyc = int(round(fire_s / cycle_s))
+            width = max(duty * cycle_s, desc.thrusters[i].min_on_time_s)
+            for c in range(n_cyc):
+                row = np.zeros(k)
+                row[i] = min(width, cycle_s)
+                t_cmd.append(t + c * cycle_s)
+                on.append(row)
+            t += fire_s + coast_s
+        r0 = np.array([0.2, -1.5, 0.1]) + rng.normal(0.0, 0.15, 3)
+        q0 = qnormalize(qexp(rng.normal(0.0, 0.3, 3)))
+        plan.append(PlanSegment("characterisation", t, r0, q0, np.asarray(t_cmd), np.asarray(on).reshape(-1, k)))
+    return plan

@@ -1,0 +1,271 @@
+"""Flight logs of any described vehicle (format version 2), flown open loop
+from valve commands: what a user's own log looks like, made where the truth
+is known.
+
+    log, key = simulate(description, plan, effects, seed, clocks)
+
+``description`` is a flight-log description (bench/log_description.py,
+bench/vehicles.py); ``plan`` a list of :class:`PlanSegment` (a run: its
+manoeuvre, start pose, length and valve commands, each thruster open from
+the command time for its own on-time: pulse-width modulation within a
+control cycle); ``effects`` the physical effects of docs/EFFECTS.md sized
+for this vehicle (thrust_loss: K values or one; thruster_misalignment: 3 K);
+``clocks`` the time stamps as real logs have them: IMU samples at irregular
+times (each still the mean over its own interval), dropped samples, pose
+captures anywhere between IMU samples, on a clock of their own.
+
+The truth plant is bench.plant.Plant (nonlinear relative orbit, rigid body,
+the PlantEffects physics) for the described vehicle, stepped exactly between
+every valve switching time, IMU interval end and pose capture. The same
+command history with ``effects={}`` and a fresh seed is a null log of the
+same flight: the null calibration made for a user's log
+(bench/gap/log_null.py) is built on it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.flight_log import FlightLog
+from bench.log_description import resolve
+from bench.plant import Plant, PlantEffects, PlantState, qexp, qlog, qmul, qconj, qnormalize, rotmat
+
+
+@dataclass
+class PlanSegment:
+    manoeuvre: str
+    duration_s: float
+    r0_hill_m: np.ndarray
+    q0_hb: np.ndarray
+    cmd_t_s: np.ndarray  # (C,) command times from the segment start
+    cmd_on_s: np.ndarray  # (C, K) on-time of each thruster from its command time
+    v0_hill_mps: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+@dataclass
+class Clocks:
+    imu_jitter_s: float = 0.0  # std of each IMU sample's time about its nominal tick (stamped right)
+    imu_drop_frac: float = 0.0  # fraction of IMU samples lost
+    pose_period_s: float = 1.0
+    pose_phase_s: float = 0.5  # first capture this long after the segment start
+    pose_jitter_s: float = 0.0
+    pose_delay_s: float = 0.15  # delivery after capture
+    gap_s: float = 2.0  # between segments
+
+
+POSE_POS_FRAC = 0.05
+POSE_ATT_SIGMA_RAD = 0.01
+
+
+def _vehicle_with_effects(desc, effects: dict):
+    """The true vehicle (bench.vehicle.Vehicle about the true centre of mass)
+    and the plant effects."""
+    veh = desc.vehicle()
+    k = veh.n_thrusters
+    pfx = PlantEffects()
+    on = False
+    if "thrust_loss" in effects:
+        p = np.atleast_1d(np.asarray(effects["thrust_loss"], float))
+        veh.thrust_scale = veh.thrust_scale * (1.0 - (np.full(k, p[0]) if p.size == 1 else p.reshape(k)))
+    if "thruster_misalignment" in effects:
+        phi = np.asarray(effects["thruster_misalignment"], float).reshape(k, 3)
+        veh.directions_b = np.array([rotmat(qexp(phi[i])) @ veh.directions_b[i] for i in range(k)])
+    if "com_offset" in effects:
+        c = np.asarray(effects["com_offset"], float)
+        veh.positions_b_m = veh.positions_b_m - c
+        pfx.imu_offset_b_m = -c
+        on = True
+    if "mass_depletion" in effects:
+        pfx.mass_flow_kgps_per_valve = float(np.atleast_1d(effects["mass_depletion"])[0])
+        on = True
+    if "host_eccentricity" in effects:
+        pfx.host_eccentricity, pfx.host_true_anomaly0_rad = (float(x) for x in effects["host_eccentricity"])
+        on = True
+    if "differential_j2" in effects:
+        pfx.j2 = float(np.atleast_1d(effects["differential_j2"])[0])
+        on = True
+    if "differential_drag" in effects:
+        p = np.atleast_1d(np.asarray(effects["differential_drag"], float))
+        pfx.diff_ballistic_m2pkg = float(p[0])
+        pfx.host_ballistic_m2pkg = float(p[1]) if p.size > 1 else max(0.0, -float(p[0]))
+        on = True
+    if "flex_mode" in effects:
+        pfx.flex_freq_hz, pfx.flex_amplitude_rad = (float(x) for x in effects["flex_mode"])
+        on = True
+    if "fuel_slosh" in effects:
+        pfx.slosh_mass_kg = float(np.atleast_1d(effects["fuel_slosh"])[0])
+        on = True
+    return veh, (pfx if on else None)
+
+
+KNOWN = ("thrust_loss", "thruster_misalignment", "com_offset", "mass_depletion", "host_eccentricity",
+         "differential_j2", "differential_drag", "flex_mode", "fuel_slosh", "accel_bias", "gyro_bias",
+         "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm")
+
+
+def simulate(description: dict, plan: list, effects: dict | None = None, seed: int = 0,
+             clocks: Clocks | None = None, with_truth: bool = True, times: list | None = None) -> tuple:
+    """(FlightLog, key): the log of ``plan`` flown by the described vehicle
+    with ``effects``; the key holds the effects (not in the log). ``times``
+    (one dict per segment: imu_t, pose_t on the IMU clock, pose_delay)
+    replaces the clocks' draws with given time stamps (a null log of a real
+    flight, bench/gap/log_null.py)."""
+    effects = dict(effects or {})
+    unknown = sorted(set(effects) - set(KNOWN))
+    if unknown:
+        raise ValueError(f"effect {unknown[0]!r} not simulated here (known: {', '.join(KNOWN)})")
+    clocks = clocks or Clocks()
+    desc = resolve(description)
+    rng = np.random.default_rng(seed)
+    veh, pfx = _vehicle_with_effects(desc, effects)
+    T = 1.0 / (desc.imu_rate_hz or 10.0)
+    c_bi = rotmat(desc.imu_q_body_imu)  # IMU axes -> body axes
+    c_ib = c_bi.T
+    if "imu_misalignment" in effects:
+        c_ib = rotmat(qexp(effects["imu_misalignment"])).T @ c_ib
+    rho = desc.imu_position_b_m - desc.com_b_m  # known lever arm of the accelerometer
+    pref = desc.pose_reference_b_m - desc.com_b_m
+    lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
+    latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
+    ba = np.asarray(effects.get("accel_bias", np.zeros(3)), float)
+    bg = np.asarray(effects.get("gyro_bias", np.zeros(3)), float)
+    sg = np.asarray(effects.get("gyro_scale", np.zeros(3)), float)
+    streams = {k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von",
+                               "tt", "tr", "tv", "tq", "tw")}
+    segments = []
+    t0 = 0.0
+    for sg_i, seg in enumerate(plan):
+        tm = times[sg_i] if times is not None else None
+        if tm is not None:
+            t0 = float(tm["imu_t"][0] - T)
+        out = _fly_segment(seg, t0, veh, pfx, desc, T, clocks, rng, latency, tm)
+        imu_t, f_mean, w_mean, alpha, states, poses = out
+        # The accelerometer sits at rho from the centre of mass (known to the log).
+        f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
+        acc = (f_imu @ c_ib.T) + ba + desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
+        gyr = (((1.0 + sg) * w_mean) + bg) @ c_ib.T + desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
+        keep = np.ones(imu_t.size, bool)
+        if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
+            keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac
+        streams["imu_t"].append(imu_t[keep])
+        streams["acc"].append(acc[keep])
+        streams["gyr"].append(gyr[keep])
+        delays = list(tm["pose_delay"]) if tm is not None else []
+        for tc, r, q in poses:
+            r_meas = r + rotmat(q) @ (pref + lever)
+            sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05)
+            r_meas = r_meas + sig * rng.standard_normal(3)
+            q_meas = qnormalize(qmul(q, qexp(POSE_ATT_SIGMA_RAD * rng.standard_normal(3))))
+            # Stamped on the pose clock: IMU time minus the description's offset, plus its known latency.
+            stamp = tc - desc.pose_time_offset_s + desc.pose_latency_s
+            streams["pc"].append(stamp)
+            streams["pd"].append(stamp + (delays.pop(0) if delays else clocks.pose_delay_s))
+            streams["pr"].append(r_meas)
+            streams["pq"].append(q_meas)
+            streams["prs"].append(sig)
+        streams["vt"].append(t0 + seg.cmd_t_s)
+        streams["von"].append(seg.cmd_on_s)
+        st_t, st = states
+        streams["tt"].append(st_t)
+        streams["tr"].append(st[:, 0:3])
+        streams["tv"].append(st[:, 3:6])
+        streams["tq"].append(st[:, 6:10])
+        streams["tw"].append(st[:, 10:13])
+        segments.append({"t_start_s": float(t0), "t_end_s": float(t0 + seg.duration_s), "manoeuvre": seg.manoeuvre,
+                         "starts_at_rest": bool(np.all(seg.v0_hill_mps == 0.0))})
+        t0 += seg.duration_s + clocks.gap_s
+    cat = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else np.asarray(v)) for k, v in streams.items()}
+    pc = np.asarray(streams["pc"], float)
+    log_desc = dict(description)
+    log_desc["segments"] = segments
+    log = FlightLog(streams={
+        "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
+        "pose": {"t_capture_s": pc, "t_delivered_s": np.asarray(streams["pd"], float),
+                 "r_hill_m": np.asarray(streams["pr"], float).reshape(-1, 3),
+                 "q_hb": np.asarray(streams["pq"], float).reshape(-1, 4),
+                 "r_sigma_m": np.asarray(streams["prs"], float), "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD)},
+        "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
+    }, config={"source": "proxops vehicle_sim", "seed": int(seed)}, description=log_desc)
+    if with_truth:
+        # Truth on the IMU clock (the centre of mass), at every IMU tick.
+        log.streams["truth"] = {"t_s": cat["tt"], "r_hill_m": cat["tr"], "v_hill_mps": cat["tv"], "q_hb": cat["tq"],
+                                "omega_bi_b_rps": cat["tw"]}
+    key = {"seed": int(seed), "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
+    return log, key
+
+
+def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: Clocks, rng, latency: float,
+                 times: dict | None = None):
+    """Step the plant through one run. Returns the IMU sample times, each
+    sample's mean specific force and mean inertial rate (body axes, at the
+    centre of mass), its mean angular acceleration, the truth at the sample
+    times, and the poses [(capture time on the IMU clock, r, q)] (captured
+    ``latency`` before their stamp)."""
+    n = desc.mean_motion_radps
+    q0 = qnormalize(np.asarray(seg.q0_hb, float))
+    w0 = rotmat(q0).T @ np.array([0.0, 0.0, n])  # at rest in the Hill frame
+    plant = Plant(PlantState(t0, np.asarray(seg.r0_hill_m, float).copy(), np.asarray(seg.v0_hill_mps, float).copy(),
+                             q0, w0), vehicle=veh, radius_m=desc.orbit_radius_m, effects=pfx)
+    t_end = t0 + seg.duration_s
+    if times is not None:
+        imu_t = np.asarray(times["imu_t"], float)
+        t_end = max(t_end, float(imu_t[-1]))
+        pose_t = np.asarray(times["pose_t"], float)
+    else:
+        nominal = t0 + T * np.arange(1, int(np.floor(seg.duration_s / T + 1e-9)) + 1)
+        jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
+        imu_t = np.minimum(nominal + jit, t_end)
+        imu_t = imu_t[imu_t - T >= t0 - 1e-12]
+        n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
+        pose_t = t0 + clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
+        pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
+    pose_cap = pose_t - latency  # the image is taken this long before its stamp's instant
+    pose_ok = (pose_cap >= t0) & (pose_t <= t_end)
+    pose_t, pose_cap = pose_t[pose_ok], pose_cap[pose_ok]
+    on_start = t0 + np.asarray(seg.cmd_t_s, float)
+    on = np.asarray(seg.cmd_on_s, float)
+    k = veh.n_thrusters
+    switches = np.concatenate([on_start, (on_start[:, None] + on).ravel()])
+    grid = np.unique(np.concatenate([[t0, t_end], imu_t, imu_t - T, pose_cap, switches[(switches > t0) & (switches < t_end)]]))
+    grid = grid[(grid >= t0) & (grid <= t_end)]
+    # Record at every grid point: cumulative specific-force integral (body), q_IB, rate, state.
+    S = np.zeros((grid.size, 3))
+    qib = np.zeros((grid.size, 4))
+    st = np.zeros((grid.size, 13))
+    w_at = np.zeros((grid.size, 3))
+
+    def snap(i):
+        s = plant.state
+        qib[i] = plant.q_ib(s.t_s, s.q_hb)
+        st[i] = np.concatenate([s.r_hill_m, s.v_hill_mps, s.q_hb, s.omega_bi_b_rps])
+        w_at[i] = s.omega_bi_b_rps
+
+    snap(0)
+    mflow = pfx.mass_flow_kgps_per_valve if pfx is not None else 0.0
+    for i in range(1, grid.size):
+        a, b = grid[i - 1], grid[i]
+        mid = 0.5 * (a + b)
+        j = np.searchsorted(on_start, mid, side="right") - 1
+        valves = np.zeros(k)
+        if j >= 0:
+            valves = (mid < on_start[j] + on[j]).astype(float)
+        dt = b - a
+        if dt <= 1e-12:
+            S[i] = S[i - 1]
+            snap(i)
+            continue
+        f, tau = veh.wrench(valves)
+        res = plant.step_wrench(f, tau, dt)
+        if mflow > 0.0:
+            plant.mass_kg -= mflow * float(valves.sum()) * dt
+        S[i] = S[i - 1] + res.specific_force_b_mps2 * dt
+        snap(i)
+    idx = {t: i for i, t in enumerate(grid)}
+    i1 = np.array([idx[t] for t in imu_t])
+    i0 = np.array([idx[t] for t in imu_t - T])
+    f_mean = (S[i1] - S[i0]) / T
+    w_mean = np.array([qlog(qmul(qconj(qib[a]), qib[b])) / T for a, b in zip(i0, i1)])
+    ip = np.array([idx[t] for t in pose_cap], dtype=int)
+    poses = [(float(t), st[i, 0:3].copy(), st[i, 6:10].copy()) for t, i in zip(pose_t, ip)]
+    return imu_t, f_mean, w_mean, (w_at[i1] - w_at[i0]) / T, (imu_t, st[i1]), poses
