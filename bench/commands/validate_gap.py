@@ -13,6 +13,10 @@ def register(sub):
     p.add_argument("--manoeuvres", default="docking", choices=("docking", "docking+characterisation"),
                    help="what each run flies: docking alone, or docking then a thruster characterisation "
                         "(each valve alone 3 s, then 20 s without firing)")
+    p.add_argument("--vehicle", default="3kg", choices=("3kg", "12kg"),
+                   help="3kg: the bench inspector's docking logs; 12kg: the twelve-thruster 6U-class inspector's "
+                        "characterisation logs with jittered time stamps, pulse-width-modulated valves and pose on "
+                        "its own clock (--duration and --manoeuvres do not apply)")
     p.set_defaults(func=main)
 
 
@@ -21,7 +25,13 @@ def main(args):
     from bench.report import write_json
 
     workers = args.workers or default_workers()
-    res = run_campaign(args.runs, args.seed, args.json, workers, args.duration, manoeuvres=args.manoeuvres)
+    if args.vehicle == "12kg":
+        from bench.gap import validate_vehicle
+
+        res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, workers)
+        res["manoeuvres"] = "characterisation (12 kg)"
+    else:
+        res = run_campaign(args.runs, args.seed, args.json, workers, args.duration, manoeuvres=args.manoeuvres)
     if args.json:
         from pathlib import Path
 
@@ -48,4 +58,8 @@ def main(args):
     sh = res["shrink_heldout"]
     print(f"held-out shrink median: true effect {sh['true_effect_median']}, wrong effect {sh['wrong_effect_median']}")
     print(f"95 % interval coverage: {res['interval_coverage_95']['fraction']}")
+    if "no_valves_stream" in res:
+        nv = res["no_valves_stream"]
+        print(f"runs without a valves stream: {nv['n']}, answer said the dynamics were not examined in "
+              f"{nv['said_dynamics_not_examined']}")
     return 0

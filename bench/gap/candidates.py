@@ -61,7 +61,8 @@ def _rate_derivative(d: LogData) -> np.ndarray:
     run's final rate. Differences over the time stamps (jitter, dropped samples)."""
     from bench.gap.replay import _rate_derivative as rate_derivative
 
-    seg = d.imu_seg if d.imu_seg is not None else np.concatenate(
+    seg = getattr(d, "imu_seg", None)
+    seg = seg if seg is not None else np.concatenate(
         [[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
     return rate_derivative(d.gyro, d.imu_t, seg)
 

@@ -398,7 +398,7 @@ def examined(d: LogData, ctx: Context, detected: bool) -> dict:
                                 "gyro scale on that axis is not examined")
     looked = [k for k, v in channels.items() if v["examined"]]
     missing = [k for k, v in channels.items() if not v["examined"]]
-    summary = (f"{'gap' if detected else 'no gap'} in {', '.join(looked)}"
+    summary = ((f"no gap in {', '.join(looked)}" if not detected else f"examined: {', '.join(looked)}")
                + (f"; not examined: {', '.join(missing)} ({channels[missing[0]]['why']})" if missing else ""))
     return {"summary": summary, "channels": channels, "not_examined": not_examined,
             "defaults_used": list(d.desc.defaults) if d.desc is not None else [], "dropped": dict(d.dropped)}

@@ -117,7 +117,20 @@ def build(d: LogData) -> DynChannel | None:
     # Consecutive interval means are their centres' spacing apart (the time
     # stamps' difference: jitter and dropped samples included).
     h = (d.imu_t[k] - d.imu_t[k - 1])[:, None]
-    dg = (w[k] - w[k - 1] - 0.5 * (alpha[k - 1] + alpha[k]) * h) / sig_g
+    turn = 0.5 * (alpha[k - 1] + alpha[k]) * h
+    # Across dropped samples the rate also changed over the interval no
+    # sample covers, (t_{k-1}, t_k - dt]: the valves say by how much.
+    gap = np.flatnonzero(h[:, 0] > 1.5 * d.dt_s)
+    if gap.size and d.valve_stream is not None:
+        from bench.gap.replay import open_fractions
+
+        span = h[gap, 0] - d.dt_s
+        ends = d.imu_t[k[gap]] - d.dt_s
+        frac = np.vstack([open_fractions(d.valve_stream, ends[i:i + 1], span[i], open_.shape[1]) for i in range(gap.size)])
+        wm = 0.5 * (w[k[gap] - 1] + w[k[gap]])
+        a_gap = (frac @ Ti - np.cross(wm, wm @ J.T)) @ Jinv.T
+        turn[gap] = 0.5 * (alpha[k[gap] - 1] + alpha[k[gap]]) * d.dt_s + a_gap * span[:, None]
+    dg = (w[k] - w[k - 1] - turn) / sig_g
     bounds, chols = [], []
     start = 0
     seg_of_row = seg_id[k]

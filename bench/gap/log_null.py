@@ -176,11 +176,12 @@ class CalibrationMismatch(ValueError):
     """A supplied calibration that does not hold for the log; says why."""
 
 
-def _bench_like(desc) -> list:
-    """Where the log's vehicle and sensors differ from the bench's (empty: the same)."""
+def _bench_like(desc, ref=None) -> list:
+    """Where the log's vehicle and sensors differ from ``ref``'s (default the
+    bench inspector's; empty: the same)."""
     from bench.log_description import resolve
 
-    ref = resolve(None)
+    ref = ref if ref is not None else resolve(None)
     diffs = []
     if desc.n_thrusters != ref.n_thrusters:
         diffs.append(f"{desc.n_thrusters} thrusters, not {ref.n_thrusters}")
@@ -198,8 +199,13 @@ def _bench_like(desc) -> list:
                        ("pose reference point", desc.pose_reference_b_m, ref.pose_reference_b_m)):
         if not np.allclose(a, b, rtol=1e-6, atol=1e-12):
             diffs.append(f"another {name}")
-    if desc.imu_rate_hz is not None and abs(desc.imu_rate_hz - 10.0) > 1e-9:
-        diffs.append(f"IMU at {desc.imu_rate_hz:g} Hz, not 10 Hz")
+    rate, ref_rate = desc.imu_rate_hz or 10.0, ref.imu_rate_hz or 10.0
+    if abs(rate - ref_rate) > 1e-9:
+        diffs.append(f"IMU at {rate:g} Hz, not {ref_rate:g} Hz")
+    for name, a, b in (("pose clock offset", desc.pose_time_offset_s, ref.pose_time_offset_s),
+                       ("pose latency", desc.pose_latency_s, ref.pose_latency_s)):
+        if abs(a - b) > 1e-9:
+            diffs.append(f"another {name}")
     return diffs
 
 
@@ -216,10 +222,17 @@ def check_supplied(cal: dict, log, d, source: str) -> None:
             raise CalibrationMismatch(f"{source}: made for another log (its fingerprint {str(cal.get('fingerprint'))[:12]}, "
                                       f"this log's {key[:12]}): vehicle, sensors, valve commands or time stamps differ")
         return
-    diffs = _bench_like(d.desc)
+    from bench.log_description import DescriptionError, resolve
+
+    try:
+        ref = resolve(cal["description"]) if isinstance(cal.get("description"), dict) else None
+    except DescriptionError as exc:
+        raise CalibrationMismatch(f"{source}: its description is not valid ({exc})") from None
+    diffs = _bench_like(d.desc, ref)
     if diffs:
-        raise CalibrationMismatch(f"{source}: made for the bench's 3 kg inspector; this log's vehicle and sensors "
-                                  f"differ ({'; '.join(diffs)}). Leave out --calibration to make one for the log")
+        whose = f"the {cal.get('vehicle', 'described')} vehicle" if ref is not None else "the bench's 3 kg inspector"
+        raise CalibrationMismatch(f"{source}: made for {whose}; this log's vehicle and sensors differ "
+                                  f"({'; '.join(diffs)}). Leave out --calibration to make one for the log")
     flown = d.desc.manoeuvres()
     cal_m = cal.get("manoeuvres", "docking")
     if flown and "+".join(m for m in ("docking", "characterisation") if m in flown) != cal_m:

@@ -107,6 +107,7 @@ class LogData:
     pose_align_s: np.ndarray | None = None  # (M,) IMU tick minus the pose's capture time
     pose_v0_sigma: np.ndarray | None = None  # (M,) initial velocity sigma where a pose starts a run
     cands: dict | None = None  # the candidate models for this vehicle (bench/gap/candidates.py)
+    valve_stream: dict | None = None  # the log's valves stream (open times over any span: open_fractions)
     dropped: dict = field(default_factory=dict)  # samples the replay could not use, and why
 
     @property
@@ -196,14 +197,16 @@ def prepare(log) -> LogData:
     j = np.clip(np.searchsorted(grid, tc), 1, grid.size - 1)
     j = np.where(np.abs(grid[j - 1] - tc) <= np.abs(grid[j] - tc), j - 1, j)
     align = grid[j] - tc
-    keep = np.abs(align) <= 0.5 * dt + 1e-9
+    # Jitter and a dropped sample leave a pose up to one interval from its
+    # nearest tick; the shift is a linearised correction, so no farther.
+    keep = np.abs(align) <= dt + 1e-9
     if desc.segments:
         pseg = np.searchsorted(starts, tc, side="right") - 1
         pin = (pseg >= 0) & (tc <= ends[np.clip(pseg, 0, None)] + 1e-9)
         keep &= pin
         # the tick must belong to the pose's own run
         keep &= np.searchsorted(starts, grid[j], side="right") - 1 == pseg
-    _drop(dropped, "poses more than half an IMU interval from every IMU tick", ~keep & (np.abs(align) > 0.5 * dt + 1e-9))
+    _drop(dropped, "poses more than one IMU interval from every IMU tick", ~keep & (np.abs(align) > dt + 1e-9))
     dup = np.zeros(tc.size, bool)
     dup[1:] = j[1:] == j[:-1]
     _drop(dropped, "poses on an IMU tick already taken by an earlier pose", dup & keep)
@@ -229,7 +232,8 @@ def prepare(log) -> LogData:
     d = LogData(imu_t=t, accel=accel, gyro=gyro, pose_tc=tc_tick, pose_tf=np.maximum(td, tc_tick), pose_r=pr,
                 pose_q=pq, pose_R=R, pose_tick=tick, pose_start=start, valves=valves, dt_s=dt, n_radps=n,
                 t_init=float(max(t[0] - dt, tc_tick[0])), truth=truth, config=cfg, desc=desc, imu_seg=imu_seg,
-                pose_align_s=align, pose_v0_sigma=v0, cands=candidates_for(desc.n_thrusters), dropped=dropped)
+                pose_align_s=align, pose_v0_sigma=v0, cands=candidates_for(desc.n_thrusters), dropped=dropped,
+                valve_stream=dict(log["valves"]) if log.has("valves") else None)
     return d
 
 
@@ -375,7 +379,7 @@ def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, late
     # pose belongs to the next run.
     w_bh = gyr[k] - np.einsum("nji,j->ni", rotmats(d.ref_q[k]), np.array([0.0, 0.0, d.n_radps]))
     q = qmul_many(q, qexp_many(tau[:, None] * w_bh))
-    return acc, gyr, r, q
+    return r, q
 
 
 # --- the replay ----------------------------------------------------------------

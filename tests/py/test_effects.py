@@ -342,6 +342,23 @@ def test_differential_drag_decelerates_along_track():
     assert np.allclose(b.state.r_hill_m[2], a.state.r_hill_m[2], rtol=0, atol=1e-15)
 
 
+def test_the_accelerometer_senses_the_inspectors_own_drag_not_the_hosts():
+    # dB = B_i - B_h moves the relative motion; B_i (dB + B_host) is a
+    # non-gravitational force on the inspector, so its accelerometer reads it
+    # (body axes; here body = Hill axes turning at n about z).
+    db, bh = 0.5, 0.2
+    q_dyn = 0.5 * 5e-13 * (N_RADPS * ORBIT_RADIUS_M) ** 2
+    b = Plant(hill_fixed(), effects=PlantEffects(diff_ballistic_m2pkg=db, host_ballistic_m2pkg=bh), substep_s=0.5)
+    res = b.step_wrench(np.zeros(3), np.zeros(3), 1.0)
+    assert res.specific_force_b_mps2 == pytest.approx([0.0, -q_dyn * (db + bh), 0.0], abs=1e-9 * q_dyn)
+    # the host's drag alone is not sensed: the same relative motion as before
+    c = Plant(hill_fixed(), effects=PlantEffects(diff_ballistic_m2pkg=db), substep_s=0.5)
+    c.step_wrench(np.zeros(3), np.zeros(3), 1.0)
+    assert np.allclose(b.state.r_hill_m, c.state.r_hill_m, rtol=0, atol=1e-15)
+    # the effect's two parameters reach the plant; one value keeps B_inspector >= 0
+    assert canonical("differential_drag", [-0.3]).tolist() == [-0.3, 0.3]
+
+
 def test_flex_mode_swings_the_body_at_its_frequency_and_amplitude_and_keeps_momentum():
     f, amp = 0.25, 0.01
     s0 = PlantState(0.0, np.array([0.0, -0.75, 0.0]), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3))
