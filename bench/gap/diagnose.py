@@ -312,10 +312,14 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
         if verdict in ("explained", "ambiguous"):
             dyn_or_sensor = ranking[0]["kind"]
         elif where is not None:
-            # Thrust-model or position-only low-frequency gaps point at the
-            # dynamics; attitude, broadband or IMU-scatter gaps at a sensor.
+            # The IMU disagreeing with the valve model while firing, or by a
+            # slow drift or swing at any time (the body moving as no thrust
+            # explains: a flexible panel, slosh), and position-only slow
+            # gaps point at the dynamics; attitude, broadband or IMU-scatter
+            # gaps at a sensor.
             s, st = where["stream"], where["stat"]
-            dyn_or_sensor = "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques") and where["regime_peak"] == "firing") \
+            dyn_or_sensor = "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques")
+                                           and (where["regime_peak"] == "firing" or st in ("mean", "lowfreq"))) \
                 or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
     best = ranking[0] if ranking else None
     acts = None

@@ -117,19 +117,15 @@ def build(d: LogData) -> DynChannel | None:
     # Consecutive interval means are their centres' spacing apart (the time
     # stamps' difference: jitter and dropped samples included).
     h = (d.imu_t[k] - d.imu_t[k - 1])[:, None]
-    turn = 0.5 * (alpha[k - 1] + alpha[k]) * h
-    # Across dropped samples the rate also changed over the interval no
-    # sample covers, (t_{k-1}, t_k - dt]: the valves say by how much.
-    gap = np.flatnonzero(h[:, 0] > 1.5 * d.dt_s)
-    if gap.size and d.valve_stream is not None:
-        from bench.gap.replay import open_fractions
-
-        span = h[gap, 0] - d.dt_s
-        ends = d.imu_t[k[gap]] - d.dt_s
-        frac = np.vstack([open_fractions(d.valve_stream, ends[i:i + 1], span[i], open_.shape[1]) for i in range(gap.size)])
-        wm = 0.5 * (w[k[gap] - 1] + w[k[gap]])
-        a_gap = (frac @ Ti - np.cross(wm, wm @ J.T)) @ Jinv.T
-        turn[gap] = 0.5 * (alpha[k[gap] - 1] + alpha[k[gap]]) * d.dt_s + a_gap * span[:, None]
+    # The change of the mean rate between consecutive samples, from the
+    # valves' torque exactly: each sample averages the rate over its own
+    # interval, so with jittered or dropped samples the intervals overlap or
+    # leave gaps, and a per-sample average of the torque would leak a drift.
+    # W[r, i]: thruster i's effective open seconds in difference row r.
+    W = turn_weights(d.valve_stream, d.imu_t, k, d.dt_s, open_.shape[1]) if d.valve_stream is not None else \
+        0.5 * (open_[k - 1] + open_[k]) * h
+    gyroscopic = -np.cross(w, w @ J.T) @ Jinv.T
+    turn = (W @ Ti) @ Jinv.T + 0.5 * (gyroscopic[k - 1] + gyroscopic[k]) * h
     dg = (w[k] - w[k - 1] - turn) / sig_g
     bounds, chols = [], []
     start = 0
@@ -146,6 +142,7 @@ def build(d: LogData) -> DynChannel | None:
                     open_=open_, alpha=alpha, w=w, vs=vs, mass=veh.mass_kg, dt=d.dt_s, veh=veh)
     ch.sig_g = sig_g
     ch.h = h
+    ch.W = W
     ch.c_bh = rotmats(d.ref_q) if d.ref_q is not None else None
     e_g = ch.whiten_gyro(dg)
     ch.e0 = np.vstack([e_a, e_g])
@@ -156,18 +153,58 @@ def build(d: LogData) -> DynChannel | None:
 
 # --- Jacobians: rows = -(change of the predicted measurement) / sigma ----------
 
-def _stack(ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None) -> np.ndarray:
+def _stack(ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None,
+           dturn: np.ndarray | None = None) -> np.ndarray:
     """da: (N, 3, k) change of the predicted accelerometer; dalpha: (N, 3, k)
-    change of the predicted angular acceleration (gyro differences follow)."""
-    k = (da if da is not None else dalpha).shape[2]
+    change of the predicted angular acceleration (gyro differences follow);
+    or dturn: (rows, 3, k) the change of each gyro difference directly."""
+    k = next(x for x in (da, dalpha, dturn) if x is not None).shape[2]
     n = ch.F.shape[0]
     out = np.zeros((ch.rows, 3, k))
     if da is not None:
         out[:n] = -da / ch.sig_a
-    if dalpha is not None:
+    if dalpha is not None or dturn is not None:
         g = ch.gyro_rows
-        dd = 0.5 * (dalpha[g - 1] + dalpha[g]) * ch.h[:, :, None] / ch.sig_g
+        dd = (dturn if dturn is not None else 0.5 * (dalpha[g - 1] + dalpha[g]) * ch.h[:, :, None]) / ch.sig_g
         out[n:] = -ch.whiten_gyro(dd.reshape(g.size, -1)).reshape(g.size, 3, k)
+    return out
+
+
+def _open_time_integral(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The integral over time, up to each t, of the cumulative open time of
+    pulses [start_j, start_j + dur_j) (sorted, not overlapping)."""
+    cd = np.concatenate([[0.0], np.cumsum(dur)])
+    ce = np.concatenate([[0.0], np.cumsum(dur * start + 0.5 * dur * dur)])
+    j = np.searchsorted(start, t, side="left")  # pulses that started before t: 0 .. j-1
+    full = t * cd[j] - ce[j]  # every started pulse taken as complete
+    last = np.clip(j - 1, 0, None)
+    part = (j > 0) & (t < start[last] + dur[last])
+    # the last started pulse, still open at t: (t - s)^2 / 2 instead of its complete form
+    s, dd = start[last], dur[last]
+    full = full - np.where(part, dd * t - (dd * s + 0.5 * dd * dd) - 0.5 * (t - s) ** 2, 0.0)
+    return full
+
+
+def turn_weights(valves: dict, t: np.ndarray, rows: np.ndarray, dt: float, n_thrusters: int) -> np.ndarray:
+    """(len(rows), K): for each difference of consecutive interval means
+    (sample k - 1 to k, k in ``rows``), the effective open seconds of each
+    valve: mean over (t_k - dt, t_k] minus mean over (t_{k-1} - dt, t_{k-1}]
+    of the cumulative open time."""
+    vt = np.asarray(valves["t_s"], np.float64)
+    if "on_time_s" in valves:
+        on = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
+    else:
+        mask = np.asarray(valves["mask"]).astype(np.int64)
+        on = ((mask[:, None] >> np.arange(n_thrusters)[None, :]) & 1) * np.asarray(valves["interval_s"], float)[:, None]
+    a, b = t[rows], t[rows - 1]
+    out = np.zeros((rows.size, n_thrusters))
+    for i in range(n_thrusters):
+        m = on[:, i] > 0.0
+        if not np.any(m):
+            continue
+        s, du = vt[m], on[m, i]
+        I = lambda x: _open_time_integral(s, du, x)  # noqa: E731
+        out[:, i] = (I(a) - I(a - dt) - I(b) + I(b - dt)) / dt
     return out
 
 
@@ -182,8 +219,8 @@ def _jac_thrust_loss(ch):
     Ti = ch.veh.thruster_torques_b_nm()
     Jinv = np.linalg.inv(np.asarray(ch.veh.inertia_kgm2, float))
     da = -(ch.open_[:, None, :] * Fi.T[None, :, :]) / ch.mass
-    dal = -(ch.open_[:, None, :] * (Ti @ Jinv.T).T[None, :, :])
-    return _stack(ch, da, dal)
+    dturn = -(ch.W[:, None, :] * (Ti @ Jinv.T).T[None, :, :])
+    return _stack(ch, da, None, dturn)
 
 
 def _jac_misalign(ch):
@@ -193,7 +230,7 @@ def _jac_misalign(ch):
     Jinv = np.linalg.inv(np.asarray(veh.inertia_kgm2, float))
     n, nt = ch.F.shape[0], veh.n_thrusters
     da = np.zeros((n, 3, 3 * nt))
-    dal = np.zeros((n, 3, 3 * nt))
+    dturn = np.zeros((ch.gyro_rows.size, 3, 3 * nt))
     for i in range(nt):
         d = veh.directions_b[i]
         r = veh.positions_b_m[i]
@@ -201,18 +238,18 @@ def _jac_misalign(ch):
         Sr = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
         dF = -T[i] * Sd  # d(force)/d(phi_i)
         da[:, :, 3 * i:3 * i + 3] = ch.open_[:, i, None, None] * dF[None] / ch.mass
-        dal[:, :, 3 * i:3 * i + 3] = ch.open_[:, i, None, None] * (Jinv @ Sr @ dF)[None]
-    return _stack(ch, da, dal)
+        dturn[:, :, 3 * i:3 * i + 3] = ch.W[:, i, None, None] * (Jinv @ Sr @ dF)[None]
+    return _stack(ch, da, None, dturn)
 
 
 def _jac_com(ch):
     # Torques about the true centre of mass c: tau - c x F = tau + [F]x c;
     # accelerometer at the body origin: a_cm - alpha x c - w x (w x c).
     Jinv = np.linalg.inv(np.asarray(ch.veh.inertia_kgm2, float))
-    dal = Jinv[None] @ _skew_rows(ch.F)
+    dturn = Jinv[None] @ _skew_rows(ch.W @ ch.veh.thruster_forces_b_n())
     Sw = _skew_rows(ch.w)
     da = -_skew_rows(ch.alpha) - Sw @ Sw
-    return _stack(ch, da, dal)
+    return _stack(ch, da, None, dturn)
 
 
 def _jac_mass(ch):

@@ -4,8 +4,12 @@ open loop: what a team would fly to characterise its vehicle.
 ``characterisation_plan``: every thruster alone, pulse-width modulated
 (``duty`` of each ``cycle_s`` control cycle, never below the thruster's
 minimum on-time) for ``fire_s``, then a coast of ``coast_s`` that holds the
-rate change; ``per_run`` thrusters per run, each run from rest at a seeded
-start about 1.5 m from the host with a seeded attitude.
+rate change; ``per_run`` thrusters per run, the run's thrusters fired in
+``passes`` passes (so that each thruster fires in the first and in the
+second half of its run: the diagnosis trains on alternate time blocks and
+scores on the others, and a thruster fired once would be seen by one only),
+each run from rest at a seeded start about 1.5 m from the host with a
+seeded attitude.
 """
 from __future__ import annotations
 
@@ -16,8 +20,9 @@ from bench.plant import qexp, qnormalize
 from bench.vehicle_sim import PlanSegment
 
 
-def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.5, coast_s: float = 6.0,
-                          lead_s: float = 1.5, duty: float = 0.4, cycle_s: float = 0.1, per_run: int = 4) -> list:
+def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.0, coast_s: float = 5.0,
+                          lead_s: float = 1.5, duty: float = 0.4, cycle_s: float = 0.1, per_run: int = 4,
+                          passes: int = 2) -> list:
     desc = resolve(description)
     k = desc.n_thrusters
     rng = np.random.default_rng([int(seed), 0x91A7])
@@ -26,7 +31,7 @@ def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.5,
         group = list(range(first, min(first + per_run, k)))
         t_cmd, on = [], []
         t = lead_s
-        for i in group:
+        for i in group * passes:
             n_cyc = int(round(fire_s / cycle_s))
             width = max(duty * cycle_s, desc.thrusters[i].min_on_time_s)
             for c in range(n_cyc):

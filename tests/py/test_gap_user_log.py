@@ -110,7 +110,7 @@ def test_a_calibration_for_another_vehicle_is_refused(calibration):
     from bench.vehicles import inspector_12kg
 
     desc = inspector_12kg()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=4, per_run=12, fire_s=0.5, coast_s=2.0), {}, seed=4,
+    log, _ = simulate(desc, characterisation_plan(desc, seed=4, per_run=12, fire_s=0.5, coast_s=1.0, passes=1), {}, seed=4,
                       with_truth=False)
     with pytest.raises(log_null.CalibrationMismatch, match="made for the bench's 3 kg inspector.*12 thrusters"):
         diagnose(log, calibration=calibration, calibration_source="docking.json")
@@ -132,7 +132,7 @@ def test_a_calibration_made_for_the_log_is_cached(tmp_path):
     from bench.vehicles import inspector_12kg
 
     desc = inspector_12kg()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=6, per_run=12, fire_s=0.5, coast_s=1.5), {}, seed=6,
+    log, _ = simulate(desc, characterisation_plan(desc, seed=6, per_run=12, fire_s=0.5, coast_s=1.0, passes=1), {}, seed=6,
                       with_truth=False)
     cal = log_null.calibrate_for_log(log, runs=10, seed=3, workers=2, cache_dir=tmp_path, progress=False)
     assert cal["runs"] == 10 and cal["from_cache"] is None and np.all(np.isfinite(list(cal["thresholds"].values())))

@@ -1,0 +1,185 @@
+"""Several effects at once: which set of in-library effects the data support.
+
+Forward selection on the screening Jacobians (bench/gap/attribute.py), then
+one joint refit of the chosen set with the full filter:
+
+1. Start from the empty set. For every candidate not yet chosen, fit it
+   together with the chosen ones (the linearised GLR over the stacked
+   Jacobians, every candidate inside its physical bounds) and take its
+   conditional statistic: the gain in 2 dLL over the chosen set alone, as
+   -log10 p against chi-square with the rank it adds. The best one joins
+   when that statistic passes the null-calibrated screening threshold (the
+   same threshold that detects a gap: with the right set chosen, what is
+   left is the null's noise, and the threshold holds its false-alarm rate
+   for the next step). At most MAX_EFFECTS effects.
+2. Refit the chosen set jointly with the full filter (scipy least_squares,
+   every residual a full replay with the members' corrections added) on the
+   training rows of both channels.
+
+Each member's share: the held-out shrink of the joint fit, and what it
+adds beside the others (the joint shrink minus the shrink with that member's
+parameters set to zero and the others kept).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.gap.attribute import Context, Fit, _cand, numerical_rank, run_pass, screen_logp, training_residuals
+
+MAX_EFFECTS = 3
+
+
+@dataclass
+class SetFit:
+    names: list
+    theta: dict  # name -> parameters
+    sigma: dict
+    after_nav: object = None
+    after_dyn: np.ndarray | None = None
+    dll_train: float = float("nan")
+    steps: list = field(default_factory=list)  # [{"effect", "conditional_logp", "rank_added"}]
+
+    def corrections(self, d, theta: dict | None = None):
+        from bench.gap.replay import Corrections
+
+        th = theta or self.theta
+        c = Corrections()
+        for n in self.names:
+            c = c.add(_cand(d, n).corrections(th[n], d))
+        return c
+
+
+def _bounded_lstsq(J: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    u, *_ = np.linalg.lstsq(J, y, rcond=None)
+    if np.all(u >= lo) and np.all(u <= hi):
+        return u
+    from scipy.optimize import lsq_linear
+
+    return lsq_linear(J, y, bounds=(lo, hi)).x
+
+
+def _two_dll(ctx: Context, fits_by: dict, names: list, e0: np.ndarray) -> tuple:
+    """(2 dLL, rank) of the names' stacked screening Jacobians on e0."""
+    if not names:
+        return 0.0, 0
+    J = np.hstack([fits_by[n].J_u for n in names])  # in units of each candidate's scale
+    lo = np.concatenate([np.full(fits_by[n].J_u.shape[1], _cand(ctx.d, n).lower / _cand(ctx.d, n).scale) for n in names])
+    hi = np.concatenate([np.full(fits_by[n].J_u.shape[1], _cand(ctx.d, n).bound / _cand(ctx.d, n).scale) for n in names])
+    u = _bounded_lstsq(J, -e0, lo, hi)
+    r = e0 + J @ u
+    return float(e0 @ e0 - r @ r), numerical_rank(J)
+
+
+def forward_select(ctx: Context, fits: list, threshold_logp: float, max_effects: int = MAX_EFFECTS) -> list:
+    """[{"effect", "conditional_logp", "rank_added", "two_dll_gain"}] in the order chosen."""
+    fits_by = {f.name: f for f in fits if getattr(f, "J_u", None) is not None and np.isfinite(f.screen_bic)}
+    e0, _ = training_residuals(ctx)
+    chosen, steps = [], []
+    base, base_rank = 0.0, 0
+    while len(chosen) < max_effects:
+        best = None
+        for n in fits_by:
+            if n in chosen:
+                continue
+            t, rank = _two_dll(ctx, fits_by, chosen + [n], e0)
+            dr = rank - base_rank
+            if dr <= 0:
+                continue
+            lp = screen_logp(t - base, dr)
+            if best is None or lp > best["conditional_logp"]:
+                best = {"effect": n, "conditional_logp": lp, "rank_added": dr, "two_dll_gain": t - base,
+                        "_t": t, "_rank": rank}
+        if best is None or not best["conditional_logp"] > threshold_logp:
+            break
+        chosen.append(best["effect"])
+        base, base_rank = best.pop("_t"), best.pop("_rank")
+        steps.append(best)
+    return steps
+
+
+def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> SetFit:
+    """Joint refit of ``names`` with the full filter on the training rows."""
+    from scipy.optimize import least_squares
+
+    d, nominal = ctx.d, ctx.nominal
+    fits_by = {f.name: f for f in fits}
+    cands = [_cand(d, n) for n in names]
+    sizes = [c.n_params for c in cands]
+    sc = np.concatenate([np.full(c.n_params, c.scale) for c in cands])
+    lb = np.concatenate([np.full(c.n_params, c.lower / c.scale) for c in cands])
+    ub = np.concatenate([np.full(c.n_params, c.bound / c.scale) for c in cands])
+    jd = [fits_by[n].Jd_full if getattr(fits_by[n], "Jd_full", None) is not None else
+          (ctx.ch.jacobian(n) if ctx.ch is not None else None) for n in names]
+    e_dyn0 = ctx.ch.e0 if ctx.ch is not None else None
+    any_nav = any(c.nav for c in cands)
+    rows_ok = np.isfinite(nominal.white[ctx.train_nav]).all(axis=1)
+
+    def split(theta):
+        out, i = {}, 0
+        for n, k in zip(names, sizes):
+            out[n] = theta[i:i + k]
+            i += k
+        return out
+
+    def dyn_after(theta):
+        if e_dyn0 is None:
+            return None
+        out = e_dyn0.copy()
+        for J, th in zip(jd, split(theta).values()):
+            if J is not None:
+                out = out + np.einsum("rak,k->ra", J, th)
+        return out
+
+    def corr(theta):
+        from bench.gap.replay import Corrections
+
+        c = Corrections()
+        for cand, th in zip(cands, split(theta).values()):
+            c = c.add(cand.corrections(th, d))
+        return c
+
+    def resid(u):
+        th = u * sc
+        parts = []
+        if any_nav:
+            w = run_pass(d, corr(th)).white[ctx.train_nav][rows_ok].ravel()
+            parts.append(np.nan_to_num(w, nan=1e3))
+        else:
+            parts.append(nominal.white[ctx.train_nav][rows_ok].ravel())
+        if e_dyn0 is not None:
+            parts.append(dyn_after(th)[ctx.train_dyn].ravel())
+        return np.concatenate(parts)
+
+    u0 = np.clip(np.nan_to_num(np.concatenate([fits_by[n].theta for n in names]) / sc), 0.999 * lb, 0.999 * ub)
+    sol = least_squares(resid, u0, method="trf", bounds=(lb, ub), max_nfev=max_nfev * (u0.size + 1) if any_nav else None,
+                        diff_step=1e-3)
+    theta = sol.x * sc
+    sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
+    after = run_pass(d, corr(theta)) if any_nav else nominal
+    dll = float(np.nansum(after.loglik[ctx.train_nav]) - np.nansum(nominal.loglik[ctx.train_nav]))
+    ad = dyn_after(theta)
+    if ad is not None:
+        e0 = e_dyn0[ctx.train_dyn].ravel()
+        e1 = ad[ctx.train_dyn].ravel()
+        dll += 0.5 * float(e0 @ e0 - e1 @ e1)
+    sf = SetFit(list(names), split(theta), split(sigma), after, ad, dll)
+    sf._corr, sf._dyn_after, sf._theta_vec = corr, dyn_after, theta
+    return sf
+
+
+def without(sf: SetFit, ctx: Context, name: str):
+    """(after_nav, after_dyn) of the joint fit with ``name``'s parameters at zero."""
+    th = np.concatenate([np.zeros_like(sf.theta[n]) if n == name else sf.theta[n] for n in sf.names])
+    any_nav = any(_cand(ctx.d, n).nav for n in sf.names)
+    nav = run_pass(ctx.d, sf._corr(th)) if any_nav else ctx.nominal
+    return nav, sf._dyn_after(th)
+
+
+def as_fit(sf: SetFit) -> Fit:
+    """The joint fit in the single-candidate form the report reads."""
+    f = Fit("+".join(sf.names), "set", np.concatenate([sf.theta[n] for n in sf.names]),
+            np.concatenate([sf.sigma[n] for n in sf.names]), 0.0, 0.0)
+    f.after_nav, f.after_dyn, f.dll_train, f.confirmed = sf.after_nav, sf.after_dyn, sf.dll_train, True
+    return f
