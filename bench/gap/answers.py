@@ -37,6 +37,8 @@ def which_text(out: dict) -> str | None:
     v = out["verdict"]
     if v == "unexplained":
         return "unexplained: no effect in the library accounts for the gap on held-out data"
+    if len(out.get("effects") or []) > 1:
+        return " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together)"
     best = out["attribution"][0]
     amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []))
     return f"{best['effect']} ({v}" + (f"; cannot be told apart from {amb}" if amb else "") + ")"
@@ -45,10 +47,14 @@ def which_text(out: dict) -> str | None:
 def fitted_text(out: dict) -> str | None:
     if not out["gap_detected"] or out["verdict"] == "unexplained" or not out["attribution"]:
         return None
-    best = out["attribution"][0]
-    pars = ", ".join(f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in best["parameters"].items()
-                     if _finite(v["value"], v["sigma"]) and abs(v["value"]) > 2 * v["sigma"])
-    return f"fitted (beyond 2 sigma): {pars}" if pars else None
+    members = out.get("effects") or [out["attribution"][0]]
+    parts = []
+    for m in members:
+        pars = ", ".join(f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in m["parameters"].items()
+                         if _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"])
+        if pars:
+            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + pars)
+    return "fitted (beyond 2 sigma): " + "; ".join(parts) if parts else None
 
 
 def how_far_lines(out: dict) -> list:
@@ -56,6 +62,19 @@ def how_far_lines(out: dict) -> list:
         return []
     if out["verdict"] == "unexplained":
         return ["no shrink to report: no candidate explains the held-out data"]
+    es = out.get("effect_set")
+    if es and es.get("explains_heldout"):
+        sh = es["shrink_heldout"]
+        lines = []
+        if sh.get("measurable", True) and _finite(sh.get("fraction")) and _finite(*sh.get("ci95", [None, None])):
+            lines.append(f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
+                         f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] with all "
+                         f"{len(es['members'])} together")
+        for m in es["members"]:
+            add = f"{100 * m['adds_shrink']:.0f} % of the shrink" if _finite(m.get("adds_shrink")) else "its share"
+            lines.append(f"{m['effect']} adds {add} beside the others (held-out log-likelihood "
+                         f"+{m['adds_dll_heldout']:.1f})")
+        return lines
     best = out["attribution"][0]
     sh = best["shrink_heldout"]
     lines = []

@@ -305,6 +305,17 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             if ambiguous_with:
                 verdict = "ambiguous"
 
+    # Several effects at once (bench/gap/select.py): the set forward selection
+    # supports replaces the single answer only when its joint fit explains the
+    # held-out data and beats the best single explanation there.
+    effect_set = None
+    if detected:
+        effect_set = _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels,
+                                 ranking if verdict in ("explained", "ambiguous") else [])
+        if effect_set is not None and effect_set["explains_heldout"]:
+            verdict = "explained"
+            ambiguous_with = []
+
     summ = localise.summarise(cells, cal.get("null_map_max_abs_z"))
     where = summ["where"]
     dyn_or_sensor = None
@@ -339,6 +350,10 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
         "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"],
                      "effect_acts_while": acts},
         "attribution": ranking,
+        "effects": (effect_set["members"] if effect_set is not None and effect_set["explains_heldout"] else
+                    ([{"effect": ranking[0]["effect"], "parameters": ranking[0]["parameters"]}]
+                     if verdict in ("explained", "ambiguous") else [])),
+        "effect_set": effect_set,
         "screening": screen_table,
         "verdict": verdict,
         "ambiguous_with": ambiguous_with,
@@ -359,6 +374,48 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     out["_internal"] = {"d": d, "nominal": nominal, "fits": fits, "train": train, "held": held, "cells": cells,
                         "ctx": ctx, "held_shrink": held_shrink}
     return out
+
+
+def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, single: list):
+    """The forward-selected set (two effects or more), jointly refitted and
+    tested on the held-out data like a single candidate; None when the
+    selection stops at one effect."""
+    from bench.gap import select
+
+    d, ch = ctx.d, ctx.ch
+    steps = select.forward_select(ctx, fits, thr_glr)
+    if len(steps) < 2:
+        return None
+    names = [st["effect"] for st in steps]
+    sf = select.confirm_set(ctx, names, fits)
+    sh = held_shrink(sf.after_nav, sf.after_dyn)
+    dll_h = held_dll(sf.after_nav, sf.after_dyn)
+    map_after = localise.map_statistic(_map_of(d, sf.after_nav) + localise.dyn_cells(d, ch, sf.after_dyn))
+    shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
+                 or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"])
+    consistent = all(c["z"] >= -Z_CONTRADICT for c in train_channels(sf.after_nav, sf.after_dyn).values())
+    best_single = max((r["evidence"]["dll_heldout"] for r in single if r["explains_heldout"]), default=-np.inf)
+    members = []
+    for st in steps:
+        n = st["effect"]
+        nav_wo, dyn_wo = select.without(sf, ctx, n)
+        sh_wo = held_shrink(nav_wo, dyn_wo)
+        c = d.cands[n]
+        members.append({
+            "effect": n, "kind": c.kind, "conditional_logp": st["conditional_logp"],
+            "parameters": {p: {"value": float(v), "sigma": float(g)}
+                           for p, v, g in zip(c.params, sf.theta[n], sf.sigma[n])},
+            "adds_shrink": (float(sh["fraction"] - sh_wo["fraction"])
+                            if np.isfinite(sh["fraction"]) and np.isfinite(sh_wo["fraction"]) else None),
+            "adds_dll_heldout": float(dll_h - held_dll(nav_wo, dyn_wo)),
+        })
+    needed = all(m["adds_dll_heldout"] > HELDOUT_DLL_MIN for m in members)
+    explains = bool(dll_h > HELDOUT_DLL_MIN and shrink_ok and consistent and needed
+                    and dll_h - best_single > HELDOUT_DLL_MIN and map_after <= max(thr_map, MAP_REMAINDER * t_map))
+    return {"members": members, "shrink_heldout": sh, "dll_heldout": dll_h, "map_max_abs_z_after": map_after,
+            "explains_heldout": explains, "every_member_needed": needed,
+            "dll_heldout_gain_over_single": float(dll_h - best_single) if np.isfinite(best_single) else None,
+            "_fit": sf}
 
 
 MIN_RUN_UPDATES = 10  # fewer fused pose updates than this: a run too short to show a gap
@@ -402,11 +459,14 @@ def examined(d: LogData, ctx: Context, detected: bool) -> dict:
                                 "gyro scale on that axis is not examined")
     looked = [k for k, v in channels.items() if v["examined"]]
     missing = [k for k, v in channels.items() if not v["examined"]]
-    summary = ((f"no gap in {', '.join(looked)}" if not detected else f"examined: {', '.join(looked)}")
+    summary = ((f"no gap in {', '.join(looked)}" if not detected else f"channels: {', '.join(looked)}")
                + (f"; not examined: {', '.join(missing)} ({channels[missing[0]]['why']})" if missing else ""))
     return {"summary": summary, "channels": channels, "not_examined": not_examined,
             "defaults_used": list(d.desc.defaults) if d.desc is not None else [], "dropped": dict(d.dropped)}
 
 
 def public(result: dict) -> dict:
-    return {k: v for k, v in result.items() if not k.startswith("_")}
+    out = {k: v for k, v in result.items() if not k.startswith("_")}
+    if isinstance(out.get("effect_set"), dict):
+        out["effect_set"] = {k: v for k, v in out["effect_set"].items() if not k.startswith("_")}
+    return out
