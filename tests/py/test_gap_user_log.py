@@ -155,3 +155,35 @@ def test_the_example_writes_a_log_a_user_would(tmp_path):
     assert d.desc.n_thrusters == 12 and d.desc.imu_rate_hz == 20.0
     assert d.valves.shape[1] == 12 and 0.0 < d.valves.max() < 1.0  # pulse-width modulated
     assert not d.dropped  # every pose on a tick of its own run
+
+
+def test_cli_refuses_bad_calibration_and_outputs_without_touching_files(tmp_path, capsys):
+    from bench.cli import main
+
+    out = tmp_path / "d.json"
+    out.write_text("earlier answer\n")
+    rc = main(["diagnose", str(bundled.LOG), "--json", str(out), "--calibration", str(tmp_path / "typo.json"),
+               "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "typo.json: no such file" in err[0]
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"runs": 3}')
+    rc = main(["diagnose", str(bundled.LOG), "--json", str(out), "--calibration", str(bad), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "thresholds.map_max_abs_z missing" in err[0]
+    rc = main(["diagnose", str(bundled.LOG), "--json", str(tmp_path), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and "is a folder" in err[0]
+    assert out.read_text() == "earlier answer\n"
+
+
+def test_cli_writes_the_answer_with_its_calibration_and_what_it_examined(tmp_path, capsys):
+    from bench.cli import main
+
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(bundled.LOG), "--json", str(out), "--report", str(tmp_path / "rep"), "--quiet"]) == 0
+    r = json.loads(out.read_text())
+    assert r["calibration"]["source"].startswith("committed") and r["examined"]["channels"]["pose"]["examined"]
+    assert (tmp_path / "rep" / "README.md").exists() and (tmp_path / "rep" / "residuals.png").exists()
+    text = capsys.readouterr().out
+    assert "which:" in text and "thrust_loss" in text and "examined:" in text
