@@ -135,8 +135,8 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
                                "tt", "tr", "tv", "tq", "tw")}
     segments = []
     t0 = 0.0
-    for sg_i, seg in enumerate(plan):
-        tm = times[sg_i] if times is not None else None
+    for i_seg, seg in enumerate(plan):
+        tm = times[i_seg] if times is not None else None
         if tm is not None:
             t0 = float(tm["imu_t"][0] - T)
         out = _fly_segment(seg, t0, veh, pfx, desc, T, clocks, rng, latency, tm)
@@ -177,6 +177,8 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         t0 += seg.duration_s + clocks.gap_s
     cat = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else np.asarray(v)) for k, v in streams.items()}
     pc = np.asarray(streams["pc"], float)
+    if cat["von"].size == 0:
+        cat["von"] = np.zeros((0, desc.n_thrusters))
     log_desc = dict(description)
     log_desc["segments"] = segments
     log = FlightLog(streams={

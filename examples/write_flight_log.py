@@ -15,7 +15,6 @@ import json
 import sys
 
 import h5py
-import numpy as np
 
 
 def write_log(path, description: dict, imu_t, accel, gyro, pose_t, pose_delivered, r_hill, q_hb, r_sigma,

@@ -67,8 +67,6 @@ def plan_of(log):
     plan, times = [], []
     vt = von = None
     if valves is not None:
-        from bench.gap.replay import open_fractions  # noqa: F401 (the same valve forms)
-
         vt = np.asarray(valves["t_s"], float)
         if "on_time_s" in valves:
             von = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
@@ -264,4 +262,4 @@ def choose(log, d, supplied: dict | None = None, source: str | None = None, runs
     return cal, {"source": "made for this log", "runs": cal["runs"], "elapsed_s": cal["elapsed_s"],
                  "from_cache": cal.get("from_cache"),
                  "note": f"null calibration made for this log ({why}): {cal['runs']} simulated flights of its own "
-                         f"commands, " + (f"from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s")}
+                         f"commands, " + ("from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s")}

@@ -82,7 +82,13 @@ def residual_series(result: dict) -> tuple:
     d, nominal, held, ctx = it["d"], it["nominal"], it["held"], it["ctx"]
     best = result["attribution"][0] if result["attribution"] and result["verdict"] != "unexplained" else None
     fit = next(x for x in it["fits"] if x.name == best["effect"]) if best else None
-    nav = fit is None or d.cands[fit.name].nav or ctx.ch is None
+    names = [fit.name] if fit is not None else []
+    es = result.get("effect_set")
+    if es and es.get("explains_heldout"):
+        from bench.gap.select import as_fit
+
+        fit, names = as_fit(es["_fit"]), [m["effect"] for m in es["members"]]
+    nav = fit is None or any(d.cands[n].nav for n in names) or ctx.ch is None
     if nav:
         after = fit.after_nav.white if fit is not None else None
         series = [(f"{CH[i]} (whitened)", d.pose_tc, nominal.white[:, i], None if after is None else after[:, i],
@@ -116,16 +122,14 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     it = result["_internal"]
-    d, nominal, held = it["d"], it["nominal"], it["held"]
     _gap_map_png(it["cells"], out / "gap_map.png")
     best = result["attribution"][0] if result["attribution"] else None
     series, what = residual_series(result)
-    named = best["effect"] if best and result["verdict"] != "unexplained" else ""
+    named = " + ".join(m["effect"] for m in result.get("effects") or []) if result["verdict"] != "unexplained" else ""
     _residuals_png(series, named, out / "residuals.png", what)
 
     st = result["statistics"]
     loc = result["location"]
-    w = loc["where"] or {}
     lines = [f"# Gap diagnosis: {log_name}", ""]
     lines += ["## The three answers", ""]
     from bench.gap.answers import answer_lines

@@ -11,13 +11,18 @@ from bench.gap.validate import blind
 reality = pytest.importorskip("bench.reality")
 
 
-def _answer(seed, effects):
+def _answer(seed, effects, full=False):
     log, _ = reality.simulate_log_with_key(seed, effects, duration_s=120.0, with_truth=False)
-    return public(diagnose(blind(log), calibration=nullmod.load()))
+    res = diagnose(blind(log), calibration=nullmod.load())
+    return res if full else public(res)
 
 
-def test_thrust_loss_and_gyro_bias_are_both_named():
-    r = _answer(7, {"thrust_loss": [0.0, 0, 0, 0.06, 0, 0, 0.05, 0], "gyro_bias": [2e-3, -1.5e-3, 1e-3]})
+def test_thrust_loss_and_gyro_bias_are_both_named(tmp_path):
+    from bench.gap.answers import answer_lines
+    from bench.gap.report import write_report
+
+    full = _answer(7, {"thrust_loss": [0.0, 0, 0, 0.06, 0, 0, 0.05, 0], "gyro_bias": [2e-3, -1.5e-3, 1e-3]}, True)
+    r = public(full)
     assert r["verdict"] == "explained"
     assert sorted(m["effect"] for m in r["effects"]) == ["gyro_bias", "thrust_loss"]
     es = r["effect_set"]
@@ -28,6 +33,11 @@ def test_thrust_loss_and_gyro_bias_are_both_named():
     assert np.all(np.abs(fitted - [2e-3, -1.5e-3, 1e-3]) < 4 * sig + 1e-4)
     # each member adds to the held-out likelihood beside the other
     assert all(m["adds_dll_heldout"] > 3.0 for m in r["effects"])
+    text = "\n".join(t for _, t in answer_lines(r))
+    assert "thrust_loss + gyro_bias (explained, together)" in text and "adds" in text
+    page = write_report(full, tmp_path, "mixture").read_text()
+    assert "RMS on held-out rows, nominal -> with thrust_loss + gyro_bias" in page
+    assert "pose innovations" in page  # the gyro bias acts on the navigation replay: its channel is shown
 
 
 def test_one_effect_stays_one():

@@ -1,6 +1,5 @@
 """The flight log's description (format version 2): every field checked and
 named when wrong, defaults named when taken, the vehicle built from it."""
-import copy
 
 import numpy as np
 import pytest
