@@ -320,7 +320,11 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     where = summ["where"]
     dyn_or_sensor = None
     if detected:
-        if verdict in ("explained", "ambiguous"):
+        set_kinds = ({m["kind"] for m in effect_set["members"]}
+                     if effect_set is not None and effect_set["explains_heldout"] else None)
+        if set_kinds:
+            dyn_or_sensor = set_kinds.pop() if len(set_kinds) == 1 else "dynamics and sensor"
+        elif verdict in ("explained", "ambiguous"):
             dyn_or_sensor = ranking[0]["kind"]
         elif where is not None:
             # The IMU disagreeing with the valve model while firing, or by a
@@ -334,11 +338,20 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                 or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
     best = ranking[0] if ranking else None
     acts = None
+    is_set = effect_set is not None and effect_set["explains_heldout"]
     if verdict in ("explained", "ambiguous"):
-        f = next(f for f in fits if f.name == best["effect"])
+        if is_set:
+            from bench.gap.select import as_fit
+
+            f = as_fit(effect_set["_fit"])
+        else:
+            f = next(f for f in fits if f.name == best["effect"])
         acts = localise.signature_regimes(d, ch, nominal.white, f.after_nav.white, nominal.res, f.after_dyn)
-    shrink_best = best["shrink_heldout"] if best else None
-    runs_shrink = heldout_runs_shrink(ctx, best["effect"]) if best is not None and verdict != "no_gap" else None
+    shrink_best = effect_set["shrink_heldout"] if is_set else (best["shrink_heldout"] if best else None)
+    if is_set:
+        runs_shrink = {"runs": int(d.n_segments), "fraction": None, "reason": "measured on held-out blocks for a set"}
+    else:
+        runs_shrink = heldout_runs_shrink(ctx, best["effect"]) if best is not None and verdict != "no_gap" else None
     screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "rank": f.rank,
                      "screen_logp": f.screen_logp, "screen_ln_bf": f.screen_ln_bf, "screen_bic": f.screen_bic}
                     for f in fits]
@@ -358,8 +371,8 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
         "verdict": verdict,
         "ambiguous_with": ambiguous_with,
         "shrink_heldout_runs": runs_shrink,
-        "shrink_heldout": ({"effect": best["effect"], "fraction": shrink_best["fraction"], "ci95": shrink_best["ci95"]}
-                           if best else None),
+        "shrink_heldout": ({"effect": " + ".join(m["effect"] for m in effect_set["members"]) if is_set else best["effect"],
+                            "fraction": shrink_best["fraction"], "ci95": shrink_best["ci95"]} if best else None),
         "replay_rms_heldout_before": quantify.channel_rms(nominal.innovation[held]),
         "not_modelled": list(NOT_MODELLED),
         "examined": examined(d, ctx, detected),
