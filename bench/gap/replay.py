@@ -140,48 +140,68 @@ def prepare(log) -> LogData:
     from bench.log_description import resolve
 
     desc = resolve(getattr(log, "description", None), log.config)
-    imu, pose = log["imu"], log["pose"]
+    imu = log["imu"]
     t = np.asarray(imu["t_s"], np.float64)
     dt = 1.0 / desc.imu_rate_hz if desc.imu_rate_hz else (float(np.median(np.diff(t))) if t.size > 1 else 0.1)
-    cfg = dict(log.config or {})
-    n = desc.mean_motion_radps
     dropped = {}
-    # IMU axes -> body axes.
-    c_bi = rotmats(desc.imu_q_body_imu[None])[0]
+    c_bi = rotmats(desc.imu_q_body_imu[None])[0]  # IMU axes -> body axes
     accel = np.asarray(imu["accel_b_mps2"], float) @ c_bi.T
     gyro = np.asarray(imu["omega_bi_b_rps"], float) @ c_bi.T
-    # Runs: explicit segments, or a skipped IMU tick (version 1 rule).
-    if desc.segments:
-        starts = np.array([sg.t_start_s for sg in desc.segments])
-        ends = np.array([sg.t_end_s for sg in desc.segments])
-        seg = np.searchsorted(starts, t, side="right") - 1
-        inside = (seg >= 0) & (t <= ends[np.clip(seg, 0, None)] + 1e-9)
-        if not np.all(inside):
-            dropped["imu samples outside every segment"] = int(np.sum(~inside))
-            t, accel, gyro, seg = t[inside], accel[inside], gyro[inside], seg[inside]
-        # Renumber to 0.. over the segments that hold samples.
-        _, imu_seg = np.unique(seg, return_inverse=True)
-        seg_desc = [desc.segments[i] for i in np.unique(seg)]
-    else:
-        imu_seg = np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * dt)]) if t.size else np.zeros(0, int)
-        seg_desc = None
-    valves = None
-    if log.has("valves"):
-        valves = open_fractions(log["valves"], t, dt, desc.n_thrusters)
-    # Accelerometer away from the centre of mass (a known lever arm): the
-    # interval's mean angular acceleration from the valve torques when the
-    # valves are known (exact under the nominal model; a finite difference
-    # of the gyro would smear every valve's on and off edges), else from the gyro.
+    inside, imu_seg, seg_desc = _runs(t, dt, desc)
+    if not np.all(inside):
+        dropped["imu samples outside every segment"] = int(np.sum(~inside))
+        t, accel, gyro = t[inside], accel[inside], gyro[inside]
+    valves = open_fractions(log["valves"], t, dt, desc.n_thrusters) if log.has("valves") else None
+    accel = _accel_at_com(accel, gyro, t, imu_seg, valves, desc)
+    p = _poses_on_ticks(log["pose"], t, dt, imu_seg, seg_desc, desc, dropped)
+    truth = {k: np.asarray(v) for k, v in log["truth"].items()} if log.has("truth") else None
+    return LogData(imu_t=t, accel=accel, gyro=gyro, pose_tc=p["tc"], pose_tf=p["tf"], pose_r=p["r"], pose_q=p["q"],
+                   pose_R=p["R"], pose_tick=p["tick"], pose_start=p["start"], valves=valves, dt_s=dt,
+                   n_radps=desc.mean_motion_radps, t_init=float(max(t[0] - dt, p["tc"][0])), truth=truth,
+                   config=dict(log.config or {}), desc=desc, imu_seg=imu_seg, pose_align_s=p["align"],
+                   pose_v0_sigma=p["v0"], cands=candidates_for(desc.n_thrusters), dropped=dropped,
+                   valve_stream=dict(log["valves"]) if log.has("valves") else None)
+
+
+def _runs(t: np.ndarray, dt: float, desc):
+    """(samples inside a run, each kept sample's run 0.., the runs' segment
+    descriptions or None): the stated segments, or a skipped IMU tick
+    (version 1's rule)."""
+    if not desc.segments:
+        seg = np.concatenate([[0], np.cumsum(np.diff(t) > 1.5 * dt)]) if t.size else np.zeros(0, int)
+        return np.ones(t.size, bool), seg, None
+    starts = np.array([sg.t_start_s for sg in desc.segments])
+    ends = np.array([sg.t_end_s for sg in desc.segments])
+    seg = np.searchsorted(starts, t, side="right") - 1
+    inside = (seg >= 0) & (t <= ends[np.clip(seg, 0, None)] + 1e-9)
+    held = np.unique(seg[inside])
+    _, imu_seg = np.unique(seg[inside], return_inverse=True)  # renumbered over the runs that hold samples
+    return inside, imu_seg, [desc.segments[i] for i in held]
+
+
+def _accel_at_com(accel, gyro, t, imu_seg, valves, desc):
+    """The accelerometer moved to the centre of mass (a known lever arm rho):
+    minus alpha x rho + w x (w x rho), alpha the interval's mean angular
+    acceleration from the valve torques when the valves are known (exact
+    under the nominal model; a finite difference of the gyro would smear
+    every valve's on and off edges), else from the gyro."""
     rho = desc.imu_position_b_m - desc.com_b_m
-    if np.any(rho != 0.0):
-        if valves is not None:
-            veh = desc.vehicle()
-            J = np.asarray(veh.inertia_kgm2, float)
-            wdot = (valves @ veh.thruster_torques_b_nm() - np.cross(gyro, gyro @ J.T)) @ np.linalg.inv(J).T
-        else:
-            wdot = _rate_derivative(gyro, t, imu_seg)
-        accel = accel - np.cross(wdot, rho) - np.cross(gyro, np.cross(gyro, rho))
-    # Pose: onto the IMU clock, about the centre of mass.
+    if not np.any(rho != 0.0):
+        return accel
+    if valves is not None:
+        veh = desc.vehicle()
+        J = np.asarray(veh.inertia_kgm2, float)
+        wdot = (valves @ veh.thruster_torques_b_nm() - np.cross(gyro, gyro @ J.T)) @ np.linalg.inv(J).T
+    else:
+        wdot = _rate_derivative(gyro, t, imu_seg)
+    return accel - np.cross(wdot, rho) - np.cross(gyro, np.cross(gyro, rho))
+
+
+def _poses_on_ticks(pose: dict, t, dt, imu_seg, seg_desc, desc, dropped: dict) -> dict:
+    """The pose stream on the IMU clock, about the centre of mass, each pose
+    at its nearest IMU tick of its own run (the shift kept as ``align`` for
+    the latency-like correction), with its covariance, run starts and the
+    initial velocity sigma of each run."""
     tc = np.asarray(pose["t_capture_s"], np.float64) + desc.pose_time_offset_s - desc.pose_latency_s
     td = np.asarray(pose["t_delivered_s"], np.float64) + desc.pose_time_offset_s
     pr = np.asarray(pose["r_hill_m"], float)
@@ -199,25 +219,29 @@ def prepare(log) -> LogData:
     align = grid[j] - tc
     # Jitter and a dropped sample leave a pose up to one interval from its
     # nearest tick; the shift is a linearised correction, so no farther.
-    keep = np.abs(align) <= dt + 1e-9
+    near = np.abs(align) <= dt + 1e-9
+    keep = near.copy()
     if desc.segments:
+        starts = np.array([sg.t_start_s for sg in desc.segments])
+        ends = np.array([sg.t_end_s for sg in desc.segments])
         pseg = np.searchsorted(starts, tc, side="right") - 1
         pin = (pseg >= 0) & (tc <= ends[np.clip(pseg, 0, None)] + 1e-9)
-        keep &= pin
+        _drop(dropped, "poses outside every segment", ~pin)
         # the tick must belong to the pose's own run
-        keep &= np.searchsorted(starts, grid[j], side="right") - 1 == pseg
-    _drop(dropped, "poses more than one IMU interval from every IMU tick", ~keep & (np.abs(align) > dt + 1e-9))
+        own = np.searchsorted(starts, grid[j], side="right") - 1 == pseg
+        _drop(dropped, "poses whose nearest IMU tick is in another run", pin & near & ~own)
+        keep &= pin & own
+    _drop(dropped, "poses more than one IMU interval from every IMU tick", ~near)
     dup = np.zeros(tc.size, bool)
     dup[1:] = j[1:] == j[:-1]
     _drop(dropped, "poses on an IMU tick already taken by an earlier pose", dup & keep)
     keep &= ~dup
-    j, align, tc, td, pr, pq, rs, asg = (x[keep] for x in (j, align, tc, td, pr, pq, rs, asg))
+    j, align, td, pr, pq, rs, asg = (x[keep] for x in (j, align, td, pr, pq, rs, asg))
     tc_tick = grid[j]
-    tick = j - 1
-    R = np.zeros((tc.size, 6, 6))
+    R = np.zeros((j.size, 6, 6))
     R[:, [0, 1, 2], [0, 1, 2]] = (rs**2)[:, None]
     R[:, [3, 4, 5], [3, 4, 5]] = (asg**2)[:, None]
-    v0 = np.full(tc.size, V0_SIGMA_MPS)
+    v0 = np.full(j.size, V0_SIGMA_MPS)
     if seg_desc is not None:
         ps = gseg[j]
         start = np.concatenate([[True], ps[1:] != ps[:-1]]) if ps.size else np.zeros(0, bool)
@@ -226,15 +250,8 @@ def prepare(log) -> LogData:
                 v0[i] = POSE_V0_SIGMA_MOVING_MPS
     else:
         start = segment_starts(tc_tick, pr, rs, t)
-    truth = None
-    if log.has("truth"):
-        truth = {k: np.asarray(v) for k, v in log["truth"].items()}
-    d = LogData(imu_t=t, accel=accel, gyro=gyro, pose_tc=tc_tick, pose_tf=np.maximum(td, tc_tick), pose_r=pr,
-                pose_q=pq, pose_R=R, pose_tick=tick, pose_start=start, valves=valves, dt_s=dt, n_radps=n,
-                t_init=float(max(t[0] - dt, tc_tick[0])), truth=truth, config=cfg, desc=desc, imu_seg=imu_seg,
-                pose_align_s=align, pose_v0_sigma=v0, cands=candidates_for(desc.n_thrusters), dropped=dropped,
-                valve_stream=dict(log["valves"]) if log.has("valves") else None)
-    return d
+    return {"tc": tc_tick, "tf": np.maximum(td, tc_tick), "r": pr, "q": pq, "R": R, "tick": j - 1, "start": start,
+            "align": align, "v0": v0}
 
 
 def _drop(dropped: dict, why: str, mask) -> None:
