@@ -257,7 +257,8 @@ def choose(log, d, supplied: dict | None = None, source: str | None = None, runs
                                    "of docking logs")
         return cal, {"source": f"committed ({known or 'docking'} logs of the bench inspector)", "runs": cal.get("runs"),
                      "note": note}
-    why = "; ".join(diffs) if diffs else f"manoeuvres {'+'.join(flown)}"
+    why = ("; ".join(diffs[:3]) + (f" and {len(diffs) - 3} more differences from the bench inspector"
+                                   if len(diffs) > 3 else "")) if diffs else f"manoeuvres {'+'.join(flown)}"
     cal = calibrate_for_log(log, runs=runs, progress=progress, cache_dir=cache_dir)
     return cal, {"source": "made for this log", "runs": cal["runs"], "elapsed_s": cal["elapsed_s"],
                  "from_cache": cal.get("from_cache"),
