@@ -14,6 +14,7 @@ Layout of every packet::
 
 from __future__ import annotations
 
+import binascii
 import math
 import struct
 from dataclasses import dataclass, field
@@ -22,7 +23,6 @@ from typing import Dict, List, Optional, Tuple, Union
 import numpy as np
 from cobs import cobs
 from crc import Calculator, Configuration
-from fastcrc.crc16 import ibm_3740 as _fast_crc16
 from spacepackets.ccsds.spacepacket import (
     PacketType,
     SequenceFlags,
@@ -141,10 +141,11 @@ REJECT_REASONS: Tuple[str, ...] = (
 
 
 def crc16(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE of ``data`` (fastcrc's CRC-16/IBM-3740, the same
-    algorithm in compiled code; ``crc16_reference`` is the pure-Python
-    ``crc`` package, and the tests hold the two equal)."""
-    return _fast_crc16(bytes(data))
+    """CRC-16/CCITT-FALSE of ``data``: the standard library's
+    ``binascii.crc_hqx`` (CRC-CCITT, poly 0x1021, no reflection) started at
+    0xFFFF, in compiled code; ``crc16_reference`` is the pure-Python ``crc``
+    package, and the tests hold the two equal."""
+    return binascii.crc_hqx(bytes(data), 0xFFFF)
 
 
 def crc16_reference(data: bytes) -> int:
