@@ -343,6 +343,11 @@ class Deframer:
             self._buf.clear()
         return out
 
+    def reset_time_history(self) -> None:
+        """Forgets every APID's last time tag, keeping the sequence counts
+        (the flight side does this on a carried-out cmd_reset)."""
+        self._last = {a: (seq, -math.inf) for a, (seq, _) in self._last.items()}
+
     def _reject(self, reason: str, apid: Optional[int] = None) -> Rejection:
         self.rejected[reason] += 1
         return Rejection(reason, apid)
@@ -383,6 +388,7 @@ class Deframer:
         if not math.isfinite(t_s):
             return self._reject("bad_time_tag", h.apid)
         last = self._last.get(h.apid)
+        missing = 0  # counted, like the history, only for an accepted packet
         if last is not None:
             delta = (h.seq_count - last[0]) % SEQ_MODULO
             if delta == 0:
@@ -393,8 +399,7 @@ class Deframer:
                 if not t_s > last[1]:
                     return self._reject("stale_sequence", h.apid)
             else:
-                self.gaps[h.apid] = self.gaps.get(h.apid, 0) + delta - 1
-        self._last[h.apid] = (h.seq_count, t_s)
+                missing = delta - 1
         f64 = struct.unpack_from("<%dd" % a.f64_count, payload, a.f64_offset)
         if not all(math.isfinite(x) for x in f64):
             return self._reject("non_finite_payload", h.apid)
@@ -404,6 +409,9 @@ class Deframer:
                 return self._reject("non_unit_quaternion", h.apid)
         if not _fields_ok(a, h.seq_flags, payload):
             return self._reject("invalid_field", h.apid)
+        if missing:
+            self.gaps[h.apid] = self.gaps.get(h.apid, 0) + missing
+        self._last[h.apid] = (h.seq_count, t_s)
         self.accepted += 1
         return Packet(header=h, t_s=t_s, payload=bytes(payload), raw=bytes(body))
 
