@@ -99,6 +99,9 @@ class LinkNav:
         # covariance from this reset, not ones left from an earlier run.
         self._est[:] = np.nan
         self._p_diag[:] = np.nan
+        # The flight side starts a new time base at a reset (docs/LINK.md):
+        # its telemetry may now be tagged earlier than before.
+        self.deframer.reset_time_history()
         for _ in range(self.reset_attempts):
             rec = self._step(_RESET, t_s, payload)
             if rec.received or np.any(np.isfinite(self._est)) or np.any(np.isfinite(self._p_diag)):

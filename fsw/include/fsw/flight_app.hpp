@@ -12,6 +12,11 @@
 //   cmd_reset (bit 2)   -> modal estimator rebuilt with the commanded plate
 //                          model and priors (ModalTracker)
 //   cmd_reset (bit 3)   -> link counters cleared
+//   cmd_reset (any)     -> the link's time history cleared (a new time base);
+//                          a reset whose bit 0 the filter would refuse is
+//                          refused whole: nothing changes, it is counted
+//                          (resets_refused) and answered with tm_innovation
+//                          (step_kind reset, its status) and the old estimate
 //   cmd_config          -> pose noise model (docs/LINK.md, parameter ids)
 //   imu_sample          -> NavUkf::predict to the packet time
 //   led_pose            -> NavUkf::update_pose at the capture time (may be late);
@@ -110,6 +115,7 @@ class FlightApp {
     std::uint32_t pose_fused = 0;
     std::uint32_t poses_deferred = 0;  // arrived before their capture tick's IMU sample; fused after it
     std::uint32_t resets = 0;
+    std::uint32_t resets_refused = 0;  // cmd_reset the filter would refuse: nothing changed
     std::uint32_t reacquisitions = 0;  // filter re-initialised from a pose (lost, or rejecting agreeing poses)
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
@@ -446,7 +452,30 @@ template <typename S>
 inline void FlightApp<S>::on_reset(const PacketView& p) {
   CmdResetMsg<S> m;
   decode(p.payload, p.t_s, m);
+  const bool nav_bit = (m.target_mask & 0x1u) != 0;
+  typename Nav::State x0;
+  typename Nav::Cov P0 = Nav::Cov::Zero();
+  if (nav_bit) {
+    x0.r_hill_m = m.r_hill_m;
+    x0.v_hill_mps = m.v_hill_mps;
+    x0.q_hb = m.q_hb;
+    P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
+    P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
+    P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
+    // All or nothing: a reset the filter would refuse (a sigma whose square
+    // overflows, a zero sigma, settings it rejects) changes nothing at all.
+    const typename Nav::Record verdict = Nav::check_init(nav_cfg_, p.t_s, x0, P0);
+    if (verdict.status != StepStatus::Ok) {
+      ++counters_.resets_refused;
+      report(StepKind::Reset, verdict, nav_.initialized() ? nav_.t_s() : p.t_s);
+      return;
+    }
+  }
   ++counters_.resets;
+  // A reset starts a new time base: the link's time history is cleared
+  // (sequence counts kept), so one command tagged far in the future cannot
+  // lock an APID out.
+  deframer_.reset_time_history();
   if (m.target_mask & 0x8u) deframer_.reset_counters();
   if (m.target_mask & 0x2u) {
     learner_.reset();
@@ -454,18 +483,10 @@ inline void FlightApp<S>::on_reset(const PacketView& p) {
     have_prev_gyro_ = false;
   }
   if (m.target_mask & 0x4u) modal_.configure(modal_cfg_);  // checked when set
-  if (!(m.target_mask & 0x1u)) return;
+  if (!nav_bit) return;
   nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
   pending_.valid = false;
   rejected_.n = 0;
-  typename Nav::State x0;
-  x0.r_hill_m = m.r_hill_m;
-  x0.v_hill_mps = m.v_hill_mps;
-  x0.q_hb = m.q_hb;
-  typename Nav::Cov P0 = Nav::Cov::Zero();
-  P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
-  P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
-  P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
   const typename Nav::Record rec = nav_.init(p.t_s, x0, P0);
   report(StepKind::Reset, rec, p.t_s);
 }
