@@ -40,6 +40,7 @@ py::dict app_counters(const App& app) {
   d["unhandled"] = c.unhandled;
   d["tx_packets"] = c.tx_packets;
   d["tx_dropped"] = c.tx_dropped;
+  d["tm_values_clamped"] = c.tm_values_clamped;
   return d;
 }
 

@@ -244,6 +244,32 @@ TEST(FlightAppTest, LearnerSkipsAnIntervalWhoseOpeningImuSampleWasLost) {
 
 // ------------------------------------------------------------ hostile inputs
 
+TEST(FlightAppTest, OverflowingPoseGivesFiniteTelemetry) {
+  // A valid pose 1e308 m away overflows the step: NIS = inf, log-likelihood
+  // -inf. Telemetry carries them as the largest finite doubles, so the
+  // bench accepts every frame.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  up.pose(0.0, Vec3<double>(0.0, 1e308, 0.0), kQ0, 0.0, 0.0);
+  up.pose(0.0, Vec3<double>(1e308, -1e308, 1e308), kQ0, 0.04, 0.01);
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(tm.rejected, 0);
+  ASSERT_EQ(tm.innovations.size(), 3u);
+  constexpr double kMax = std::numeric_limits<double>::max();
+  for (int i = 1; i < 3; ++i) {
+    EXPECT_NE(tm.innovations[i].status, static_cast<std::uint8_t>(StepStatus::Ok));
+    EXPECT_EQ(tm.innovations[i].fused, 0);
+  }
+  EXPECT_EQ(tm.innovations[2].nis, kMax);
+  EXPECT_EQ(tm.innovations[2].log_likelihood, -kMax);
+  EXPECT_GT(app->counters().tm_values_clamped, 0u);
+  EXPECT_EQ(tm.estimates.size(), 3u);  // the filter kept its estimate
+  EXPECT_TRUE(tm.estimates.back().r_hill_m.isApprox(kR0));
+}
+
 TEST(FlightAppTest, ResetFarInTheFutureDoesNotLockResetsOut) {
   // A reset tagged t = 1e300 is carried out; it clears the link's time
   // history, so a reset at a normal time is accepted after it, and the

@@ -59,6 +59,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 
 #include "fsw/apid.hpp"
 #include "fsw/blr.hpp"
@@ -123,6 +124,7 @@ class FlightApp {
     std::uint32_t unhandled = 0;  // accepted packets this build does not consume
     std::uint32_t tx_packets = 0;
     std::uint32_t tx_dropped = 0;  // telemetry lost to a full transmit buffer
+    std::uint32_t tm_values_clamped = 0;  // non-finite telemetry doubles sent as +-max (see send())
   };
 
   explicit FlightApp(const NavConfig<S>& nav_cfg = NavConfig<S>())
@@ -202,19 +204,38 @@ class FlightApp {
 
   void housekeeping(double t_s);
 
+  // Telemetry never carries a non-finite number (the bench, like this
+  // side's deframer, refuses such a packet whole): each NaN or infinite
+  // double of the payload is sent as the largest finite double, with the
+  // sign of an infinity (NaN as +max), and counted (tm_values_clamped).
   template <typename Msg>
   void send(Apid apid, const Msg& msg, double t_s) {
-    if (kTxCapacity - tx_len_ < kMaxFrameBytes) {
+    const ApidInfo* info = apid_info(static_cast<std::uint16_t>(apid));
+    if (info == nullptr || kTxCapacity - tx_len_ < kMaxFrameBytes) {
       ++counters_.tx_dropped;
       return;
     }
-    const std::size_t n = framer_.frame_message(apid, msg, t_s, tx_.data() + tx_len_, kTxCapacity - tx_len_);
+    encode(msg, tm_payload_.data());
+    clamp_non_finite(*info);
+    const std::size_t n = framer_.frame(apid, t_s, tm_payload_.data(), info->payload_len, tx_.data() + tx_len_,
+                                        kTxCapacity - tx_len_);
     if (n == 0) {
       ++counters_.tx_dropped;
       return;
     }
     tx_len_ += n;
     ++counters_.tx_packets;
+  }
+
+  void clamp_non_finite(const ApidInfo& info) {
+    constexpr double kMax = std::numeric_limits<double>::max();
+    for (std::size_t i = 0; i < info.f64_count; ++i) {
+      std::uint8_t* at = tm_payload_.data() + info.f64_offset + 8 * i;
+      const double v = get_f64le(at);
+      if (std::isfinite(v)) continue;
+      put_f64le(at, std::isnan(v) ? kMax : std::copysign(kMax, v));
+      ++counters_.tm_values_clamped;
+    }
   }
 
   struct RejectedRun {
@@ -256,6 +277,7 @@ class FlightApp {
   Framer framer_;
   Counters counters_;
   std::array<std::uint8_t, kTxCapacity> tx_{};
+  std::array<std::uint8_t, kMaxPayloadLen> tm_payload_{};
   std::size_t tx_len_ = 0;
   std::uint32_t step_index_ = 0;
   std::uint32_t hk_every_ = 10;
@@ -585,8 +607,12 @@ inline void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec,
   inn.meas_dim = kind == StepKind::PoseUpdate ? 6 : 0;
   inn.step_index = ++step_index_;
   inn.innovation = rec.innovation;
-  inn.nis = rec.nis;
-  inn.log_likelihood = rec.log_likelihood;
+  // An overflowed step (a pose 1e308 m away) gives NIS = inf and
+  // log-likelihood = -inf, or NaN from inf - inf: NaN is sent as the
+  // overflow it is (NIS +max, log-likelihood -max; see send()).
+  inn.nis = std::isnan(rec.nis) ? std::numeric_limits<S>::infinity() : rec.nis;
+  inn.log_likelihood =
+      std::isnan(rec.log_likelihood) ? -std::numeric_limits<S>::infinity() : rec.log_likelihood;
   send(Apid::TmInnovation, inn, t_s);
   if (!nav_.initialized()) return;
   TmEstimateMsg<S> est;
