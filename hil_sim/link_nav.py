@@ -80,7 +80,7 @@ class LinkNav:
         self.time_offset_s = 0.0  # added to every outgoing time tag (chained runs)
         self.delivered_not_sent = 0  # telemetry packets delivered that the flight side never sent
         self.link_counters = None  # last tm_link_counters: accepted, frames, gaps, duplicates, rejected[...]
-        self.housekeeping = None
+        self.housekeeping = None  # last tm_housekeeping as a dict (packets.decode_housekeeping)
         self.learner_outputs: list = []  # (t_s, tm_learner values): the flight learner's prediction per firing
         self.deferred_pose_results: list = []  # (status, fused) of poses fused after a later predict
         self._current_apid = None
@@ -236,7 +236,7 @@ class LinkNav:
             self.link_counters = v
             return False
         if p.apid == _HK:
-            self.housekeeping = v
+            self.housekeeping = pk.decode_housekeeping(p.payload)
             return False
         if p.apid == _LEARNER:
             self.learner_outputs.append((p.t_s - self.time_offset_s, v))

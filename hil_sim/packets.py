@@ -103,7 +103,7 @@ APIDS: Dict[int, ApidDef] = {
         ApidDef(0x043, "tm_learner", FROM_FLIGHT, "<II12d", 8, 12),
         # packets_accepted, frames_total, seq_gaps_total, duplicates_total, rejected[28]
         ApidDef(0x044, "tm_link_counters", FROM_FLIGHT, "<32I", 0, 0),
-        # uptime_s, last_step_cpu_s, max_step_cpu_s, cycle_count, mode, tx_packets, reserved
+        # uptime_s, last_step_cpu_s, max_step_cpu_s, cycle_count, mode, tx_packets, tx_dropped
         ApidDef(0x045, "tm_housekeeping", FROM_FLIGHT, "<3d4I", 0, 3),
         # image_id, status, decomposition, fused, n_modes, n_used, n_skipped, rcond, nis,
         # omega_radps[10], alpha_ps[10], amplitude[10], amplitude_sigma[10]
@@ -245,6 +245,16 @@ class Sender:
 
 
 # ----------------------------------------------------------------------------- parse
+
+HOUSEKEEPING_FIELDS = ("uptime_s", "last_step_cpu_s", "max_step_cpu_s", "cycle_count", "mode", "tx_packets",
+                       "tx_dropped")
+
+
+def decode_housekeeping(payload: bytes) -> dict:
+    """tm_housekeeping as named fields; tx_dropped counts the telemetry
+    packets the flight side could not queue (its transmit buffer was full:
+    the ground was not reading, or a burst outran the port)."""
+    return dict(zip(HOUSEKEEPING_FIELDS, unpack_payload(APID_BY_NAME["tm_housekeeping"].apid, payload)))
 
 
 @dataclass

@@ -104,6 +104,7 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
         "faults_up": link.up.counts.__dict__,
         "faults_down": link.down.counts.__dict__,
         "realtime_overruns": sum(p.overruns for p in pacers),
+        "flight_telemetry_dropped": (nav.housekeeping or {}).get("tx_dropped"),
         "fsw_node_exit_code": ended["exit_code"],
         "fsw_node_summary": ended["stderr"].strip(),
     }

@@ -364,3 +364,26 @@ TEST(FlightAppTest, RefusedResetLeavesTheStateAsItWas) {
     EXPECT_EQ(tm.rejected, 0);
   }
 }
+
+TEST(FlightAppTest, TelemetryDropsAreInHousekeeping) {
+  // A burst of 200 IMU samples in one read overflows the transmit buffer;
+  // the drops are counted and the next housekeeping packet carries them.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  up.reset(0.0, kR0, kV0, kQ0);
+  for (int k = 1; k <= 200; ++k) up.imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  const std::uint32_t dropped = app->counters().tx_dropped;
+  EXPECT_GT(dropped, 0u);
+  Telemetry tm;
+  tm.drain(*app);
+  Uplink more = up;
+  more.bytes.clear();
+  for (int k = 201; k <= 210; ++k) more.imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(more.bytes.data(), more.bytes.size());
+  tm.drain(*app);
+  ASSERT_FALSE(tm.housekeeping.empty());
+  EXPECT_EQ(tm.housekeeping.back().tx_dropped, dropped);
+  EXPECT_EQ(app->counters().tx_dropped, dropped);
+  EXPECT_EQ(tm.housekeeping.back().cycle_count, 210u);
+}

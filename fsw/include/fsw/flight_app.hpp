@@ -643,6 +643,7 @@ inline void FlightApp<S>::housekeeping(double t_s) {
   hk.cycle_count = counters_.imu_steps;
   hk.mode = nav_.initialized() ? 1u : 0u;
   hk.tx_packets = counters_.tx_packets;
+  hk.tx_dropped = counters_.tx_dropped;
   send(Apid::TmHousekeeping, hk, t_s);
 }
 
