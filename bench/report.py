@@ -1,8 +1,11 @@
 """Small helpers shared by commands: JSON output and report folders."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +22,49 @@ def _default(o):
 
 
 def write_json(path, data) -> Path:
+    """Writes data as JSON to path, atomically: the text goes to a temporary
+    file in the same folder, which replaces path only once it is complete
+    (an error part-way leaves an existing file as it was)."""
     path = Path(path)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2, default=_default) + "\n")
+    text = json.dumps(data, indent=2, default=_default) + "\n"
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
     return path
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """A temporary file name next to path; when the block ends without an
+    error the file replaces path, otherwise it is removed."""
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+@contextlib.contextmanager
+def staged_report_dir(path):
+    """A temporary folder next to the report folder path; when the block
+    ends without an error each file in it replaces its namesake in path
+    (created if needed), otherwise nothing in path changes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}."))
+    try:
+        yield tmp
+        path.mkdir(parents=True, exist_ok=True)
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, path / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def report_dir(path) -> Path:

@@ -27,6 +27,14 @@ import serial
 from hil_sim.faults import FaultConfig, FaultInjector
 
 BAUD = 921600
+# The bench gives up on the flight side once it has waited this long in all
+# for telemetry without receiving a byte (waiting only: time the bench spends
+# computing does not count). An exited fsw_node is noticed at the next wait.
+SILENCE_S = 2.0
+
+
+class FlightSideLost(RuntimeError):
+    """The flight side exited or stopped answering; the message says which."""
 
 
 def find_fsw_node() -> str:
@@ -62,7 +70,8 @@ class PtyLink:
     relays between them with fault injection."""
 
     def __init__(self, faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(),
-                 seed: int = 0, node_path: str | None = None, baud: int = BAUD, start_timeout_s: float = 10.0):
+                 seed: int = 0, node_path: str | None = None, baud: int = BAUD, start_timeout_s: float = 10.0,
+                 silence_s: float = SILENCE_S):
         rng = np.random.default_rng(seed)
         self.up = FaultInjector(faults_up, np.random.default_rng(rng.integers(2**63)))      # bench -> flight
         self.down = FaultInjector(faults_down, np.random.default_rng(rng.integers(2**63)))  # flight -> bench
@@ -77,6 +86,8 @@ class PtyLink:
         self.bytes_down = 0
         self._stalled_until = {"up": 0.0, "down": 0.0}
         self._queued = {"up": b"", "down": b""}
+        self.silence_s = silence_s
+        self._silent_wait_s = 0.0  # time spent waiting in pump() since the flight side last sent a byte
 
     def _wait_ready(self, timeout_s: float):
         # fsw_node flushes its port when it opens it: nothing may be sent
@@ -120,15 +131,17 @@ class PtyLink:
                 self._stalled_until[key] = time.monotonic() + stall
             self._queued[key] += faults.apply(data)
         if self._queued[key] and time.monotonic() >= self._stalled_until[key]:
-            out = self._queued[key]
-            self._queued[key] = b""
-            view = memoryview(out)
-            while view:
-                try:
-                    k = os.write(dst, view)
-                    view = view[k:]
-                except BlockingIOError:
-                    select.select([], [dst], [], 0.01)
+            # What the far pty does not take now stays queued for the next
+            # pump: never wait here (a dead reader would hang the bench).
+            try:
+                k = os.write(dst, self._queued[key])
+            except BlockingIOError:
+                k = 0
+            except OSError as exc:
+                if exc.errno != errno.EIO:
+                    raise
+                k = 0
+            self._queued[key] = self._queued[key][k:]
         return moved
 
     def pump(self, timeout_s: float = 0.0) -> int:
@@ -136,17 +149,33 @@ class PtyLink:
         timeout_s for something to arrive. Returns the bytes moved."""
         # The bench's own port is watched too: a tty hands bytes over
         # asynchronously, so they may land there after the relay moved them.
+        self.check_flight_side()
+        t0 = time.monotonic()
         r, _, _ = select.select([self._ma, self._mb, self.port.fileno()], [], [], timeout_s)
+        waited = time.monotonic() - t0
         moved = 0
         if self._mb in r or self._queued["up"]:
             n = self._move(self._mb, self._ma, self.up, "up")
             self.bytes_up += n
             moved += n
+        heard = 0
         if self._ma in r or self._queued["down"]:
-            n = self._move(self._ma, self._mb, self.down, "down")
-            self.bytes_down += n
-            moved += n
+            heard = self._move(self._ma, self._mb, self.down, "down")
+            self.bytes_down += heard
+            moved += heard
+        self._silent_wait_s = 0.0 if heard else self._silent_wait_s + waited
         return moved
+
+    def check_flight_side(self):
+        """Raises FlightSideLost when fsw_node has exited, or when the bench
+        has waited silence_s in all without a byte from it."""
+        code = self.proc.poll()
+        if code is not None:
+            how = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+            raise FlightSideLost(f"the flight side stopped: fsw_node exited ({how})")
+        if self._silent_wait_s > self.silence_s:
+            raise FlightSideLost(f"the flight side is silent: no telemetry from fsw_node in "
+                                 f"{self._silent_wait_s:.1f} s of waiting")
 
     def node_alive(self) -> bool:
         return self.proc.poll() is None

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.report import report_dir, write_json
+from bench.report import staged_report_dir, write_json
 
 
 def register(sub):
@@ -124,13 +124,24 @@ def plate_main(args, faults) -> int:
     if args.json:
         write_json(args.json, s)
     if args.report:
-        out = report_dir(args.report)
-        write_json(out / "hil_plate.json", s)
-        print(f"  report: {out}/hil_plate.json")
+        with staged_report_dir(args.report) as tmp:
+            write_json(tmp / "hil_plate.json", s)
+        print(f"  report: {args.report}/hil_plate.json")
     return 0 if s["fsw_node_exit_code"] == 0 else 1
 
 
 def main(args):
+    from hil_sim.pty_link import FlightSideLost
+
+    try:
+        return _main(args)
+    except FlightSideLost as exc:
+        # Nothing has been written: the user's earlier outputs stay as they were.
+        print(f"proxops hil: {exc}; run abandoned, no output written", file=sys.stderr)
+        return 1
+
+
+def _main(args):
     from hil_sim.faults import FaultConfig
     from hil_sim.run import HilConfig, run_hil
 
@@ -152,12 +163,12 @@ def main(args):
     s = hil_summary(res, args)
     print_summary(s)
     if args.report:
-        out = report_dir(args.report)
-        write_json(out / "hil.json", s)
         from hil_sim.report import write_hil_report
 
-        write_hil_report(res, s, out)
-        print(f"  report: {out}/ (hil.json, flight_log.h5, plots)")
+        with staged_report_dir(args.report) as tmp:
+            write_json(tmp / "hil.json", s)
+            write_hil_report(res, s, tmp)
+        print(f"  report: {args.report}/ (hil.json, flight_log.h5, plots)")
     if args.json:
         write_json(args.json, s)
     return 0
