@@ -58,6 +58,18 @@ def find_fsw_node() -> str:
                             "or set PROXOPS_FSW_NODE")
 
 
+def open_link(faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(), seed: int = 0,
+              device: str | None = None, baud: int = BAUD):
+    """The HIL link: fsw_node started on a pseudo-terminal pair with the
+    fault-injecting relay (PtyLink), or, with device, a flight computer on a
+    serial port (DeviceLink; no fault injection there)."""
+    if device is None:
+        return PtyLink(faults_up=faults_up, faults_down=faults_down, seed=seed)
+    if not (faults_up.clean and faults_down.clean):
+        raise ValueError("link faults are injected by the pseudo-terminal relay; they cannot be used with --device")
+    return DeviceLink(device, baud=baud)
+
+
 def _open_pty():
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -200,6 +212,88 @@ class PtyLink:
             except OSError:
                 pass
         return result
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class DeviceLink:
+    """The bench's end of a real serial port with a flight computer on it
+    (e.g. a USB serial adapter): the same interface as PtyLink for the HIL
+    loop, without the relay (no fault injection) and without starting
+    fsw_node (the flight computer runs its own). The flight side counts as
+    silent after silence_s of waiting without a byte from it, as with
+    PtyLink; there is no process to watch."""
+
+    def __init__(self, device: str, baud: int = BAUD, silence_s: float = SILENCE_S):
+        self.device = device
+        self.silence_s = silence_s
+        try:
+            self.port = serial.Serial(device, baudrate=baud, timeout=0, write_timeout=silence_s)
+        except (serial.SerialException, ValueError) as exc:
+            raise FileNotFoundError(f"--device {device}: cannot open at {baud} baud: {exc}") from None
+        self.port.reset_input_buffer()
+        clean = FaultConfig()
+        self.up = FaultInjector(clean, np.random.default_rng(0))
+        self.down = FaultInjector(clean, np.random.default_rng(0))
+        self.flight_device = device
+        self.bench_device = device
+        self.proc = None
+        self.bytes_up = 0
+        self.bytes_down = 0
+        self._silent_wait_s = 0.0
+        self._pending = b""  # read by pump() while watching, handed out by read_available()
+
+    def write(self, data: bytes):
+        try:
+            self.port.write(data)
+        except serial.SerialTimeoutException:
+            raise FlightSideLost(f"the flight side is not reading: {self.device} took no bytes "
+                                 f"for {self.silence_s:g} s") from None
+        except serial.SerialException as exc:
+            raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
+        self.bytes_up += len(data)
+
+    def read_available(self) -> bytes:
+        out, self._pending = self._pending, b""
+        try:
+            n = self.port.in_waiting
+            more = self.port.read(n) if n else b""
+        except (OSError, serial.SerialException) as exc:
+            raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
+        self.bytes_down += len(more)
+        if more:
+            self._silent_wait_s = 0.0
+        return out + more
+
+    def pump(self, timeout_s: float = 0.0) -> int:
+        self.check_flight_side()
+        t0 = time.monotonic()
+        try:
+            r, _, _ = select.select([self.port.fileno()], [], [], timeout_s)
+            data = self.port.read(self.port.in_waiting or 1) if r else b""
+        except (OSError, serial.SerialException) as exc:
+            raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
+        waited = time.monotonic() - t0
+        self._pending += data
+        self.bytes_down += len(data)
+        self._silent_wait_s = 0.0 if data else self._silent_wait_s + waited
+        return len(data)
+
+    def check_flight_side(self):
+        if self._silent_wait_s > self.silence_s:
+            raise FlightSideLost(f"the flight side is silent: no telemetry on {self.device} in "
+                                 f"{self._silent_wait_s:.1f} s of waiting")
+
+    def node_alive(self) -> bool:
+        return True
+
+    def close(self, timeout_s: float = 5.0) -> dict:
+        self.port.close()
+        return {"exit_code": None, "stderr": f"flight computer on {self.device} (not started by the bench)"}
 
     def __enter__(self):
         return self

@@ -18,7 +18,7 @@ import numpy as np
 from bench.scenario_docking import ScenarioConfig, errors_from_first_update, nav_config, run_docking
 from hil_sim.faults import FaultConfig
 from hil_sim.link_nav import LinkNav
-from hil_sim.pty_link import PtyLink
+from hil_sim.pty_link import BAUD, open_link
 
 
 @dataclass
@@ -32,6 +32,10 @@ class HilConfig:
     # Send each firing interval's valve command so the flight app's thruster
     # learner learns (one more packet up, tm_learner down, per firing step).
     learner: bool = False
+    # A flight computer on this serial port instead of fsw_node on a
+    # pseudo-terminal (hil_sim/pty_link.py, DeviceLink).
+    device: str | None = None
+    baud: int = BAUD
 
 
 class _Pacer:
@@ -57,7 +61,7 @@ class _Pacer:
 def run_hil(cfg: HilConfig, progress=None) -> dict:
     """Runs docking scenarios over the link until cfg.duration_s of
     simulated time have passed. Returns the runs, link statistics and timing."""
-    link = PtyLink(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed)
+    link = open_link(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed, device=cfg.device, baud=cfg.baud)
     nav = LinkNav(link, step_timeout_s=cfg.step_timeout_s, send_valves=cfg.learner)
     runs = []
     wall0 = time.perf_counter()

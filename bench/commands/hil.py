@@ -1,6 +1,7 @@
 """`proxops hil`: the docking scenario (navigation) or the vibrating plate
-(modal estimator, range images) with the flight executable behind a
-pseudo-terminal link."""
+(modal estimator, range images) with the flight software behind a serial
+link: fsw_node started here on a pseudo-terminal (with optional link
+faults), or a flight computer on a real serial port (--device)."""
 from __future__ import annotations
 
 import sys
@@ -9,6 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from bench.report import staged_report_dir, write_json
+
+BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)  # fsw_node's (serial_port.cpp)
 
 
 def register(sub):
@@ -29,6 +32,11 @@ def register(sub):
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--learner", action="store_true",
                    help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)")
+    p.add_argument("--device", default=None, metavar="PATH",
+                   help="a flight computer running fsw_node on this serial port (e.g. /dev/ttyUSB0) instead of "
+                        "fsw_node started here on a pseudo-terminal; no link faults then (docs/LINK.md)")
+    p.add_argument("--baud", type=int, choices=BAUDS, default=921600, metavar="N",
+                   help=f"baud rate of --device, as fsw_node --baud on the flight computer ({', '.join(map(str, BAUDS))})")
     p.add_argument("--json", default=None, help="write the summary JSON here")
     p.add_argument("--report", default=None, help="report folder: plots, JSON, flight log")
     p.set_defaults(func=main)
@@ -81,6 +89,12 @@ def hil_summary(res: dict, args) -> dict:
     }
 
 
+def _node_line(s: dict) -> str:
+    if s["fsw_node_exit_code"] is None:
+        return s["fsw_node_summary"]
+    return f"{s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})"
+
+
 def print_summary(s: dict):
     print(f"HIL {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_s']:.2f} s "
           f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked")
@@ -92,7 +106,7 @@ def print_summary(s: dict):
     trej = {k: v for k, v in s["telemetry_rejected_by_reason"].items() if v}
     print(f"  link: {s['packets_sent']} packets sent; flight rejected {sum(rej.values())} {rej or ''}; "
           f"bench rejected {sum(trej.values())} telemetry {trej or ''}; bad CRC delivered {s['bad_crc_delivered']}")
-    print(f"  fsw_node: {s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})")
+    print(f"  fsw_node: {_node_line(s)}")
 
 
 def plate_main(args, faults) -> int:
@@ -105,7 +119,8 @@ def plate_main(args, faults) -> int:
     def progress(done, total):
         print(f"  [{done:4d} / {total} images]", file=sys.stderr, flush=True)
 
-    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults), progress=progress)
+    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults, device=args.device,
+                                       baud=args.baud), progress=progress)
     s = plate_hil_summary(res)
     s["scenario"] = "plate"
     s["seed"] = args.seed
@@ -120,14 +135,14 @@ def plate_main(args, faults) -> int:
           if s["strong_modes"] else "  no mode excited >= 0.2")
     print(f"  answer latency p50 {s['answer_latency_p50_ms']:.2f} ms, p99 {s['answer_latency_p99_ms']:.2f} ms; "
           f"wall {s['wall_s']:.1f} s")
-    print(f"  fsw_node: {s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})")
+    print(f"  fsw_node: {_node_line(s)}")
     if args.json:
         write_json(args.json, s)
     if args.report:
         with staged_report_dir(args.report) as tmp:
             write_json(tmp / "hil_plate.json", s)
         print(f"  report: {args.report}/hil_plate.json")
-    return 0 if s["fsw_node_exit_code"] == 0 else 1
+    return 0 if s["fsw_node_exit_code"] == 0 or args.device else 1
 
 
 def main(args):
@@ -158,7 +173,8 @@ def _main(args):
               file=sys.stderr, flush=True)
 
     cfg = HilConfig(duration_s=args.duration, realtime=args.realtime, seed=args.seed, faults=faults,
-                    step_timeout_s=timeout, learner=getattr(args, "learner", False))
+                    step_timeout_s=timeout, learner=getattr(args, "learner", False), device=args.device,
+                    baud=args.baud)
     res = run_hil(cfg, progress=progress)
     s = hil_summary(res, args)
     print_summary(s)
