@@ -4,32 +4,41 @@ link: fsw_node started here on a pseudo-terminal (with optional link
 faults), or a flight computer on a real serial port (--device)."""
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from bench.commands.args import number, one_line_errors
 from bench.report import staged_report_dir, write_json
 
 BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)  # fsw_node's (serial_port.cpp)
 
 
 def register(sub):
-    p = sub.add_parser("hil", help="docking or plate range images over a pseudo-terminal link with the flight "
-                                   "executable (fsw_node)")
+    p = sub.add_parser("hil", help="docking or plate range images over a serial link with the flight "
+                                   "executable (fsw_node on a pseudo-terminal, or a flight computer on a port)",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops hil")
+    prob = number(float, 0.0, 1.0)
     p.add_argument("--scenario", choices=["docking", "plate"], default="docking",
                    help="docking: navigation at 10 Hz; plate: range images of the seed's plate to the modal estimator")
-    p.add_argument("--images", type=int, default=120,
-                   help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode)")
-    p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (docking runs are chained)")
+    p.add_argument("--images", type=number(int, 1, 100000), default=120,
+                   help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode; 1 to 100000)")
+    p.add_argument("--duration", type=number(float, 0.0, 1e6, lo_open=True), default=60.0,
+                   help="docking: simulated seconds, docking runs chained (> 0, <= 1e6)")
     p.add_argument("--realtime", action="store_true", help="pace the loop at 10 Hz by the wall clock")
-    p.add_argument("--ber", type=float, default=0.0, help="bit error rate on both directions")
-    p.add_argument("--drop-rate", type=float, default=0.0, help="probability that a byte is lost")
-    p.add_argument("--burst-rate", type=float, default=0.0, help="probability of a burst per frame")
-    p.add_argument("--duplicate-rate", type=float, default=0.0)
-    p.add_argument("--reorder-rate", type=float, default=0.0)
-    p.add_argument("--stall-rate", type=float, default=0.0, help="probability of a stall per chunk")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--ber", type=number(float, 0.0, 0.5), default=0.0,
+                   help="bit error rate on both directions (0 to 0.5)")
+    p.add_argument("--drop-rate", type=number(float, 0.0, 1.0, hi_open=True), default=0.0,
+                   help="probability that a byte is lost (0 to < 1)")
+    p.add_argument("--burst-rate", type=prob, default=0.0, help="probability of a burst per frame (0 to 1)")
+    p.add_argument("--duplicate-rate", type=prob, default=0.0, help="probability a frame is duplicated (0 to 1)")
+    p.add_argument("--reorder-rate", type=prob, default=0.0,
+                   help="probability a frame is held back behind the next (0 to 1)")
+    p.add_argument("--stall-rate", type=prob, default=0.0, help="probability of a stall per chunk (0 to 1)")
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=1, help="seed (0 to 2^32 - 1)")
     p.add_argument("--learner", action="store_true",
                    help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)")
     p.add_argument("--device", default=None, metavar="PATH",
@@ -111,10 +120,6 @@ def print_summary(s: dict):
 
 def plate_main(args, faults) -> int:
     from hil_sim.modal_link import PlateHilConfig, plate_hil_summary, run_plate_hil
-
-    if args.images < 1:
-        print("proxops hil: --images must be at least 1", file=sys.stderr)
-        return 2
 
     def progress(done, total):
         print(f"  [{done:4d} / {total} images]", file=sys.stderr, flush=True)
