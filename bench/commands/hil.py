@@ -67,6 +67,7 @@ def hil_summary(res: dict, args) -> dict:
         "seed": args.seed,
         "docking_runs": len(res["runs"]),
         "docked": int(sum(r["summary"]["docked"] for r in res["runs"])),
+        "docking_runs_cut_by_duration": int(sum(r["summary"].get("cut_by_duration", False) for r in res["runs"])),
         "real_time_factor": res["real_time_factor"],
         "wall_s": res["wall_s"],
         "sim_time_s": res["sim_time_s"],
@@ -98,6 +99,14 @@ def hil_summary(res: dict, args) -> dict:
     }
 
 
+def _device(args):
+    return getattr(args, "device", None)  # callers such as `proxops run` build args without it
+
+
+def _baud(args):
+    return getattr(args, "baud", 921600)
+
+
 def _node_line(s: dict) -> str:
     if s["fsw_node_exit_code"] is None:
         return s["fsw_node_summary"]
@@ -106,7 +115,9 @@ def _node_line(s: dict) -> str:
 
 def print_summary(s: dict):
     print(f"HIL {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_s']:.2f} s "
-          f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked")
+          f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked"
+          + (f", {s['docking_runs_cut_by_duration']} cut short by the end of the {s['duration_s']:g} s"
+             if s["docking_runs_cut_by_duration"] else ""))
     print(f"  steps {s['steps']}, latency p50 {s['step_latency_p50_ms']:.3f} ms, p99 {s['step_latency_p99_ms']:.3f} ms, "
           f"timeouts {s['step_timeouts']}")
     print(f"  navigation: worst per-axis error {s['worst_pos_err_m']:.4f} m, {s['worst_vel_err_mps']:.4f} m/s; "
@@ -124,8 +135,8 @@ def plate_main(args, faults) -> int:
     def progress(done, total):
         print(f"  [{done:4d} / {total} images]", file=sys.stderr, flush=True)
 
-    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults, device=args.device,
-                                       baud=args.baud), progress=progress)
+    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults, device=_device(args),
+                                       baud=_baud(args)), progress=progress)
     s = plate_hil_summary(res)
     s["scenario"] = "plate"
     s["seed"] = args.seed
@@ -147,7 +158,7 @@ def plate_main(args, faults) -> int:
         with staged_report_dir(args.report) as tmp:
             write_json(tmp / "hil_plate.json", s)
         print(f"  report: {args.report}/hil_plate.json")
-    return 0 if s["fsw_node_exit_code"] == 0 or args.device else 1
+    return 0 if s["fsw_node_exit_code"] == 0 or _device(args) else 1
 
 
 def main(args):
@@ -173,13 +184,15 @@ def _main(args):
     timeout = 0.05 if faults.clean else 0.02
 
     def progress(t_done, total, run):
-        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: "
-              f"{'docked' if run['summary']['docked'] else 'not docked'} at t = {run['summary']['t_end_s']:.1f} s",
+        summ = run["summary"]
+        how = ("docked" if summ["docked"] else
+               "cut short by the end of the run" if summ.get("cut_by_duration") else "not docked")
+        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: {how} at t = {summ['t_end_s']:.1f} s",
               file=sys.stderr, flush=True)
 
     cfg = HilConfig(duration_s=args.duration, realtime=args.realtime, seed=args.seed, faults=faults,
-                    step_timeout_s=timeout, learner=getattr(args, "learner", False), device=args.device,
-                    baud=args.baud)
+                    step_timeout_s=timeout, learner=getattr(args, "learner", False), device=_device(args),
+                    baud=_baud(args))
     res = run_hil(cfg, progress=progress)
     s = hil_summary(res, args)
     print_summary(s)
