@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import sys
 
 # Sub-command modules, in the order `proxops --help` lists them.
@@ -20,11 +21,19 @@ COMMAND_MODULES = [
 ]
 
 
+def _version() -> str:
+    try:
+        return importlib.metadata.version("proxops")
+    except importlib.metadata.PackageNotFoundError:
+        return "(not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="proxops",
         description="Inspector proximity-operations flight software bench.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -21,14 +22,48 @@ def _default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def write_json(path, data) -> Path:
+def strict_json_data(data):
+    """data with every NaN or infinite float replaced by None, and, when
+    there were any, a key "non_finite_as_null" mapping each such field's
+    path (e.g. "runs.0.nis") to the value it had ("nan", "inf", "-inf"):
+    the result is strict JSON (no bare NaN or Infinity)."""
+    found = {}
+
+    def walk(x, path):
+        if isinstance(x, np.ndarray):
+            x = x.tolist()
+        if isinstance(x, (float, np.floating)):
+            if not math.isfinite(x):
+                found[path] = "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+                return None
+            return float(x)
+        if isinstance(x, dict):
+            return {k: walk(v, f"{path}.{k}" if path else str(k)) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [walk(v, f"{path}.{i}" if path else str(i)) for i, v in enumerate(x)]
+        return x
+
+    out = walk(data, "")
+    if found and isinstance(out, dict):
+        out["non_finite_as_null"] = found
+    return out
+
+
+def json_text(data, strict: bool = False) -> str:
+    if strict:
+        return json.dumps(strict_json_data(data), indent=2, default=_default, allow_nan=False) + "\n"
+    return json.dumps(data, indent=2, default=_default) + "\n"
+
+
+def write_json(path, data, strict: bool = False) -> Path:
     """Writes data as JSON to path, atomically: the text goes to a temporary
     file in the same folder, which replaces path only once it is complete
-    (an error part-way leaves an existing file as it was)."""
+    (an error part-way leaves an existing file as it was). strict: no bare
+    NaN or Infinity (strict_json_data)."""
     path = Path(path)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(data, indent=2, default=_default) + "\n"
+    text = json_text(data, strict)
     with atomic_path(path) as tmp:
         tmp.write_text(text)
     return path

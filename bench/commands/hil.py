@@ -5,13 +5,14 @@ faults), or a flight computer on a real serial port (--device)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from bench.commands.args import number, one_line_errors
-from bench.report import staged_report_dir, write_json
+from bench.report import json_text, staged_report_dir, write_json
 
 BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)  # fsw_node's (serial_port.cpp)
 
@@ -46,7 +47,9 @@ def register(sub):
                         "fsw_node started here on a pseudo-terminal; no link faults then (docs/LINK.md)")
     p.add_argument("--baud", type=int, choices=BAUDS, default=921600, metavar="N",
                    help=f"baud rate of --device, as fsw_node --baud on the flight computer ({', '.join(map(str, BAUDS))})")
-    p.add_argument("--json", default=None, help="write the summary JSON here")
+    p.add_argument("--json", default=None, metavar="FILE",
+                   help="write the summary here as strict JSON (a non-finite number is null, listed under "
+                        "non_finite_as_null); - writes it to standard output and the printed summary to stderr")
     p.add_argument("--report", default=None, help="report folder: plots, JSON, flight log")
     p.set_defaults(func=main)
 
@@ -153,18 +156,32 @@ def plate_main(args, faults) -> int:
           f"wall {s['wall_s']:.1f} s")
     print(f"  fsw_node: {_node_line(s)}")
     if args.json:
-        write_json(args.json, s)
+        _write_summary(args, s)
     if args.report:
         with staged_report_dir(args.report) as tmp:
-            write_json(tmp / "hil_plate.json", s)
+            write_json(tmp / "hil_plate.json", s, strict=True)
         print(f"  report: {args.report}/hil_plate.json")
     return 0 if s["fsw_node_exit_code"] == 0 or _device(args) else 1
+
+
+def _write_summary(args, s: dict):
+    """--json FILE (written atomically), or --json - (to standard output;
+    the printed summary then went to standard error). Strict JSON."""
+    if args.json == "-":
+        args.json_stream.write(json_text(s, strict=True))
+        args.json_stream.flush()
+    else:
+        write_json(args.json, s, strict=True)
 
 
 def main(args):
     from hil_sim.pty_link import FlightSideLost
 
+    args.json_stream = sys.stdout
     try:
+        if getattr(args, "json", None) == "-":
+            with contextlib.redirect_stdout(sys.stderr):
+                return _main(args)
         return _main(args)
     except FlightSideLost as exc:
         # Nothing has been written: the user's earlier outputs stay as they were.
@@ -200,9 +217,9 @@ def _main(args):
         from hil_sim.report import write_hil_report
 
         with staged_report_dir(args.report) as tmp:
-            write_json(tmp / "hil.json", s)
+            write_json(tmp / "hil.json", s, strict=True)
             write_hil_report(res, s, tmp)
         print(f"  report: {args.report}/ (hil.json, flight_log.h5, plots)")
     if args.json:
-        write_json(args.json, s)
+        _write_summary(args, s)
     return 0

@@ -70,3 +70,34 @@ def test_ctrl_c_gives_one_line_and_exit_130(monkeypatch, capsys):
     assert cli.main(["thrusters", "--seeds", "1"]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["proxops thrusters: interrupted"]
+
+
+def test_strict_json_writes_null_with_the_reason(tmp_path):
+    import json
+
+    import numpy as np
+
+    from bench.report import write_json
+
+    out = tmp_path / "s.json"
+    write_json(out, {"a": float("inf"), "b": [1.0, float("nan")], "c": np.float64(-np.inf), "d": {"e": 2}},
+               strict=True)
+
+    def refuse(name):
+        raise ValueError(f"bare {name} in strict JSON")
+
+    d = json.loads(out.read_text(), parse_constant=refuse)
+    assert d["a"] is None and d["b"] == [1.0, None] and d["c"] is None and d["d"] == {"e": 2}
+    assert d["non_finite_as_null"] == {"a": "inf", "b.1": "nan", "c": "-inf"}
+
+
+def test_hil_json_dash_writes_the_json_to_stdout(tmp_path, capsys, monkeypatch):
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["hil", "--duration", "2", "--json", "-"]) == 0
+    captured = capsys.readouterr()
+    s = json.loads(captured.out)
+    assert s["scenario"] == "docking" and s["steps"] > 0
+    assert "HIL docking" in captured.err
+    assert list(tmp_path.iterdir()) == []  # no file named "-"
