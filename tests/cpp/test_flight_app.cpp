@@ -387,3 +387,33 @@ TEST(FlightAppTest, TelemetryDropsAreInHousekeeping) {
   EXPECT_EQ(app->counters().tx_dropped, dropped);
   EXPECT_EQ(tm.housekeeping.back().cycle_count, 210u);
 }
+
+TEST(FlightAppTest, FloatBuildRefusesAResetWhoseSquareOverflowsFloat) {
+  // pos_sigma 1e20 m is fine in double but its square overflows float: the
+  // float app refuses the reset whole and keeps its filter; a pose 1e308 m
+  // away (inf in float) still gives only finite telemetry.
+  auto app = std::make_unique<FlightApp<float>>(NavConfig<float>());
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  up.imu(0.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  CmdResetMsg<double> bad;
+  bad.target_mask = 0x1;
+  bad.q_hb = kQ0;
+  bad.pos_sigma_m = 1e20;
+  bad.vel_sigma_mps = 0.01;
+  bad.att_sigma_rad = 0.05;
+  up.add(Apid::CmdReset, bad, 0.15);
+  up.imu(0.2, Vec3<double>::Zero(), Vec3<double>::Zero());
+  up.pose(0.2, Vec3<double>(0.0, 1e308, 0.0), kQ0, 0.04, 0.01);
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(app->counters().resets, 1u);
+  EXPECT_EQ(app->counters().resets_refused, 1u);
+  ASSERT_TRUE(app->nav().initialized());
+  EXPECT_EQ(app->nav().t_s(), 0.2);
+  EXPECT_LT((app->nav().state().r_hill_m.cast<double>() - kR0).norm(), 0.01);  // the old filter, coasting
+  EXPECT_EQ(tm.rejected, 0);
+  ASSERT_FALSE(tm.innovations.empty());
+  EXPECT_EQ(tm.innovations.back().status, static_cast<std::uint8_t>(StepStatus::BadInput));
+}
