@@ -63,20 +63,20 @@ def _error_lines(stderr: str) -> list:
 
 def test_killed_flight_side_stops_a_realtime_run(tmp_path):
     out_json, report = _outputs(tmp_path)
-    p, wall = _run_hil(tmp_path, "KILL", 3.0,
+    p, wall = _run_hil(tmp_path, "KILL", 2.0,
                        ["--realtime", "--duration", "30", "--json", str(out_json), "--report", str(report)],
                        timeout_s=120)
     assert p.returncode == 1, p.stderr
     errors = _error_lines(p.stderr)
     assert len(errors) == 1 and "fsw_node exited" in errors[0], p.stderr
     assert "Traceback" not in p.stderr
-    assert wall < 20.0  # a 30 s real-time run, stopped soon after the 3 s kill
+    assert wall < 20.0  # a 30 s real-time run, stopped soon after the 2 s kill
     _assert_untouched(tmp_path, out_json, report)
 
 
 def test_silent_flight_side_stops_a_realtime_run(tmp_path):
     out_json, report = _outputs(tmp_path)
-    p, wall = _run_hil(tmp_path, "STOP", 3.0,
+    p, wall = _run_hil(tmp_path, "STOP", 2.0,
                        ["--realtime", "--duration", "30", "--json", str(out_json), "--report", str(report)],
                        timeout_s=120)
     assert p.returncode == 1, p.stderr
@@ -84,7 +84,7 @@ def test_silent_flight_side_stops_a_realtime_run(tmp_path):
     assert len(errors) == 1 and "silent" in errors[0], p.stderr
     # In real time half of each 0.1 s step is spent waiting: SILENCE_S of
     # waiting takes about twice that of wall time.
-    assert wall < 3.0 + 2 * SILENCE_S + 10.0
+    assert wall < 2.0 + 2 * SILENCE_S + 10.0
     _assert_untouched(tmp_path, out_json, report)
 
 
