@@ -7,8 +7,11 @@ import ast
 import importlib.metadata as md
 import re
 import sys
-import tomllib
 from pathlib import Path
+
+import pytest
+
+tomllib = pytest.importorskip("tomllib")  # Python 3.11+ (sys.stdlib_module_names: 3.10+)
 
 ROOT = Path(__file__).resolve().parents[2]
 LOCAL = {"bench", "hil_sim", "fsw_bindings"}  # this project's own packages and native module
