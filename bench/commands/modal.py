@@ -138,11 +138,14 @@ def main(args):
                "points_at": args.points_at, "trials": []}
         for tr in trials:
             out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
-            print(f"seed {tr['seed']}: all freqs within 1 % after {tr['measurements_to_converge_1pct']} images "
-                  f"({_fmt(tr['time_to_converge_1pct_periods'])} lowest-mode periods); modes excited >= 0.2: "
-                  f"{_fmt(tr['time_to_converge_1pct_excited_periods'])} periods; final max rel err "
-                  f"{tr['freq_rel_err_final_max']:.2e}; shape RMS at floor ({tr['shape_noise_floor_m']:.2f} m) after "
-                  f"{_fmt(tr['shape_converge_periods'])} periods; cond(M_Y) {tr['condition_number_median']:.1f}")
+            n1, p1 = tr["measurements_to_converge_1pct"], tr["time_to_converge_1pct_periods"]
+            px, ps = tr["time_to_converge_1pct_excited_periods"], tr["shape_converge_periods"]
+            print(f"seed {tr['seed']}: all frequencies within 1 % "
+                  f"{'never' if n1 is None else f'after {n1} images ({_fmt(p1)} lowest-mode periods)'}; "
+                  f"those of the modes excited >= 0.2 {'never' if px is None else f'after {_fmt(px)} periods'}; "
+                  f"final max relative error {tr['freq_rel_err_final_max']:.2e}; shape RMS at its floor "
+                  f"({tr['shape_noise_floor_m']:.2f} m) {'never' if ps is None else f'after {_fmt(ps)} periods'}; "
+                  f"median cond(M_Y) {tr['condition_number_median']:.1f}")
         if args.batch_ml_at:
             out["batch_ml_summary"] = _batch_ml_summary(trials)
         if args.crb_at:
@@ -152,7 +155,10 @@ def main(args):
         if args.coarse_check:
             out["coarse_check_summary"] = _coarse_check_summary(trials, args.modes, args.points_at)
         out["ill_conditioned_cases"] = mc.plate_aliased_case(args.modes)
-        print("ill-conditioned cases:", out["ill_conditioned_cases"])
+        print("ill-conditioned cases: " + "; ".join(
+            f"{name.replace('_', ' ')}: {case['status'].replace('_', ' ')} ({case['n_used']} points used"
+            + (f", condition number {case['condition_number']:.3g}" if "condition_number" in case else "") + ")"
+            for name, case in out["ill_conditioned_cases"].items()))
         if args.plots:
             _plot_structure(trials[0], report_dir(args.plots))
     if args.json:

@@ -101,3 +101,12 @@ def test_hil_json_dash_writes_the_json_to_stdout(tmp_path, capsys, monkeypatch):
     assert s["scenario"] == "docking" and s["steps"] > 0
     assert "HIL docking" in captured.err
     assert list(tmp_path.iterdir()) == []  # no file named "-"
+
+
+def test_modal_summary_reads_as_text(capsys):
+    # 10 images: the frequencies never converge; the summary says so in words
+    # (it printed "after None images" and raw dicts).
+    assert cli.main(["modal", "--scenario", "structure", "--images", "10", "--modes", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "all frequencies within 1 % never;" in out
+    assert "None" not in out and "{" not in out and "np." not in out
