@@ -83,7 +83,7 @@ def print_summary(s: dict) -> None:
             print(f"{name.upper()} N-run average over {e['epochs']} epochs ({e['runs_per_epoch_min']}-"
                   f"{e['runs_per_epoch_max']} runs each): mean {e['mean_of_epoch_means']:.3f}, "
                   f"{e['below_band']} below and {e['above_band']} above the band")
-    print(f"gated {s['gated_count']}, statuses {s['status_counts']}")
+    print(f"gated {s['gated_count']}, statuses " + ", ".join(f"{k} {v}" for k, v in s["status_counts"].items()))
     if "vision_status_counts" in s:
         print(f"vision: {s['vision_frames']} frames, statuses {s['vision_status_counts']}, "
               f"{s['fused_pose_count']} poses fused, {s['runs_started_late']} runs started after t = 0")

@@ -110,3 +110,10 @@ def test_modal_summary_reads_as_text(capsys):
     out = capsys.readouterr().out
     assert "all frequencies within 1 % never;" in out
     assert "None" not in out and "{" not in out and "np." not in out
+
+
+def test_nav_summary_names_statuses_as_text(capsys):
+    assert cli.main(["nav", "--runs", "1"]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith("gated 0, statuses init 1, ok ")
+    assert "np." not in last
