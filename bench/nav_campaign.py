@@ -85,7 +85,7 @@ def run_metrics(run: dict) -> RunMetrics:
     blocks = np.stack([np.sum(err[:, 3 * b:3 * b + 3] ** 2 / sig2[:, 3 * b:3 * b + 3], axis=1) for b in range(3)], 1)
     statuses = {}
     for s in list(run["predict_status"]) + list(u["status"]):
-        statuses[s] = statuses.get(s, 0) + 1
+        statuses[str(s)] = statuses.get(str(s), 0) + 1  # plain str: numpy strings print as np.str_('ok')
     sm = run["summary"]
     return RunMetrics(
         seed=sm["seed"], docked=sm["docked"], t_end_s=sm["t_end_s"],

@@ -342,10 +342,12 @@ class TunedGprLearner(GprLearner):
                 self._cache = None
 
 
-def run_learner(learner, data: dict) -> dict:
+def run_learner(learner, data: dict, on_step=None) -> dict:
     """One-step-ahead predictions over a run: predict, then add the sample.
-    Returns predictions (N, 6) and per-step wall times [s]."""
+    Returns predictions (N, 6) and per-step wall times [s]. on_step(k, n),
+    if given, is called after every tenth of the samples."""
     n = len(data["masks"])
+    every = max(1, n // 10)
     pred = np.zeros((n, 6))
     t = np.zeros(n)
     for k in range(n):
@@ -353,6 +355,8 @@ def run_learner(learner, data: dict) -> dict:
         pred[k] = learner.predict(data["valves"][k], data["masks"][k])
         learner.add(data["valves"][k], data["masks"][k], data["y_meas"][k])
         t[k] = time.perf_counter() - t0
+        if on_step and ((k + 1) % every == 0 or k + 1 == n):
+            on_step(k + 1, n)
     return {"pred": pred, "step_s": t}
 
 
@@ -362,15 +366,21 @@ def pooled_corr(pred: np.ndarray, ref: np.ndarray, kind: str, start: int = 0) ->
     return float(np.corrcoef(pred[start:, sl].ravel(), ref[start:, sl].ravel())[0, 1])
 
 
-def evaluate(seed: int, cfg: ProtocolConfig | None = None, learners=("blr", "gpr", "gpr_tuned")) -> dict:
-    """Run the protocol for one seed and every learner; correlations and timings."""
+def evaluate(seed: int, cfg: ProtocolConfig | None = None, learners=("blr", "gpr", "gpr_tuned"),
+             progress=None) -> dict:
+    """Run the protocol for one seed and every learner; correlations and
+    timings. progress(name, done, total), if given, is called as each
+    learner goes through the samples (done of total, over all learners)."""
     data = generate(seed, cfg)
     makers = {"blr": BlrLearner, "gpr": GprLearner, "gpr_tuned": TunedGprLearner,
               "blr_pairs": lambda: BlrLearner(pairs=True), "blr_w100": lambda: BlrLearner(window=100)}
     results, preds = {}, {}
     for name in learners:
         learner = makers[name]()
-        r = run_learner(learner, data)
+        base = len(results) * len(data["masks"])
+        total = len(learners) * len(data["masks"])
+        r = run_learner(learner, data, None if progress is None else
+                        (lambda k, n, name=name, base=base: progress(name, base + k, total)))
         preds[name] = r["pred"]
         res = {}
         for kind in KINDS:

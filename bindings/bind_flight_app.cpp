@@ -33,12 +33,14 @@ py::dict app_counters(const App& app) {
   d["poses_deferred"] = c.poses_deferred;
   d["learner_samples"] = c.learner_samples;
   d["resets"] = c.resets;
+  d["resets_refused"] = c.resets_refused;
   d["reacquisitions"] = c.reacquisitions;
   d["configs_rejected"] = c.configs_rejected;
   d["valves"] = c.valves;
   d["unhandled"] = c.unhandled;
   d["tx_packets"] = c.tx_packets;
   d["tx_dropped"] = c.tx_dropped;
+  d["tm_values_clamped"] = c.tm_values_clamped;
   return d;
 }
 

@@ -179,5 +179,6 @@ void bind_link(py::module_& m) {
           },
           py::arg("data"), "Results of the frames completed by these bytes: dicts with kind 'packet' or 'rejected'.")
       .def("counters", [](const fsw::Deframer& d) { return link_counters_dict(d.counters()); })
-      .def("reset_history", &fsw::Deframer::reset_history);
+      .def("reset_history", &fsw::Deframer::reset_history)
+      .def("reset_time_history", &fsw::Deframer::reset_time_history);
 }

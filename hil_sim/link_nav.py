@@ -80,7 +80,7 @@ class LinkNav:
         self.time_offset_s = 0.0  # added to every outgoing time tag (chained runs)
         self.delivered_not_sent = 0  # telemetry packets delivered that the flight side never sent
         self.link_counters = None  # last tm_link_counters: accepted, frames, gaps, duplicates, rejected[...]
-        self.housekeeping = None
+        self.housekeeping = None  # last tm_housekeeping as a dict (packets.decode_housekeeping)
         self.learner_outputs: list = []  # (t_s, tm_learner values): the flight learner's prediction per firing
         self.deferred_pose_results: list = []  # (status, fused) of poses fused after a later predict
         self._current_apid = None
@@ -99,6 +99,9 @@ class LinkNav:
         # covariance from this reset, not ones left from an earlier run.
         self._est[:] = np.nan
         self._p_diag[:] = np.nan
+        # The flight side starts a new time base at a reset (docs/LINK.md):
+        # its telemetry may now be tagged earlier than before.
+        self.deframer.reset_time_history()
         for _ in range(self.reset_attempts):
             rec = self._step(_RESET, t_s, payload)
             if rec.received or np.any(np.isfinite(self._est)) or np.any(np.isfinite(self._p_diag)):
@@ -233,7 +236,7 @@ class LinkNav:
             self.link_counters = v
             return False
         if p.apid == _HK:
-            self.housekeeping = v
+            self.housekeeping = pk.decode_housekeeping(p.payload)
             return False
         if p.apid == _LEARNER:
             self.learner_outputs.append((p.t_s - self.time_offset_s, v))

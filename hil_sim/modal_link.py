@@ -19,7 +19,7 @@ import numpy as np
 from bench import structure as st
 from hil_sim import packets as pk
 from hil_sim.faults import FaultConfig
-from hil_sim.pty_link import PtyLink
+from hil_sim.pty_link import BAUD, open_link
 
 SEG = pk.APID_BY_NAME["range_image_segment"].apid
 TM_MODAL = pk.APID_BY_NAME["tm_modal"].apid
@@ -38,6 +38,8 @@ class PlateHilConfig:
     prior_period_factor: float = 1.05
     answer_timeout_s: float = 0.5
     command_repeats: int = 3  # the modal configuration and reset, sent this often (a lost one is harmless)
+    device: str | None = None  # a flight computer on this serial port instead of fsw_node on a pty
+    baud: int = BAUD
 
 
 def parse_tm_modal(p: pk.Packet) -> dict:
@@ -63,7 +65,7 @@ def run_plate_hil(cfg: PlateHilConfig, progress=None) -> dict:
     plate = st.Plate(n_modes=pk.MODAL_TM_MODES)
     sensor = st.plate_sensor(plate)
     amp, phase = st.plate_truth(plate, rng)
-    link = PtyLink(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed)
+    link = open_link(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed, device=cfg.device, baud=cfg.baud)
     sender, down = pk.Sender(), pk.Deframer(pk.FROM_FLIGHT)
     answers: dict = {}
     uplink = bytearray()  # every byte sent, for replay in-process

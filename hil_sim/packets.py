@@ -14,6 +14,7 @@ Layout of every packet::
 
 from __future__ import annotations
 
+import binascii
 import math
 import struct
 from dataclasses import dataclass, field
@@ -22,7 +23,6 @@ from typing import Dict, List, Optional, Tuple, Union
 import numpy as np
 from cobs import cobs
 from crc import Calculator, Configuration
-from fastcrc.crc16 import ibm_3740 as _fast_crc16
 from spacepackets.ccsds.spacepacket import (
     PacketType,
     SequenceFlags,
@@ -103,7 +103,7 @@ APIDS: Dict[int, ApidDef] = {
         ApidDef(0x043, "tm_learner", FROM_FLIGHT, "<II12d", 8, 12),
         # packets_accepted, frames_total, seq_gaps_total, duplicates_total, rejected[28]
         ApidDef(0x044, "tm_link_counters", FROM_FLIGHT, "<32I", 0, 0),
-        # uptime_s, last_step_cpu_s, max_step_cpu_s, cycle_count, mode, tx_packets, reserved
+        # uptime_s, last_step_cpu_s, max_step_cpu_s, cycle_count, mode, tx_packets, tx_dropped
         ApidDef(0x045, "tm_housekeeping", FROM_FLIGHT, "<3d4I", 0, 3),
         # image_id, status, decomposition, fused, n_modes, n_used, n_skipped, rcond, nis,
         # omega_radps[10], alpha_ps[10], amplitude[10], amplitude_sigma[10]
@@ -141,10 +141,11 @@ REJECT_REASONS: Tuple[str, ...] = (
 
 
 def crc16(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE of ``data`` (fastcrc's CRC-16/IBM-3740, the same
-    algorithm in compiled code; ``crc16_reference`` is the pure-Python
-    ``crc`` package, and the tests hold the two equal)."""
-    return _fast_crc16(bytes(data))
+    """CRC-16/CCITT-FALSE of ``data``: the standard library's
+    ``binascii.crc_hqx`` (CRC-CCITT, poly 0x1021, no reflection) started at
+    0xFFFF, in compiled code; ``crc16_reference`` is the pure-Python ``crc``
+    package, and the tests hold the two equal."""
+    return binascii.crc_hqx(bytes(data), 0xFFFF)
 
 
 def crc16_reference(data: bytes) -> int:
@@ -245,6 +246,16 @@ class Sender:
 
 # ----------------------------------------------------------------------------- parse
 
+HOUSEKEEPING_FIELDS = ("uptime_s", "last_step_cpu_s", "max_step_cpu_s", "cycle_count", "mode", "tx_packets",
+                       "tx_dropped")
+
+
+def decode_housekeeping(payload: bytes) -> dict:
+    """tm_housekeeping as named fields; tx_dropped counts the telemetry
+    packets the flight side could not queue (its transmit buffer was full:
+    the ground was not reading, or a burst outran the port)."""
+    return dict(zip(HOUSEKEEPING_FIELDS, unpack_payload(APID_BY_NAME["tm_housekeeping"].apid, payload)))
+
 
 @dataclass
 class Packet:
@@ -342,6 +353,11 @@ class Deframer:
             self._buf.clear()
         return out
 
+    def reset_time_history(self) -> None:
+        """Forgets every APID's last time tag, keeping the sequence counts
+        (the flight side does this on a carried-out cmd_reset)."""
+        self._last = {a: (seq, -math.inf) for a, (seq, _) in self._last.items()}
+
     def _reject(self, reason: str, apid: Optional[int] = None) -> Rejection:
         self.rejected[reason] += 1
         return Rejection(reason, apid)
@@ -382,6 +398,7 @@ class Deframer:
         if not math.isfinite(t_s):
             return self._reject("bad_time_tag", h.apid)
         last = self._last.get(h.apid)
+        missing = 0  # counted, like the history, only for an accepted packet
         if last is not None:
             delta = (h.seq_count - last[0]) % SEQ_MODULO
             if delta == 0:
@@ -392,8 +409,7 @@ class Deframer:
                 if not t_s > last[1]:
                     return self._reject("stale_sequence", h.apid)
             else:
-                self.gaps[h.apid] = self.gaps.get(h.apid, 0) + delta - 1
-        self._last[h.apid] = (h.seq_count, t_s)
+                missing = delta - 1
         f64 = struct.unpack_from("<%dd" % a.f64_count, payload, a.f64_offset)
         if not all(math.isfinite(x) for x in f64):
             return self._reject("non_finite_payload", h.apid)
@@ -403,6 +419,9 @@ class Deframer:
                 return self._reject("non_unit_quaternion", h.apid)
         if not _fields_ok(a, h.seq_flags, payload):
             return self._reject("invalid_field", h.apid)
+        if missing:
+            self.gaps[h.apid] = self.gaps.get(h.apid, 0) + missing
+        self._last[h.apid] = (h.seq_count, t_s)
         self.accepted += 1
         return Packet(header=h, t_s=t_s, payload=bytes(payload), raw=bytes(body))
 

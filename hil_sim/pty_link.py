@@ -27,6 +27,14 @@ import serial
 from hil_sim.faults import FaultConfig, FaultInjector
 
 BAUD = 921600
+# The bench gives up on the flight side once it has waited this long in all
+# for telemetry without receiving a byte (waiting only: time the bench spends
+# computing does not count). An exited fsw_node is noticed at the next wait.
+SILENCE_S = 2.0
+
+
+class FlightSideLost(RuntimeError):
+    """The flight side exited or stopped answering; the message says which."""
 
 
 def find_fsw_node() -> str:
@@ -50,6 +58,18 @@ def find_fsw_node() -> str:
                             "or set PROXOPS_FSW_NODE")
 
 
+def open_link(faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(), seed: int = 0,
+              device: str | None = None, baud: int = BAUD):
+    """The HIL link: fsw_node started on a pseudo-terminal pair with the
+    fault-injecting relay (PtyLink), or, with device, a flight computer on a
+    serial port (DeviceLink; no fault injection there)."""
+    if device is None:
+        return PtyLink(faults_up=faults_up, faults_down=faults_down, seed=seed)
+    if not (faults_up.clean and faults_down.clean):
+        raise ValueError("link faults are injected by the pseudo-terminal relay; they cannot be used with --device")
+    return DeviceLink(device, baud=baud)
+
+
 def _open_pty():
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -62,7 +82,8 @@ class PtyLink:
     relays between them with fault injection."""
 
     def __init__(self, faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(),
-                 seed: int = 0, node_path: str | None = None, baud: int = BAUD, start_timeout_s: float = 10.0):
+                 seed: int = 0, node_path: str | None = None, baud: int = BAUD, start_timeout_s: float = 10.0,
+                 silence_s: float = SILENCE_S):
         rng = np.random.default_rng(seed)
         self.up = FaultInjector(faults_up, np.random.default_rng(rng.integers(2**63)))      # bench -> flight
         self.down = FaultInjector(faults_down, np.random.default_rng(rng.integers(2**63)))  # flight -> bench
@@ -77,6 +98,8 @@ class PtyLink:
         self.bytes_down = 0
         self._stalled_until = {"up": 0.0, "down": 0.0}
         self._queued = {"up": b"", "down": b""}
+        self.silence_s = silence_s
+        self._silent_wait_s = 0.0  # time spent waiting in pump() since the flight side last sent a byte
 
     def _wait_ready(self, timeout_s: float):
         # fsw_node flushes its port when it opens it: nothing may be sent
@@ -120,15 +143,17 @@ class PtyLink:
                 self._stalled_until[key] = time.monotonic() + stall
             self._queued[key] += faults.apply(data)
         if self._queued[key] and time.monotonic() >= self._stalled_until[key]:
-            out = self._queued[key]
-            self._queued[key] = b""
-            view = memoryview(out)
-            while view:
-                try:
-                    k = os.write(dst, view)
-                    view = view[k:]
-                except BlockingIOError:
-                    select.select([], [dst], [], 0.01)
+            # What the far pty does not take now stays queued for the next
+            # pump: never wait here (a dead reader would hang the bench).
+            try:
+                k = os.write(dst, self._queued[key])
+            except BlockingIOError:
+                k = 0
+            except OSError as exc:
+                if exc.errno != errno.EIO:
+                    raise
+                k = 0
+            self._queued[key] = self._queued[key][k:]
         return moved
 
     def pump(self, timeout_s: float = 0.0) -> int:
@@ -136,17 +161,33 @@ class PtyLink:
         timeout_s for something to arrive. Returns the bytes moved."""
         # The bench's own port is watched too: a tty hands bytes over
         # asynchronously, so they may land there after the relay moved them.
+        self.check_flight_side()
+        t0 = time.monotonic()
         r, _, _ = select.select([self._ma, self._mb, self.port.fileno()], [], [], timeout_s)
+        waited = time.monotonic() - t0
         moved = 0
         if self._mb in r or self._queued["up"]:
             n = self._move(self._mb, self._ma, self.up, "up")
             self.bytes_up += n
             moved += n
+        heard = 0
         if self._ma in r or self._queued["down"]:
-            n = self._move(self._ma, self._mb, self.down, "down")
-            self.bytes_down += n
-            moved += n
+            heard = self._move(self._ma, self._mb, self.down, "down")
+            self.bytes_down += heard
+            moved += heard
+        self._silent_wait_s = 0.0 if heard else self._silent_wait_s + waited
         return moved
+
+    def check_flight_side(self):
+        """Raises FlightSideLost when fsw_node has exited, or when the bench
+        has waited silence_s in all without a byte from it."""
+        code = self.proc.poll()
+        if code is not None:
+            how = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+            raise FlightSideLost(f"the flight side stopped: fsw_node exited ({how})")
+        if self._silent_wait_s > self.silence_s:
+            raise FlightSideLost(f"the flight side is silent: no telemetry from fsw_node in "
+                                 f"{self._silent_wait_s:.1f} s of waiting")
 
     def node_alive(self) -> bool:
         return self.proc.poll() is None
@@ -171,6 +212,88 @@ class PtyLink:
             except OSError:
                 pass
         return result
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class DeviceLink:
+    """The bench's end of a real serial port with a flight computer on it
+    (e.g. a USB serial adapter): the same interface as PtyLink for the HIL
+    loop, without the relay (no fault injection) and without starting
+    fsw_node (the flight computer runs its own). The flight side counts as
+    silent after silence_s of waiting without a byte from it, as with
+    PtyLink; there is no process to watch."""
+
+    def __init__(self, device: str, baud: int = BAUD, silence_s: float = SILENCE_S):
+        self.device = device
+        self.silence_s = silence_s
+        try:
+            self.port = serial.Serial(device, baudrate=baud, timeout=0, write_timeout=silence_s)
+        except (serial.SerialException, ValueError) as exc:
+            raise FileNotFoundError(f"--device {device}: cannot open at {baud} baud: {exc}") from None
+        self.port.reset_input_buffer()
+        clean = FaultConfig()
+        self.up = FaultInjector(clean, np.random.default_rng(0))
+        self.down = FaultInjector(clean, np.random.default_rng(0))
+        self.flight_device = device
+        self.bench_device = device
+        self.proc = None
+        self.bytes_up = 0
+        self.bytes_down = 0
+        self._silent_wait_s = 0.0
+        self._pending = b""  # read by pump() while watching, handed out by read_available()
+
+    def write(self, data: bytes):
+        try:
+            self.port.write(data)
+        except serial.SerialTimeoutException:
+            raise FlightSideLost(f"the flight side is not reading: {self.device} took no bytes "
+                                 f"for {self.silence_s:g} s") from None
+        except serial.SerialException as exc:
+            raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
+        self.bytes_up += len(data)
+
+    def read_available(self) -> bytes:
+        out, self._pending = self._pending, b""
+        try:
+            n = self.port.in_waiting
+            more = self.port.read(n) if n else b""
+        except (OSError, serial.SerialException) as exc:
+            raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
+        self.bytes_down += len(more)
+        if more:
+            self._silent_wait_s = 0.0
+        return out + more
+
+    def pump(self, timeout_s: float = 0.0) -> int:
+        self.check_flight_side()
+        t0 = time.monotonic()
+        try:
+            r, _, _ = select.select([self.port.fileno()], [], [], timeout_s)
+            data = self.port.read(self.port.in_waiting or 1) if r else b""
+        except (OSError, serial.SerialException) as exc:
+            raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
+        waited = time.monotonic() - t0
+        self._pending += data
+        self.bytes_down += len(data)
+        self._silent_wait_s = 0.0 if data else self._silent_wait_s + waited
+        return len(data)
+
+    def check_flight_side(self):
+        if self._silent_wait_s > self.silence_s:
+            raise FlightSideLost(f"the flight side is silent: no telemetry on {self.device} in "
+                                 f"{self._silent_wait_s:.1f} s of waiting")
+
+    def node_alive(self) -> bool:
+        return True
+
+    def close(self, timeout_s: float = 5.0) -> dict:
+        self.port.close()
+        return {"exit_code": None, "stderr": f"flight computer on {self.device} (not started by the bench)"}
 
     def __enter__(self):
         return self

@@ -18,7 +18,7 @@ import numpy as np
 from bench.scenario_docking import ScenarioConfig, errors_from_first_update, nav_config, run_docking
 from hil_sim.faults import FaultConfig
 from hil_sim.link_nav import LinkNav
-from hil_sim.pty_link import PtyLink
+from hil_sim.pty_link import BAUD, open_link
 
 
 @dataclass
@@ -32,6 +32,10 @@ class HilConfig:
     # Send each firing interval's valve command so the flight app's thruster
     # learner learns (one more packet up, tm_learner down, per firing step).
     learner: bool = False
+    # A flight computer on this serial port instead of fsw_node on a
+    # pseudo-terminal (hil_sim/pty_link.py, DeviceLink).
+    device: str | None = None
+    baud: int = BAUD
 
 
 class _Pacer:
@@ -57,7 +61,7 @@ class _Pacer:
 def run_hil(cfg: HilConfig, progress=None) -> dict:
     """Runs docking scenarios over the link until cfg.duration_s of
     simulated time have passed. Returns the runs, link statistics and timing."""
-    link = PtyLink(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed)
+    link = open_link(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed, device=cfg.device, baud=cfg.baud)
     nav = LinkNav(link, step_timeout_s=cfg.step_timeout_s, send_valves=cfg.learner)
     runs = []
     wall0 = time.perf_counter()
@@ -72,6 +76,11 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
             pacer = _Pacer(cfg.realtime, t_done, wall0)
             pacers.append(pacer)
             run = run_docking(cfg.seed + k, sc, nav=nav, on_step=pacer)
+            # A run not docked when the time left ran out was cut by the
+            # end of the HIL run, not failed by the scenario's own limit.
+            run["summary"]["cut_by_duration"] = bool(
+                not run["summary"]["docked"] and sc.t_max_s < cfg.scenario.t_max_s
+                and run["summary"]["t_end_s"] >= sc.t_max_s - sc.dt_s)
             runs.append(run)
             t_done += float(run["summary"]["t_end_s"]) + sc.dt_s
             k += 1
@@ -104,6 +113,7 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
         "faults_up": link.up.counts.__dict__,
         "faults_down": link.down.counts.__dict__,
         "realtime_overruns": sum(p.overruns for p in pacers),
+        "flight_telemetry_dropped": (nav.housekeeping or {}).get("tx_dropped"),
         "fsw_node_exit_code": ended["exit_code"],
         "fsw_node_summary": ended["stderr"].strip(),
     }

@@ -1,35 +1,55 @@
 """`proxops hil`: the docking scenario (navigation) or the vibrating plate
-(modal estimator, range images) with the flight executable behind a
-pseudo-terminal link."""
+(modal estimator, range images) with the flight software behind a serial
+link: fsw_node started here on a pseudo-terminal (with optional link
+faults), or a flight computer on a real serial port (--device)."""
 from __future__ import annotations
 
+import argparse
+import contextlib
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from bench.report import report_dir, write_json
+from bench.commands.args import number, one_line_errors
+from bench.report import json_text, staged_report_dir, write_json
+
+BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)  # fsw_node's (serial_port.cpp)
 
 
 def register(sub):
-    p = sub.add_parser("hil", help="docking or plate range images over a pseudo-terminal link with the flight "
-                                   "executable (fsw_node)")
+    p = sub.add_parser("hil", help="docking or plate range images over a serial link with the flight "
+                                   "executable (fsw_node on a pseudo-terminal, or a flight computer on a port)",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops hil")
+    prob = number(float, 0.0, 1.0)
     p.add_argument("--scenario", choices=["docking", "plate"], default="docking",
                    help="docking: navigation at 10 Hz; plate: range images of the seed's plate to the modal estimator")
-    p.add_argument("--images", type=int, default=120,
-                   help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode)")
-    p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (docking runs are chained)")
+    p.add_argument("--images", type=number(int, 1, 100000), default=120,
+                   help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode; 1 to 100000)")
+    p.add_argument("--duration", type=number(float, 0.0, 1e6, lo_open=True), default=60.0,
+                   help="docking: simulated seconds, docking runs chained (> 0, <= 1e6)")
     p.add_argument("--realtime", action="store_true", help="pace the loop at 10 Hz by the wall clock")
-    p.add_argument("--ber", type=float, default=0.0, help="bit error rate on both directions")
-    p.add_argument("--drop-rate", type=float, default=0.0, help="probability that a byte is lost")
-    p.add_argument("--burst-rate", type=float, default=0.0, help="probability of a burst per frame")
-    p.add_argument("--duplicate-rate", type=float, default=0.0)
-    p.add_argument("--reorder-rate", type=float, default=0.0)
-    p.add_argument("--stall-rate", type=float, default=0.0, help="probability of a stall per chunk")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--ber", type=number(float, 0.0, 0.5), default=0.0,
+                   help="bit error rate on both directions (0 to 0.5)")
+    p.add_argument("--drop-rate", type=number(float, 0.0, 1.0, hi_open=True), default=0.0,
+                   help="probability that a byte is lost (0 to < 1)")
+    p.add_argument("--burst-rate", type=prob, default=0.0, help="probability of a burst per frame (0 to 1)")
+    p.add_argument("--duplicate-rate", type=prob, default=0.0, help="probability a frame is duplicated (0 to 1)")
+    p.add_argument("--reorder-rate", type=prob, default=0.0,
+                   help="probability a frame is held back behind the next (0 to 1)")
+    p.add_argument("--stall-rate", type=prob, default=0.0, help="probability of a stall per chunk (0 to 1)")
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=1, help="seed (0 to 2^32 - 1)")
     p.add_argument("--learner", action="store_true",
                    help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)")
-    p.add_argument("--json", default=None, help="write the summary JSON here")
+    p.add_argument("--device", default=None, metavar="PATH",
+                   help="a flight computer running fsw_node on this serial port (e.g. /dev/ttyUSB0) instead of "
+                        "fsw_node started here on a pseudo-terminal; no link faults then (docs/LINK.md)")
+    p.add_argument("--baud", type=int, choices=BAUDS, default=921600, metavar="N",
+                   help=f"baud rate of --device, as fsw_node --baud on the flight computer ({', '.join(map(str, BAUDS))})")
+    p.add_argument("--json", default=None, metavar="FILE",
+                   help="write the summary here as strict JSON (a non-finite number is null, listed under "
+                        "non_finite_as_null); - writes it to standard output and the printed summary to stderr")
     p.add_argument("--report", default=None, help="report folder: plots, JSON, flight log")
     p.set_defaults(func=main)
 
@@ -50,6 +70,7 @@ def hil_summary(res: dict, args) -> dict:
         "seed": args.seed,
         "docking_runs": len(res["runs"]),
         "docked": int(sum(r["summary"]["docked"] for r in res["runs"])),
+        "docking_runs_cut_by_duration": int(sum(r["summary"].get("cut_by_duration", False) for r in res["runs"])),
         "real_time_factor": res["real_time_factor"],
         "wall_s": res["wall_s"],
         "sim_time_s": res["sim_time_s"],
@@ -81,9 +102,25 @@ def hil_summary(res: dict, args) -> dict:
     }
 
 
+def _device(args):
+    return getattr(args, "device", None)  # callers such as `proxops run` build args without it
+
+
+def _baud(args):
+    return getattr(args, "baud", 921600)
+
+
+def _node_line(s: dict) -> str:
+    if s["fsw_node_exit_code"] is None:
+        return s["fsw_node_summary"]
+    return f"{s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})"
+
+
 def print_summary(s: dict):
     print(f"HIL {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_s']:.2f} s "
-          f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked")
+          f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked"
+          + (f", {s['docking_runs_cut_by_duration']} cut short by the end of the {s['duration_s']:g} s"
+             if s["docking_runs_cut_by_duration"] else ""))
     print(f"  steps {s['steps']}, latency p50 {s['step_latency_p50_ms']:.3f} ms, p99 {s['step_latency_p99_ms']:.3f} ms, "
           f"timeouts {s['step_timeouts']}")
     print(f"  navigation: worst per-axis error {s['worst_pos_err_m']:.4f} m, {s['worst_vel_err_mps']:.4f} m/s; "
@@ -92,20 +129,17 @@ def print_summary(s: dict):
     trej = {k: v for k, v in s["telemetry_rejected_by_reason"].items() if v}
     print(f"  link: {s['packets_sent']} packets sent; flight rejected {sum(rej.values())} {rej or ''}; "
           f"bench rejected {sum(trej.values())} telemetry {trej or ''}; bad CRC delivered {s['bad_crc_delivered']}")
-    print(f"  fsw_node: {s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})")
+    print(f"  fsw_node: {_node_line(s)}")
 
 
 def plate_main(args, faults) -> int:
     from hil_sim.modal_link import PlateHilConfig, plate_hil_summary, run_plate_hil
 
-    if args.images < 1:
-        print("proxops hil: --images must be at least 1", file=sys.stderr)
-        return 2
-
     def progress(done, total):
         print(f"  [{done:4d} / {total} images]", file=sys.stderr, flush=True)
 
-    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults), progress=progress)
+    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults, device=_device(args),
+                                       baud=_baud(args)), progress=progress)
     s = plate_hil_summary(res)
     s["scenario"] = "plate"
     s["seed"] = args.seed
@@ -120,17 +154,42 @@ def plate_main(args, faults) -> int:
           if s["strong_modes"] else "  no mode excited >= 0.2")
     print(f"  answer latency p50 {s['answer_latency_p50_ms']:.2f} ms, p99 {s['answer_latency_p99_ms']:.2f} ms; "
           f"wall {s['wall_s']:.1f} s")
-    print(f"  fsw_node: {s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})")
+    print(f"  fsw_node: {_node_line(s)}")
     if args.json:
-        write_json(args.json, s)
+        _write_summary(args, s)
     if args.report:
-        out = report_dir(args.report)
-        write_json(out / "hil_plate.json", s)
-        print(f"  report: {out}/hil_plate.json")
-    return 0 if s["fsw_node_exit_code"] == 0 else 1
+        with staged_report_dir(args.report) as tmp:
+            write_json(tmp / "hil_plate.json", s, strict=True)
+        print(f"  report: {args.report}/hil_plate.json")
+    return 0 if s["fsw_node_exit_code"] == 0 or _device(args) else 1
+
+
+def _write_summary(args, s: dict):
+    """--json FILE (written atomically), or --json - (to standard output;
+    the printed summary then went to standard error). Strict JSON."""
+    if args.json == "-":
+        args.json_stream.write(json_text(s, strict=True))
+        args.json_stream.flush()
+    else:
+        write_json(args.json, s, strict=True)
 
 
 def main(args):
+    from hil_sim.pty_link import FlightSideLost
+
+    args.json_stream = sys.stdout
+    try:
+        if getattr(args, "json", None) == "-":
+            with contextlib.redirect_stdout(sys.stderr):
+                return _main(args)
+        return _main(args)
+    except FlightSideLost as exc:
+        # Nothing has been written: the user's earlier outputs stay as they were.
+        print(f"proxops hil: {exc}; run abandoned, no output written", file=sys.stderr)
+        return 1
+
+
+def _main(args):
     from hil_sim.faults import FaultConfig
     from hil_sim.run import HilConfig, run_hil
 
@@ -142,22 +201,25 @@ def main(args):
     timeout = 0.05 if faults.clean else 0.02
 
     def progress(t_done, total, run):
-        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: "
-              f"{'docked' if run['summary']['docked'] else 'not docked'} at t = {run['summary']['t_end_s']:.1f} s",
+        summ = run["summary"]
+        how = ("docked" if summ["docked"] else
+               "cut short by the end of the run" if summ.get("cut_by_duration") else "not docked")
+        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: {how} at t = {summ['t_end_s']:.1f} s",
               file=sys.stderr, flush=True)
 
     cfg = HilConfig(duration_s=args.duration, realtime=args.realtime, seed=args.seed, faults=faults,
-                    step_timeout_s=timeout, learner=getattr(args, "learner", False))
+                    step_timeout_s=timeout, learner=getattr(args, "learner", False), device=_device(args),
+                    baud=_baud(args))
     res = run_hil(cfg, progress=progress)
     s = hil_summary(res, args)
     print_summary(s)
     if args.report:
-        out = report_dir(args.report)
-        write_json(out / "hil.json", s)
         from hil_sim.report import write_hil_report
 
-        write_hil_report(res, s, out)
-        print(f"  report: {out}/ (hil.json, flight_log.h5, plots)")
+        with staged_report_dir(args.report) as tmp:
+            write_json(tmp / "hil.json", s, strict=True)
+            write_hil_report(res, s, tmp)
+        print(f"  report: {args.report}/ (hil.json, flight_log.h5, plots)")
     if args.json:
-        write_json(args.json, s)
+        _write_summary(args, s)
     return 0

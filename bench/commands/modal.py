@@ -2,6 +2,7 @@
 on the seed's simulation and experiment, and its timing grid (Table I)."""
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.commands.args import number, one_line_errors
 from bench.report import matplotlib_agg, report_dir, write_json
 
 # Seed 000, experiment: 20 trials converged to these (value, +- spread).
@@ -28,29 +30,35 @@ GRID_N = [100, 1000, 10000, 100000]
 
 def register(sub):
     p = sub.add_parser("modal", help="modal estimator: plate simulation or quadruple-pendulum experiment analogue")
+    one_line_errors(p, "proxops modal")
+    periods = number(float, 0.0, 1000.0, lo_open=True)
     p.add_argument("--scenario", choices=["structure", "pendulum"], required=True)
-    p.add_argument("--modes", type=int, default=10, help="modes estimated (structure: 10 or 50; pendulum: 3)")
-    p.add_argument("--trials", type=int, default=1)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--filter", choices=["bank", "joint"], default="bank")
-    p.add_argument("--images", type=int, default=None, help="images per trial (default: structure 180, pendulum 150)")
-    p.add_argument("--dt", type=float, default=None, help="image interval [s] (default: structure 60, pendulum 1/15)")
-    p.add_argument("--range-noise", type=float, default=0.03, metavar="FRAC",
-                   help="structure: range noise as a fraction of the range (default 0.03, the seed's)")
-    p.add_argument("--batch-ml-at", type=float, nargs="+", default=(), metavar="PERIODS",
+    p.add_argument("--modes", type=number(int, 1, 50), default=None,
+                   help="modes estimated (structure: 1 to 50, default 10; pendulum: 3, the default)")
+    p.add_argument("--trials", type=number(int, 1, 1000), default=1, help="trials (1 to 1000, default 1)")
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0, help="first seed (0 to 2^32 - 1, default 0)")
+    p.add_argument("--filter", choices=["bank", "joint"], default="bank", help="default bank")
+    p.add_argument("--images", type=number(int, 2, 100000), default=None,
+                   help="images per trial, 2 to 100000 (default: structure 180, pendulum 150)")
+    p.add_argument("--dt", type=number(float, 0.0, 1e5, lo_open=True), default=None,
+                   help="image interval [s], > 0 and <= 1e5 (default: structure 60, pendulum 1/15)")
+    p.add_argument("--range-noise", type=number(float, 0.0, 1.0, lo_open=True, hi_open=True), default=0.03,
+                   metavar="FRAC",
+                   help="structure: range noise as a fraction of the range, in (0, 1) (default 0.03, the seed's)")
+    p.add_argument("--batch-ml-at", type=periods, nargs="+", default=(), metavar="PERIODS",
                    help="structure: also fit the batch maximum-likelihood reference to every coarse estimate up to "
                         "these times [lowest-mode periods] and compare its shape error with the filter's")
-    p.add_argument("--crb-at", type=float, nargs="+", default=(), metavar="PERIODS",
+    p.add_argument("--crb-at", type=periods, nargs="+", default=(), metavar="PERIODS",
                    help="structure: also compute the Cramer-Rao bounds of each run's coarse estimates at these times "
                         "[lowest-mode periods] and set the filter's frequency and shape errors beside them")
-    p.add_argument("--acquire-at", type=float, default=None, metavar="PERIODS",
+    p.add_argument("--acquire-at", type=periods, default=None, metavar="PERIODS",
                    help="structure: also acquire the frequencies at this time [lowest-mode periods] by a search over "
                         "every image so far, replay a new flight joint filter from them and run it on; scored at "
                         "--crb-at")
     p.add_argument("--acquire-with", choices=["flight", "batch-ml"], default="flight",
                    help="structure: the search for --acquire-at: the flight ModalAcquisition (default) or the "
                         "bench's batch ML fit")
-    p.add_argument("--acquire-grid-sigmas", type=float, default=3.0, metavar="K",
+    p.add_argument("--acquire-grid-sigmas", type=number(float, 0.0, 100.0, lo_open=True), default=3.0, metavar="K",
                    help="structure: the flight search's frequency grid spans +-K a priori sigmas (default 3; the "
                         "a priori sigma is 10 %% of each frequency)")
     p.add_argument("--points-at", choices=["measured", "footprint"], default="measured",
@@ -59,7 +67,7 @@ def register(sub):
     p.add_argument("--coarse-check", action="store_true",
                    help="structure: also check every image's coarse amplitudes against the truth with their "
                         "covariance (NEES, per-mode bias)")
-    p.add_argument("--ut-alpha", type=float, default=1.0,
+    p.add_argument("--ut-alpha", type=number(float, 0.0, 10.0, lo_open=True), default=1.0,
                    help="structure: unscented-transform spread alpha of the filters (default 1: sigma points at "
                         "sqrt(n) standard deviations)")
     p.add_argument("--json", default=None)
@@ -67,12 +75,13 @@ def register(sub):
     p.set_defaults(func=main)
 
     t = sub.add_parser("modal-timing", help="Table I grid: flight code vs numpy vs the seed's figures")
+    one_line_errors(t, "proxops modal-timing")
     t.add_argument("--bench-exe", action="append", default=[], metavar="[LABEL=]PATH",
                    help="bench_modal executable (Google Benchmark) for the full flight grid; repeat with labels "
                         "(e.g. portable=build/bench-rel/bench_modal v3=build/bench-v3/bench_modal) to set builds "
                         "side by side in one run")
-    t.add_argument("--max-points", type=int, default=100000)
-    t.add_argument("--repeats", type=int, default=5)
+    t.add_argument("--max-points", type=number(int, 1, 10**7), default=100000, help="1 to 1e7 (default 100000)")
+    t.add_argument("--repeats", type=number(int, 1, 1000), default=5, help="1 to 1000 (default 5)")
     t.add_argument("--json", default=None)
     t.set_defaults(func=timing_main)
 
@@ -87,6 +96,8 @@ def main(args):
     from bench import modal_campaign as mc
 
     trials = []
+    if args.modes is None:
+        args.modes = 3 if args.scenario == "pendulum" else 10
     if args.scenario == "pendulum":
         if args.modes != 3:
             raise ValueError("the pendulum scenario estimates 3 modes (--modes 3)")
@@ -127,11 +138,14 @@ def main(args):
                "points_at": args.points_at, "trials": []}
         for tr in trials:
             out["trials"].append({k: v for k, v in tr.items() if k not in ("t_s", "est", "coarse", "truth")})
-            print(f"seed {tr['seed']}: all freqs within 1 % after {tr['measurements_to_converge_1pct']} images "
-                  f"({_fmt(tr['time_to_converge_1pct_periods'])} lowest-mode periods); modes excited >= 0.2: "
-                  f"{_fmt(tr['time_to_converge_1pct_excited_periods'])} periods; final max rel err "
-                  f"{tr['freq_rel_err_final_max']:.2e}; shape RMS at floor ({tr['shape_noise_floor_m']:.2f} m) after "
-                  f"{_fmt(tr['shape_converge_periods'])} periods; cond(M_Y) {tr['condition_number_median']:.1f}")
+            n1, p1 = tr["measurements_to_converge_1pct"], tr["time_to_converge_1pct_periods"]
+            px, ps = tr["time_to_converge_1pct_excited_periods"], tr["shape_converge_periods"]
+            print(f"seed {tr['seed']}: all frequencies within 1 % "
+                  f"{'never' if n1 is None else f'after {n1} images ({_fmt(p1)} lowest-mode periods)'}; "
+                  f"those of the modes excited >= 0.2 {'never' if px is None else f'after {_fmt(px)} periods'}; "
+                  f"final max relative error {tr['freq_rel_err_final_max']:.2e}; shape RMS at its floor "
+                  f"({tr['shape_noise_floor_m']:.2f} m) {'never' if ps is None else f'after {_fmt(ps)} periods'}; "
+                  f"median cond(M_Y) {tr['condition_number_median']:.1f}")
         if args.batch_ml_at:
             out["batch_ml_summary"] = _batch_ml_summary(trials)
         if args.crb_at:
@@ -141,7 +155,10 @@ def main(args):
         if args.coarse_check:
             out["coarse_check_summary"] = _coarse_check_summary(trials, args.modes, args.points_at)
         out["ill_conditioned_cases"] = mc.plate_aliased_case(args.modes)
-        print("ill-conditioned cases:", out["ill_conditioned_cases"])
+        print("ill-conditioned cases: " + "; ".join(
+            f"{name.replace('_', ' ')}: {case['status'].replace('_', ' ')} ({case['n_used']} points used"
+            + (f", condition number {case['condition_number']:.3g}" if "condition_number" in case else "") + ")"
+            for name, case in out["ill_conditioned_cases"].items()))
         if args.plots:
             _plot_structure(trials[0], report_dir(args.plots))
     if args.json:

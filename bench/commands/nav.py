@@ -2,10 +2,12 @@
 navigation filter; summary table, JSON metrics and the paper's Figs. 3-6."""
 from __future__ import annotations
 
+import argparse
 import sys
 
 import numpy as np
 
+from bench.commands.args import number, one_line_errors
 from bench.nav_campaign import run_campaign
 from bench.report import matplotlib_agg, report_dir, write_json
 from bench.scenario_docking import ScenarioConfig, errors_from_first_update
@@ -13,14 +15,18 @@ from bench.sensors import NoiseProfile
 
 
 def register(sub):
-    p = sub.add_parser("nav", help="navigation Monte Carlo over the docking scenario (issue 3)")
-    p.add_argument("--runs", type=int, default=50, help="number of docking runs")
-    p.add_argument("--seed", type=int, default=1, help="campaign seed (run i uses seed*1000 + i)")
+    p = sub.add_parser("nav", help="navigation Monte Carlo over the docking scenario",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops nav")
+    p.add_argument("--runs", type=number(int, 1, 10000), default=50, help="number of docking runs (1 to 10000)")
+    p.add_argument("--seed", type=number(int, 0, 10**6), default=1,
+                   help="campaign seed, 0 to 1e6 (run i uses seed*1000 + i)")
     p.add_argument("--json", default=None, help="write the metrics here")
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.add_argument("--dynamics", choices=("nonlinear", "cw"), default="nonlinear", help="truth translation model")
     p.add_argument("--profile", choices=("paper", "biased"), default="paper", help="sensor noise profile")
-    p.add_argument("--pose-latency-s", type=float, default=0.0, help="delivery delay of each pose [s]")
+    p.add_argument("--pose-latency-s", type=number(float, 0.0, 10.0), default=0.0,
+                   help="delivery delay of each pose [s] (0 to 10)")
     p.add_argument("--pose-r-from", choices=("estimate", "measurement"), default="estimate",
                    help="range the pose covariance handed to the filter is built from")
     p.add_argument("--init", choices=("pose", "truth_draw"), default="pose", help="filter initialisation")
@@ -77,7 +83,7 @@ def print_summary(s: dict) -> None:
             print(f"{name.upper()} N-run average over {e['epochs']} epochs ({e['runs_per_epoch_min']}-"
                   f"{e['runs_per_epoch_max']} runs each): mean {e['mean_of_epoch_means']:.3f}, "
                   f"{e['below_band']} below and {e['above_band']} above the band")
-    print(f"gated {s['gated_count']}, statuses {s['status_counts']}")
+    print(f"gated {s['gated_count']}, statuses " + ", ".join(f"{k} {v}" for k, v in s["status_counts"].items()))
     if "vision_status_counts" in s:
         print(f"vision: {s['vision_frames']} frames, statuses {s['vision_status_counts']}, "
               f"{s['fused_pose_count']} poses fused, {s['runs_started_late']} runs started after t = 0")

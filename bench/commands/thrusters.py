@@ -2,9 +2,14 @@
 GPR, on the protocol of seed 002 section 3.4 (see bench/thrusters.py)."""
 from __future__ import annotations
 
+import argparse
+import sys
+import time
+
 import numpy as np
 
 from bench import thrusters as th
+from bench.commands.args import number, one_line_errors
 from bench.report import matplotlib_agg, report_dir, write_json
 
 LEARNERS = ("blr", "gpr", "gpr_tuned")
@@ -17,12 +22,17 @@ TITLES = {"blr": "BLR, window 30", "gpr": "GPR, window 100, hand-tuned",
 
 
 def register(sub):
-    p = sub.add_parser("thrusters", help="online thruster learning: BLR vs GPR correlation (seed 002 Figs. 7-10)")
-    p.add_argument("--seed", type=int, default=0, help="first seed")
-    p.add_argument("--seeds", type=int, default=1, help="run seeds S..S+N-1 and report mean and spread")
+    p = sub.add_parser("thrusters", help="online thruster learning: BLR (flight code) against GPR, correlation "
+                                         "of predicted and measured velocity changes",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops thrusters")
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0, help="first seed (0 to 2^32 - 1)")
+    p.add_argument("--seeds", type=number(int, 1, 1000), default=1,
+                   help="run seeds S..S+N-1 and report mean and spread (1 to 1000)")
     p.add_argument("--json", default=None, help="write results here")
     p.add_argument("--plots", default=None, help="folder for predicted-vs-measured plots (first seed)")
-    p.add_argument("--samples", type=int, default=th.N_SAMPLES, help="samples per run")
+    p.add_argument("--samples", type=number(int, 50, 100000), default=th.N_SAMPLES,
+                   help="samples per run (50 to 100000)")
     p.add_argument("--noise-model", choices=("component", "norm"), default="component")
     p.add_argument("--extra", nargs="*", default=[], choices=("blr_pairs", "blr_w100"),
                    help="also run BLR with pairwise valve products and/or BLR with window 100")
@@ -67,14 +77,18 @@ def summarise(per_seed, learners):
 
 
 def main(args):
-    if args.seeds < 1:
-        raise ValueError("--seeds must be >= 1")
     cfg = th.ProtocolConfig(n_samples=args.samples, noise_model=args.noise_model)
     learners = LEARNERS + tuple(args.extra)
     per_seed = []
     print(f"{'seed':>5s} " + " ".join(f"{n + ' lin':>14s} {n + ' ang':>14s}" for n in learners))
     for seed in range(args.seed, args.seed + args.seeds):
-        res, data, preds = th.evaluate(seed, cfg, learners)
+        t0 = time.perf_counter()
+
+        def progress(name, done, total, seed=seed, t0=t0):
+            print(f"\r  seed {seed}: {100 * done // total:3d} % ({name}, {time.perf_counter() - t0:.0f} s)",
+                  end="\n" if done == total else "", file=sys.stderr, flush=True)
+
+        res, data, preds = th.evaluate(seed, cfg, learners, progress=progress)
         per_seed.append(res)
         print(f"{seed:5d} " + " ".join(f"{res[n]['corr_linear']:14.4f} {res[n]['corr_angular']:14.4f}" for n in learners))
         if args.plots and seed == args.seed:

@@ -94,4 +94,18 @@ bool SerialPort::write_all(const std::uint8_t* buf, std::size_t n, int timeout_m
   return true;
 }
 
+long SerialPort::write_some(const std::uint8_t* buf, std::size_t n) {
+  if (n == 0) return 0;
+  const ssize_t w = ::write(fd_, buf, n);
+  if (w >= 0) return static_cast<long>(w);
+  if (errno == EAGAIN || errno == EINTR) return 0;
+  error_ = std::strerror(errno);
+  return -1;
+}
+
+bool SerialPort::wait_writable(int timeout_ms) {
+  pollfd p{fd_, POLLOUT, 0};
+  return ::poll(&p, 1, timeout_ms) > 0 && (p.revents & POLLOUT);
+}
+
 }  // namespace fsw::platform

@@ -26,6 +26,11 @@ class SerialPort {
   // Writes every byte, waiting for the port as needed, up to timeout_ms in
   // all; returns false on error or timeout.
   bool write_all(const std::uint8_t* buf, std::size_t n, int timeout_ms);
+  // Writes what the port takes now, without waiting: the count written (0
+  // when the port is full), or -1 on a hard error (error() says which).
+  long write_some(const std::uint8_t* buf, std::size_t n);
+  // Waits up to timeout_ms until the port takes bytes; false on timeout.
+  bool wait_writable(int timeout_ms);
 
   const char* error() const { return error_; }
 

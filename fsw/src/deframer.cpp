@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "fsw/crc16.hpp"
 
@@ -73,6 +74,10 @@ void Deframer::reset_history() {
     a.last_seq = 0;
     a.last_t_s = 0.0;
   }
+}
+
+void Deframer::reset_time_history() {
+  for (auto& a : counters_.per_apid) a.last_t_s = -std::numeric_limits<double>::infinity();
 }
 
 DeframeResult Deframer::reject(RejectReason r, int apid_row, std::uint16_t apid) {
@@ -153,12 +158,15 @@ DeframeResult Deframer::process_frame(const std::uint8_t* frame, std::size_t n) 
   if (payload_len != info.payload_len) return reject(RejectReason::WrongPayloadLength, row, h.apid);
   const std::uint8_t* payload = p + kPacketHeaderSize;
 
-  // 9: time tag, sequence count and time order. The history is updated for
-  // every packet that passes this step, even if its payload is then refused:
-  // the sender did send it, so the next one is not a gap.
+  // 9: time tag, sequence count and time order. The history is updated only
+  // for a packet that passes step 10 too: a refused packet changes nothing,
+  // so a bad one (a far-future time tag on a NaN payload) cannot lock the
+  // APID out. The next accepted packet counts a refused one as a gap.
   ApidLinkStats& st = counters_.per_apid[static_cast<std::size_t>(row)];
   const double t_s = unpack_time_tag(p + kPrimaryHeaderSize);
   if (!std::isfinite(t_s)) return reject(RejectReason::BadTimeTag, row, h.apid);
+  std::uint32_t missing = 0;  // committed only if the packet is accepted
+  bool resync = false;
   if (st.seen) {
     const std::uint16_t delta =
         static_cast<std::uint16_t>((h.seq_count + kSeqCountModulo - st.last_seq) % kSeqCountModulo);
@@ -177,15 +185,11 @@ DeframeResult Deframer::process_frame(const std::uint8_t* frame, std::size_t n) 
         bump(st.out_of_order);
         return reject(RejectReason::StaleSequence, row, h.apid);
       }
-      bump(st.resyncs);
+      resync = true;
     } else {
-      const std::uint32_t missing = delta - 1u;
-      st.gaps = (UINT32_MAX - st.gaps < missing) ? UINT32_MAX : st.gaps + missing;
+      missing = delta - 1u;
     }
   }
-  st.seen = true;
-  st.last_seq = h.seq_count;
-  st.last_t_s = t_s;
 
   // 10: payload values.
   for (std::size_t i = 0; i < info.f64_count; ++i) {
@@ -207,6 +211,11 @@ DeframeResult Deframer::process_frame(const std::uint8_t* frame, std::size_t n) 
     return reject(RejectReason::InvalidField, row, h.apid);
   }
 
+  if (resync) bump(st.resyncs);
+  st.gaps = (UINT32_MAX - st.gaps < missing) ? UINT32_MAX : st.gaps + missing;
+  st.seen = true;
+  st.last_seq = h.seq_count;
+  st.last_t_s = t_s;
   bump(st.accepted);
   bump(counters_.packets_accepted);
   DeframeResult out;

@@ -102,6 +102,7 @@ struct Telemetry {
   std::vector<TmCovarianceDiagMsg<double>> covariances;
   std::vector<TmLearnerMsg<double>> learner;
   std::vector<TmModalMsg<double>> modal;
+  std::vector<TmHousekeepingMsg<double>> housekeeping;
   int link_counters = 0;
   int rejected = 0;
 
@@ -119,6 +120,7 @@ struct Telemetry {
         case Apid::TmCovarianceDiag: { TmCovarianceDiagMsg<double> m; decode(p.payload, p.t_s, m); covariances.push_back(m); break; }
         case Apid::TmLearner: { TmLearnerMsg<double> m; decode(p.payload, p.t_s, m); learner.push_back(m); break; }
         case Apid::TmModal: { TmModalMsg<double> m; decode(p.payload, p.t_s, m); modal.push_back(m); break; }
+        case Apid::TmHousekeeping: { TmHousekeepingMsg<double> m; decode(p.payload, p.t_s, m); housekeeping.push_back(m); break; }
         case Apid::TmLinkCounters: ++link_counters; break;
         default: break;
       }

@@ -454,15 +454,54 @@ TEST(Deframer, SenderRestartResyncs) {
   EXPECT_EQ(st.gaps, 0u);
 }
 
-TEST(Deframer, RefusedPayloadStillAdvancesTheSequence) {
-  // A NaN packet was sent: the next one is not a gap.
+TEST(Deframer, RefusedPayloadLeavesTheHistory) {
+  // A packet refused for its payload changes neither the sequence nor the
+  // time history: a NaN sample tagged far in the future does not block the
+  // normal samples after it; the next accepted one counts it as a gap.
   Deframer d;
   Bytes p = imu_payload();
   put_f64le(p.data(), std::numeric_limits<double>::quiet_NaN());
-  run(d, cat({valid_frame(Apid::ImuSample, 0, 1.0), frame_of(raw_packet(header_for(Apid::ImuSample, 1), 1.1, p)),
-              valid_frame(Apid::ImuSample, 2, 1.2)}));
-  EXPECT_EQ(d.counters().packets_accepted, 2u);
-  EXPECT_EQ(d.counters().gaps_total(), 0u);
+  const Outcome o =
+      run(d, cat({valid_frame(Apid::ImuSample, 0, 1.0), frame_of(raw_packet(header_for(Apid::ImuSample, 1), 1e12, p)),
+                  valid_frame(Apid::ImuSample, 2, 1.2), valid_frame(Apid::ImuSample, 3, 1.3)}));
+  EXPECT_EQ(o.packets.size(), 3u);
+  ASSERT_EQ(o.rejections.size(), 1u);
+  EXPECT_EQ(o.rejections[0], RejectReason::NonFinitePayload);
+  const auto& st = d.counters().per_apid[static_cast<std::size_t>(apid_index(0x010))];
+  EXPECT_EQ(st.last_t_s, 1.3);
+  EXPECT_EQ(st.last_seq, 3u);
+  EXPECT_EQ(st.gaps, 1u);
+  EXPECT_EQ(st.out_of_order, 0u);
+}
+
+TEST(Deframer, RefusedPayloadDoesNotCountAResync) {
+  // A refused packet far behind in count but later in time is not a resync:
+  // the next in-sequence packet is accepted without a gap.
+  Deframer d;
+  Bytes p = imu_payload();
+  put_f64le(p.data(), std::numeric_limits<double>::infinity());
+  const Outcome o = run(d, cat({valid_frame(Apid::ImuSample, 100, 1.0),
+                                frame_of(raw_packet(header_for(Apid::ImuSample, 5), 2.0, p)),
+                                valid_frame(Apid::ImuSample, 101, 1.1)}));
+  EXPECT_EQ(o.packets.size(), 2u);
+  const auto& st = d.counters().per_apid[static_cast<std::size_t>(apid_index(0x010))];
+  EXPECT_EQ(st.resyncs, 0u);
+  EXPECT_EQ(st.gaps, 0u);
+}
+
+TEST(Deframer, ResetTimeHistoryKeepsSequenceCounts) {
+  // After a far-future packet, time_backwards until the time history is
+  // cleared; a repeated count is still a duplicate afterwards.
+  Deframer d;
+  run(d, valid_frame(Apid::CmdReset, 0, 1e300));
+  Outcome o = run(d, valid_frame(Apid::CmdReset, 1, 5.0));
+  ASSERT_EQ(o.rejections.size(), 1u);
+  EXPECT_EQ(o.rejections[0], RejectReason::TimeBackwards);
+  d.reset_time_history();
+  o = run(d, cat({valid_frame(Apid::CmdReset, 1, 5.0), valid_frame(Apid::CmdReset, 1, 6.0)}));
+  EXPECT_EQ(o.packets.size(), 1u);
+  ASSERT_EQ(o.rejections.size(), 1u);
+  EXPECT_EQ(o.rejections[0], RejectReason::DuplicateSequence);
 }
 
 TEST(Deframer, SegmentedRangeImageAccepted) {

@@ -2,8 +2,11 @@
 // directly, telemetry out; bad bytes counted, never fatal.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <limits>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "flight_app_util.hpp"
 
@@ -237,4 +240,180 @@ TEST(FlightAppTest, LearnerSkipsAnIntervalWhoseOpeningImuSampleWasLost) {
   EXPECT_EQ(app->counters().valves, 3u);
   EXPECT_EQ(app->counters().learner_samples, 1u);
   EXPECT_EQ(tm.learner.size(), 1u);
+}
+
+// ------------------------------------------------------------ hostile inputs
+
+TEST(FlightAppTest, OverflowingPoseGivesFiniteTelemetry) {
+  // A valid pose 1e308 m away overflows the step: NIS = inf, log-likelihood
+  // -inf. Telemetry carries them as the largest finite doubles, so the
+  // bench accepts every frame.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  up.pose(0.0, Vec3<double>(0.0, 1e308, 0.0), kQ0, 0.0, 0.0);
+  up.pose(0.0, Vec3<double>(1e308, -1e308, 1e308), kQ0, 0.04, 0.01);
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(tm.rejected, 0);
+  ASSERT_EQ(tm.innovations.size(), 3u);
+  constexpr double kMax = std::numeric_limits<double>::max();
+  for (int i = 1; i < 3; ++i) {
+    EXPECT_NE(tm.innovations[i].status, static_cast<std::uint8_t>(StepStatus::Ok));
+    EXPECT_EQ(tm.innovations[i].fused, 0);
+  }
+  EXPECT_EQ(tm.innovations[2].nis, kMax);
+  EXPECT_EQ(tm.innovations[2].log_likelihood, -kMax);
+  EXPECT_GT(app->counters().tm_values_clamped, 0u);
+  EXPECT_EQ(tm.estimates.size(), 3u);  // the filter kept its estimate
+  EXPECT_TRUE(tm.estimates.back().r_hill_m.isApprox(kR0));
+}
+
+TEST(FlightAppTest, ResetFarInTheFutureDoesNotLockResetsOut) {
+  // A reset tagged t = 1e300 is carried out; it clears the link's time
+  // history, so a reset at a normal time is accepted after it, and the
+  // filter runs on from there.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  Telemetry tm;
+  up.reset(1e300, kR0, kV0, kQ0);
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  // Its telemetry is tagged 1e300 too: the ground forgets its telemetry
+  // time history when it commands a reset, as the flight side does.
+  tm.deframer.reset_time_history();
+  up.bytes.clear();
+  up.reset(5.0, kR0, kV0, kQ0);
+  up.imu(5.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(app->link().rejected_total(), 0u);
+  EXPECT_EQ(app->counters().resets, 2u);
+  EXPECT_EQ(app->nav().t_s(), 5.1);
+  EXPECT_EQ(tm.rejected, 0);
+  ASSERT_EQ(tm.innovations.size(), 3u);
+  EXPECT_EQ(tm.innovations[2].status, static_cast<std::uint8_t>(StepStatus::Ok));
+}
+
+TEST(FlightAppTest, RepeatedResetIsStillADuplicate) {
+  // Clearing the time history keeps the sequence counts: the same reset
+  // packet received twice is carried out once.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  up.reset(0.0, kR0, kV0, kQ0);
+  const std::vector<std::uint8_t> once = up.bytes;
+  app->on_bytes(once.data(), once.size());
+  app->on_bytes(once.data(), once.size());
+  EXPECT_EQ(app->counters().resets, 1u);
+  EXPECT_EQ(app->link().rejected[static_cast<std::size_t>(RejectReason::DuplicateSequence)], 1u);
+}
+
+namespace {
+// Reset at 0, 20 IMU samples with a pose at 1.0 s, valves into the learner.
+void running_filter(Uplink& up) {
+  up.reset(0.0, kR0, kV0, kQ0);
+  for (int k = 1; k <= 20; ++k) {
+    up.imu(0.1 * k, Vec3<double>(1e-4 * k, 0.0, 0.0), Vec3<double>(0.0, 0.0, 1e-3));
+    if (k == 10) up.pose(1.0, kR0 + Vec3<double>(0.01, 0.0, 0.0), kQ0, 0.04, 0.01);
+    if (k == 15) up.valves(1.5, 0.1, 3);
+  }
+}
+}  // namespace
+
+TEST(FlightAppTest, RefusedResetLeavesTheStateAsItWas) {
+  // cmd_reset with every target bit and pos_sigma = 1e200 (its square
+  // overflows): refused whole. The filter, learner, modal estimator and
+  // link counters are as they were, and later samples step the same filter.
+  for (const double bad_sigma : {1e200, 0.0}) {
+    auto app = std::make_unique<FlightApp<double>>();
+    auto ref = std::make_unique<FlightApp<double>>();
+    Uplink up, up_ref;
+    running_filter(up);
+    running_filter(up_ref);
+    CmdResetMsg<double> bad;
+    bad.target_mask = 0xF;
+    bad.r_hill_m = Vec3<double>(5.0, 5.0, 5.0);
+    bad.q_hb = kQ0;
+    bad.pos_sigma_m = bad_sigma;
+    bad.vel_sigma_mps = 0.01;
+    bad.att_sigma_rad = 0.05;
+    up.add(Apid::CmdReset, bad, 2.05);
+    for (auto* u : {&up, &up_ref}) {
+      for (int k = 21; k <= 30; ++k) u->imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>(0.0, 0.0, 1e-3));
+    }
+    app->on_bytes(up.bytes.data(), up.bytes.size());
+    ref->on_bytes(up_ref.bytes.data(), up_ref.bytes.size());
+    Telemetry tm;
+    tm.drain(*app);
+    EXPECT_EQ(app->counters().resets, 1u);
+    EXPECT_EQ(app->counters().resets_refused, 1u);
+    EXPECT_EQ(app->counters().learner_samples, 1u);
+    EXPECT_EQ(app->learner().count(), ref->learner().count());
+    EXPECT_EQ(app->link().packets_accepted, ref->link().packets_accepted + 1);
+    ASSERT_TRUE(app->nav().initialized());
+    EXPECT_EQ(app->nav().t_s(), ref->nav().t_s());
+    EXPECT_EQ(app->nav().state().r_hill_m, ref->nav().state().r_hill_m);
+    EXPECT_EQ(app->nav().P(), ref->nav().P());
+    // The refused reset answers with its verdict and the unchanged estimate.
+    const auto it = std::find_if(tm.innovations.begin(), tm.innovations.end(), [](const auto& m) {
+      return m.step_kind == static_cast<std::uint8_t>(StepKind::Reset) && m.status != 0;
+    });
+    ASSERT_NE(it, tm.innovations.end());
+    EXPECT_EQ(tm.innovations.back().status, static_cast<std::uint8_t>(StepStatus::Ok));
+    EXPECT_EQ(tm.rejected, 0);
+  }
+}
+
+TEST(FlightAppTest, TelemetryDropsAreInHousekeeping) {
+  // A burst of 200 IMU samples in one read overflows the transmit buffer;
+  // the drops are counted and the next housekeeping packet carries them.
+  auto app = std::make_unique<FlightApp<double>>();
+  Uplink up;
+  up.reset(0.0, kR0, kV0, kQ0);
+  for (int k = 1; k <= 200; ++k) up.imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  const std::uint32_t dropped = app->counters().tx_dropped;
+  EXPECT_GT(dropped, 0u);
+  Telemetry tm;
+  tm.drain(*app);
+  Uplink more = up;
+  more.bytes.clear();
+  for (int k = 201; k <= 210; ++k) more.imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(more.bytes.data(), more.bytes.size());
+  tm.drain(*app);
+  ASSERT_FALSE(tm.housekeeping.empty());
+  EXPECT_EQ(tm.housekeeping.back().tx_dropped, dropped);
+  EXPECT_EQ(app->counters().tx_dropped, dropped);
+  EXPECT_EQ(tm.housekeeping.back().cycle_count, 210u);
+}
+
+TEST(FlightAppTest, FloatBuildRefusesAResetWhoseSquareOverflowsFloat) {
+  // pos_sigma 1e20 m is fine in double but its square overflows float: the
+  // float app refuses the reset whole and keeps its filter; a pose 1e308 m
+  // away (inf in float) still gives only finite telemetry.
+  auto app = std::make_unique<FlightApp<float>>(NavConfig<float>());
+  Uplink up;
+  Telemetry tm;
+  up.reset(0.0, kR0, kV0, kQ0);
+  up.imu(0.1, Vec3<double>::Zero(), Vec3<double>::Zero());
+  CmdResetMsg<double> bad;
+  bad.target_mask = 0x1;
+  bad.q_hb = kQ0;
+  bad.pos_sigma_m = 1e20;
+  bad.vel_sigma_mps = 0.01;
+  bad.att_sigma_rad = 0.05;
+  up.add(Apid::CmdReset, bad, 0.15);
+  up.imu(0.2, Vec3<double>::Zero(), Vec3<double>::Zero());
+  up.pose(0.2, Vec3<double>(0.0, 1e308, 0.0), kQ0, 0.04, 0.01);
+  app->on_bytes(up.bytes.data(), up.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(app->counters().resets, 1u);
+  EXPECT_EQ(app->counters().resets_refused, 1u);
+  ASSERT_TRUE(app->nav().initialized());
+  EXPECT_EQ(app->nav().t_s(), 0.2);
+  EXPECT_LT((app->nav().state().r_hill_m.cast<double>() - kR0).norm(), 0.01);  // the old filter, coasting
+  EXPECT_EQ(tm.rejected, 0);
+  ASSERT_FALSE(tm.innovations.empty());
+  EXPECT_EQ(tm.innovations.back().status, static_cast<std::uint8_t>(StepStatus::BadInput));
 }

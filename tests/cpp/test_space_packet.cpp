@@ -219,10 +219,15 @@ TYPED_TEST(PayloadCodec, EstimateInnovationLearnerHousekeepingRoundTrip) {
   TmHousekeepingMsg<S> hk;
   hk.uptime_s = S(12);
   hk.cycle_count = 120;
+  hk.tx_packets = 7;
+  hk.tx_dropped = 0x01020304u;
   encode(hk, p.data());
+  EXPECT_EQ(get_u32le(p.data() + 36), 0x01020304u);  // docs/LINK.md: offset 36
   TmHousekeepingMsg<S> hu;
   ASSERT_TRUE(decode(p.data(), 0.0, hu));
   EXPECT_EQ(hu.cycle_count, 120u);
+  EXPECT_EQ(hu.tx_packets, 7u);
+  EXPECT_EQ(hu.tx_dropped, 0x01020304u);
   EXPECT_EQ(hu.uptime_s, S(12));
 }
 

@@ -25,7 +25,9 @@
 
 namespace {
 
-bool g_armed = false;
+// Armed per thread: the hook runs in the allocating thread, and libFuzzer's
+// own threads (the RSS monitor) may allocate while this one is armed.
+thread_local bool g_armed = false;
 long g_allocations = 0;
 
 void on_malloc(const volatile void*, std::size_t) {

@@ -85,3 +85,19 @@ def test_flight_learner_hears_the_valve_commands_and_reports_over_the_link():
     assert all(np.all(np.isfinite(v[2:])) for _, v in outs)
     times = [t for t, _ in outs]
     assert all(b > a for a, b in zip(times, times[1:]))
+
+
+def test_a_run_cut_by_the_end_of_the_hil_run_is_reported_as_such(capsys):
+    import argparse
+
+    from bench.commands.hil import hil_summary, print_summary
+
+    res = run_hil(HilConfig(duration_s=5.0, seed=2))
+    (run,) = res["runs"]
+    assert not run["summary"]["docked"] and run["summary"]["cut_by_duration"]
+    args = argparse.Namespace(scenario="docking", duration=5.0, realtime=False, ber=0.0, drop_rate=0.0,
+                              burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0, stall_rate=0.0, seed=2)
+    s = hil_summary(res, args)
+    assert s["docking_runs_cut_by_duration"] == 1
+    print_summary(s)
+    assert "1 docking run(s), 0 docked, 1 cut short by the end of the 5 s" in capsys.readouterr().out

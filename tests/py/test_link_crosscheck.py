@@ -284,3 +284,23 @@ def test_seeded_corruption_campaign_never_delivers_a_corrupted_packet():
     # Same verdicts, in the same order, from the independent implementation.
     assert [r["reason"] if r["kind"] == "rejected" else "packet" for r in cpp_results] == [
         r.reason if isinstance(r, P.Rejection) else "packet" for r in py_results]
+
+
+def test_housekeeping_carries_the_telemetry_drop_count():
+    """A burst of 200 IMU samples in one call overflows the flight app's
+    transmit buffer; the drops are counted, and the next tm_housekeeping,
+    decoded on the bench side, carries the same count."""
+    app = fb.FlightApp(fb.NavConfig())
+    s = P.Sender()
+    reset, imu = P.APID_BY_NAME["cmd_reset"].apid, P.APID_BY_NAME["imu_sample"].apid
+    data = s.frame(reset, 0.0, P.pack_payload(reset, 1, 0, 0.0, -0.7, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
+                                              0.05, 0.01, 0.05))
+    data += b"".join(s.frame(imu, 0.1 * k, P.pack_payload(imu, *[0.0] * 6)) for k in range(1, 201))
+    app.on_bytes(data)
+    dropped = app.counters()["tx_dropped"]
+    assert dropped > 0
+    out = app.on_bytes(b"".join(s.frame(imu, 0.1 * k, P.pack_payload(imu, *[0.0] * 6)) for k in range(201, 211)))
+    hk = [P.decode_housekeeping(p.payload) for p in P.Deframer(P.FROM_FLIGHT).feed(out)
+          if isinstance(p, P.Packet) and p.apid == P.APID_BY_NAME["tm_housekeeping"].apid]
+    assert len(hk) == 1
+    assert hk[0]["tx_dropped"] == dropped and hk[0]["cycle_count"] == 210

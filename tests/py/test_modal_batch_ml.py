@@ -79,7 +79,7 @@ def test_cli_structure_with_range_noise_and_batch_ml(tmp_path, capsys):
     assert row["trials"] == 1 and row["images"] == 41
     assert "filter / batch ML" in capsys.readouterr().out
     assert cli.main(["modal", "--scenario", "structure", "--range-noise", "0"]) == 2
-    assert "--range-noise must be a fraction" in capsys.readouterr().err
+    assert "argument --range-noise: must be a finite number > 0 and < 1" in capsys.readouterr().err
 
 
 def test_end_error_ratio_is_near_the_cramer_rao_ratio():

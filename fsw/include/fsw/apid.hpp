@@ -261,6 +261,7 @@ template <typename S> struct TmHousekeepingMsg {
   std::uint32_t cycle_count = 0;
   std::uint32_t mode = 0;
   std::uint32_t tx_packets = 0;
+  std::uint32_t tx_dropped = 0;  // telemetry packets lost to a full transmit buffer
 };
 template <typename S> struct TmModalMsg {
   S t_s{};                        // image time
@@ -519,6 +520,7 @@ bool decode(const std::uint8_t* p, double t_s, TmHousekeepingMsg<S>& m) {
   m.cycle_count = get_u32le(p + 24);
   m.mode = get_u32le(p + 28);
   m.tx_packets = get_u32le(p + 32);
+  m.tx_dropped = get_u32le(p + 36);
   return rd(p, 0, m.uptime_s) & rd(p, 8, m.last_step_cpu_s) & rd(p, 16, m.max_step_cpu_s) &
          std::isfinite(m.t_s);
 }
@@ -530,7 +532,7 @@ template <typename S> void encode(const TmHousekeepingMsg<S>& m, std::uint8_t* p
   put_u32le(p + 24, m.cycle_count);
   put_u32le(p + 28, m.mode);
   put_u32le(p + 32, m.tx_packets);
-  put_u32le(p + 36, 0);
+  put_u32le(p + 36, m.tx_dropped);
 }
 
 template <typename S>

@@ -12,6 +12,9 @@
 //   8 APID and its length      UnknownApid, WrongSequenceFlags, WrongPayloadLength
 //   9 sequence and time        BadTimeTag, DuplicateSequence, TimeBackwards, StaleSequence
 //                              (gaps counted, packet accepted)
+//
+// The per-APID history (last sequence count and time tag) and the gap and
+// resync counts change only when a packet is accepted (passes step 10).
 //  10 payload                  NonFinitePayload, NonUnitQuaternion, InvalidField
 //
 // No heap, no exceptions; every loop is bounded by the bytes given; every
@@ -127,6 +130,10 @@ class Deframer {
   void reset_counters();
   // Forgets every APID's last sequence count and time tag (a new session).
   void reset_history();
+  // Forgets every APID's last time tag but keeps the sequence counts (a
+  // carried-out cmd_reset: a new time base; a repeated packet is still a
+  // duplicate).
+  void reset_time_history();
   // Drops a partly received frame (e.g. after a serial port reopen).
   void reset_stream() { acc_.reset(); }
 

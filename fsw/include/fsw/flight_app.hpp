@@ -12,6 +12,11 @@
 //   cmd_reset (bit 2)   -> modal estimator rebuilt with the commanded plate
 //                          model and priors (ModalTracker)
 //   cmd_reset (bit 3)   -> link counters cleared
+//   cmd_reset (any)     -> the link's time history cleared (a new time base);
+//                          a reset whose bit 0 the filter would refuse is
+//                          refused whole: nothing changes, it is counted
+//                          (resets_refused) and answered with tm_innovation
+//                          (step_kind reset, its status) and the old estimate
 //   cmd_config          -> pose noise model (docs/LINK.md, parameter ids)
 //   imu_sample          -> NavUkf::predict to the packet time
 //   led_pose            -> NavUkf::update_pose at the capture time (may be late);
@@ -54,6 +59,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 
 #include "fsw/apid.hpp"
 #include "fsw/blr.hpp"
@@ -110,6 +116,7 @@ class FlightApp {
     std::uint32_t pose_fused = 0;
     std::uint32_t poses_deferred = 0;  // arrived before their capture tick's IMU sample; fused after it
     std::uint32_t resets = 0;
+    std::uint32_t resets_refused = 0;  // cmd_reset the filter would refuse: nothing changed
     std::uint32_t reacquisitions = 0;  // filter re-initialised from a pose (lost, or rejecting agreeing poses)
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
@@ -117,6 +124,7 @@ class FlightApp {
     std::uint32_t unhandled = 0;  // accepted packets this build does not consume
     std::uint32_t tx_packets = 0;
     std::uint32_t tx_dropped = 0;  // telemetry lost to a full transmit buffer
+    std::uint32_t tm_values_clamped = 0;  // non-finite telemetry doubles sent as +-max (see send())
   };
 
   explicit FlightApp(const NavConfig<S>& nav_cfg = NavConfig<S>())
@@ -196,19 +204,38 @@ class FlightApp {
 
   void housekeeping(double t_s);
 
+  // Telemetry never carries a non-finite number (the bench, like this
+  // side's deframer, refuses such a packet whole): each NaN or infinite
+  // double of the payload is sent as the largest finite double, with the
+  // sign of an infinity (NaN as +max), and counted (tm_values_clamped).
   template <typename Msg>
   void send(Apid apid, const Msg& msg, double t_s) {
-    if (kTxCapacity - tx_len_ < kMaxFrameBytes) {
+    const ApidInfo* info = apid_info(static_cast<std::uint16_t>(apid));
+    if (info == nullptr || kTxCapacity - tx_len_ < kMaxFrameBytes) {
       ++counters_.tx_dropped;
       return;
     }
-    const std::size_t n = framer_.frame_message(apid, msg, t_s, tx_.data() + tx_len_, kTxCapacity - tx_len_);
+    encode(msg, tm_payload_.data());
+    clamp_non_finite(*info);
+    const std::size_t n = framer_.frame(apid, t_s, tm_payload_.data(), info->payload_len, tx_.data() + tx_len_,
+                                        kTxCapacity - tx_len_);
     if (n == 0) {
       ++counters_.tx_dropped;
       return;
     }
     tx_len_ += n;
     ++counters_.tx_packets;
+  }
+
+  void clamp_non_finite(const ApidInfo& info) {
+    constexpr double kMax = std::numeric_limits<double>::max();
+    for (std::size_t i = 0; i < info.f64_count; ++i) {
+      std::uint8_t* at = tm_payload_.data() + info.f64_offset + 8 * i;
+      const double v = get_f64le(at);
+      if (std::isfinite(v)) continue;
+      put_f64le(at, std::isnan(v) ? kMax : std::copysign(kMax, v));
+      ++counters_.tm_values_clamped;
+    }
   }
 
   struct RejectedRun {
@@ -250,6 +277,7 @@ class FlightApp {
   Framer framer_;
   Counters counters_;
   std::array<std::uint8_t, kTxCapacity> tx_{};
+  std::array<std::uint8_t, kMaxPayloadLen> tm_payload_{};
   std::size_t tx_len_ = 0;
   std::uint32_t step_index_ = 0;
   std::uint32_t hk_every_ = 10;
@@ -446,7 +474,30 @@ template <typename S>
 inline void FlightApp<S>::on_reset(const PacketView& p) {
   CmdResetMsg<S> m;
   decode(p.payload, p.t_s, m);
+  const bool nav_bit = (m.target_mask & 0x1u) != 0;
+  typename Nav::State x0;
+  typename Nav::Cov P0 = Nav::Cov::Zero();
+  if (nav_bit) {
+    x0.r_hill_m = m.r_hill_m;
+    x0.v_hill_mps = m.v_hill_mps;
+    x0.q_hb = m.q_hb;
+    P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
+    P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
+    P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
+    // All or nothing: a reset the filter would refuse (a sigma whose square
+    // overflows, a zero sigma, settings it rejects) changes nothing at all.
+    const typename Nav::Record verdict = Nav::check_init(nav_cfg_, p.t_s, x0, P0);
+    if (verdict.status != StepStatus::Ok) {
+      ++counters_.resets_refused;
+      report(StepKind::Reset, verdict, nav_.initialized() ? nav_.t_s() : p.t_s);
+      return;
+    }
+  }
   ++counters_.resets;
+  // A reset starts a new time base: the link's time history is cleared
+  // (sequence counts kept), so one command tagged far in the future cannot
+  // lock an APID out.
+  deframer_.reset_time_history();
   if (m.target_mask & 0x8u) deframer_.reset_counters();
   if (m.target_mask & 0x2u) {
     learner_.reset();
@@ -454,18 +505,10 @@ inline void FlightApp<S>::on_reset(const PacketView& p) {
     have_prev_gyro_ = false;
   }
   if (m.target_mask & 0x4u) modal_.configure(modal_cfg_);  // checked when set
-  if (!(m.target_mask & 0x1u)) return;
+  if (!nav_bit) return;
   nav_ = Nav(nav_cfg_);  // fixed-size object: rebuilt in place, no heap
   pending_.valid = false;
   rejected_.n = 0;
-  typename Nav::State x0;
-  x0.r_hill_m = m.r_hill_m;
-  x0.v_hill_mps = m.v_hill_mps;
-  x0.q_hb = m.q_hb;
-  typename Nav::Cov P0 = Nav::Cov::Zero();
-  P0.diagonal().template segment<3>(0).setConstant(m.pos_sigma_m * m.pos_sigma_m);
-  P0.diagonal().template segment<3>(3).setConstant(m.vel_sigma_mps * m.vel_sigma_mps);
-  P0.diagonal().template segment<3>(6).setConstant(m.att_sigma_rad * m.att_sigma_rad);
   const typename Nav::Record rec = nav_.init(p.t_s, x0, P0);
   report(StepKind::Reset, rec, p.t_s);
 }
@@ -564,8 +607,12 @@ inline void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec,
   inn.meas_dim = kind == StepKind::PoseUpdate ? 6 : 0;
   inn.step_index = ++step_index_;
   inn.innovation = rec.innovation;
-  inn.nis = rec.nis;
-  inn.log_likelihood = rec.log_likelihood;
+  // An overflowed step (a pose 1e308 m away) gives NIS = inf and
+  // log-likelihood = -inf, or NaN from inf - inf: NaN is sent as the
+  // overflow it is (NIS +max, log-likelihood -max; see send()).
+  inn.nis = std::isnan(rec.nis) ? std::numeric_limits<S>::infinity() : rec.nis;
+  inn.log_likelihood =
+      std::isnan(rec.log_likelihood) ? -std::numeric_limits<S>::infinity() : rec.log_likelihood;
   send(Apid::TmInnovation, inn, t_s);
   if (!nav_.initialized()) return;
   TmEstimateMsg<S> est;
@@ -596,6 +643,7 @@ inline void FlightApp<S>::housekeeping(double t_s) {
   hk.cycle_count = counters_.imu_steps;
   hk.mode = nav_.initialized() ? 1u : 0u;
   hk.tx_packets = counters_.tx_packets;
+  hk.tx_dropped = counters_.tx_dropped;
   send(Apid::TmHousekeeping, hk, t_s);
 }
 

@@ -157,14 +157,7 @@ class NavUkf {
     wi_ = S(1) / (S(2) * (S(kN) + lambda));
     dt_nom_ = S(cfg_.dt_imu_s);
     prop_nom_ = make_step(dt_nom_);
-    var_min_.setConstant(cfg_.var_min);
-    var_max_.template segment<3>(Layout::kDPos.index).setConstant(cfg_.pos_var_max_m2);
-    var_max_.template segment<3>(Layout::kDVel.index).setConstant(cfg_.vel_var_max_m2ps2);
-    var_max_.template segment<3>(Layout::kDTheta.index).setConstant(cfg_.att_var_max_rad2);
-    if constexpr (kWithBias) {
-      var_max_.template segment<3>(Layout::kDGyroBias.index).setConstant(cfg_.gyro_bias_var_max);
-      var_max_.template segment<3>(Layout::kDAccelBias.index).setConstant(cfg_.accel_bias_var_max);
-    }
+    variance_bounds(cfg_, var_min_, var_max_);
   }
 
   bool config_ok() const { return bad_field_ == nullptr; }
@@ -174,6 +167,11 @@ class NavUkf {
   // Sets the state at t_s. P0 over the error state; it is conditioned and
   // must factor. On failure the filter keeps its previous state.
   Record init(double t_s, const State& x0, const Cov& P0);
+
+  // The record init() would give on a filter built with cfg (status and
+  // detail; Ok when it would succeed), computed without building one, so a
+  // command can be refused before it changes anything.
+  static Record check_init(const NavConfig<S>& cfg, double t_s, const State& x0, const Cov& P0);
 
   // Re-acquisition from a pose when the filter is lost (an outage left it
   // too uncertain for a pose to be a correction, or it keeps rejecting poses
@@ -248,6 +246,10 @@ class NavUkf {
 
   static StepStatus set(Record& rec, StepStatus s, StepDetail d);
   static Record reject(Record& rec, StepStatus s, StepDetail d);
+  static void variance_bounds(const NavConfig<S>& cfg, ErrVec& var_min, ErrVec& var_max);
+  // init()'s checks; on success P is P0 conditioned and L its factor.
+  static Record init_checks(const NavConfig<S>& cfg, bool config_ok, const ErrVec& var_min, const ErrVec& var_max,
+                            double t_s, const State& x0, const Cov& P0, Cov& P, Cov& L);
 
   // What a pose must be before either use (update or re-acquisition):
   // filter initialised, values finite, unit quaternion, captured neither
@@ -278,16 +280,10 @@ class NavUkf {
 
 template <typename S, bool kWithBias, int kHistory>
 auto NavUkf<S, kWithBias, kHistory>::init(double t_s, const State& x0, const Cov& P0) -> Record {
-  Record rec;
-  rec.t_s = t_s;
-  if (!config_ok()) return reject(rec, StepStatus::BadInput, StepDetail::BadConfig);
-  if (!std::isfinite(t_s) || !x0.all_finite() || !P0.allFinite())
-    return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
-  if (!quat_unit(x0.q_hb)) return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
-  Cov P = P0;
+  Cov P;
   Cov L;
-  if (!condition_covariance(P, var_min_, var_max_) || !cholesky_lower(P, L))
-    return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
+  Record rec = init_checks(cfg_, config_ok(), var_min_, var_max_, t_s, x0, P0, P, L);
+  if (rec.status != StepStatus::Ok) return rec;
   Entry& e = hist_[0];
   e.t_s = t_s;
   e.x = x0;
@@ -304,8 +300,50 @@ auto NavUkf<S, kWithBias, kHistory>::init(double t_s, const State& x0, const Cov
   count_ = 1;
   initialized_ = true;
   last_fused_t_s_ = -std::numeric_limits<double>::infinity();
+  return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+void NavUkf<S, kWithBias, kHistory>::variance_bounds(const NavConfig<S>& cfg, ErrVec& var_min, ErrVec& var_max) {
+  var_min.setConstant(cfg.var_min);
+  var_max.setZero();
+  var_max.template segment<3>(Layout::kDPos.index).setConstant(cfg.pos_var_max_m2);
+  var_max.template segment<3>(Layout::kDVel.index).setConstant(cfg.vel_var_max_m2ps2);
+  var_max.template segment<3>(Layout::kDTheta.index).setConstant(cfg.att_var_max_rad2);
+  if constexpr (kWithBias) {
+    var_max.template segment<3>(Layout::kDGyroBias.index).setConstant(cfg.gyro_bias_var_max);
+    var_max.template segment<3>(Layout::kDAccelBias.index).setConstant(cfg.accel_bias_var_max);
+  }
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::init_checks(const NavConfig<S>& cfg, bool config_ok, const ErrVec& var_min,
+                                                 const ErrVec& var_max, double t_s, const State& x0, const Cov& P0,
+                                                 Cov& P, Cov& L) -> Record {
+  Record rec;
+  rec.t_s = t_s;
+  if (!config_ok) return reject(rec, StepStatus::BadInput, StepDetail::BadConfig);
+  if (!std::isfinite(t_s) || !x0.all_finite() || !P0.allFinite())
+    return reject(rec, StepStatus::BadInput, StepDetail::NonFinite);
+  if (!(std::abs(x0.q_hb.norm() - S(1)) <= cfg.quat_unit_tol))
+    return reject(rec, StepStatus::BadInput, StepDetail::NonUnitQuaternion);
+  P = P0;
+  if (!condition_covariance(P, var_min, var_max) || !cholesky_lower(P, L))
+    return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
   rec.status = StepStatus::Ok;
   return rec;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+auto NavUkf<S, kWithBias, kHistory>::check_init(const NavConfig<S>& cfg, double t_s, const State& x0,
+                                                const Cov& P0) -> Record {
+  const bool config_ok = nav_config_invalid_field(cfg, kN, kHistory) == nullptr;
+  ErrVec var_min = ErrVec::Zero();
+  ErrVec var_max = ErrVec::Zero();
+  if (config_ok) variance_bounds(cfg, var_min, var_max);
+  Cov P;
+  Cov L;
+  return init_checks(cfg, config_ok, var_min, var_max, t_s, x0, P0, P, L);
 }
 
 template <typename S, bool kWithBias, int kHistory>
