@@ -4,7 +4,6 @@ and what the log let it examine."""
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -14,7 +13,9 @@ def register(sub):
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a flight log (where, which, how far)")
     p.add_argument("log", help="flight log (HDF5, format version 1 or 2, docs/FLIGHT_LOG.md)")
     p.add_argument("--report", default=None, help="write the Markdown report and plots into this folder")
-    p.add_argument("--json", default=None, help="write the diagnosis as JSON here")
+    p.add_argument("--json", default=None,
+                   help="write the diagnosis as strict JSON here (non-finite numbers as null, listed under "
+                        "non_finite_as_null); '-' for stdout")
     p.add_argument("--calibration", default=None,
                    help="null calibration JSON, checked against the log (default: the committed one when the log is "
                         "the bench inspector flying the bench's manoeuvres, else one made for the log and cached)")
@@ -28,7 +29,7 @@ def _check_output(path: str | None, what: str) -> None:
     if path is None:
         return
     p = Path(path)
-    if what == "json" and p.is_dir():
+    if what == "json" and path != "-" and p.is_dir():
         raise ValueError(f"--json {path}: is a folder; give a file name")
     if what == "report" and p.exists() and not p.is_dir():
         raise ValueError(f"--report {path}: is a file; give a folder")
@@ -69,11 +70,18 @@ def main(args):
         from bench.gap.report import write_report
 
         page = _write_report_atomically(res, args.report, Path(args.log).name, write_report)
-        print(f"report: {page}")
+        import sys
+
+        print(f"report: {page}", file=sys.stderr if args.json == "-" else sys.stdout)
+    if args.json == "-":
+        import sys
+
+        from bench.report import json_text
+
+        sys.stdout.write(json_text(out, strict=True))
+        return 0
     if args.json:
-        tmp = Path(args.json).with_name(f".{Path(args.json).name}.tmp")
-        write_json(tmp, out)
-        os.replace(tmp, args.json)
+        write_json(args.json, out, strict=True)
     print_answers(out)
     print(f"diagnosed in {out['elapsed_s']:.1f} s")
     return 0

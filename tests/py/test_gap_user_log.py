@@ -187,3 +187,12 @@ def test_cli_writes_the_answer_with_its_calibration_and_what_it_examined(tmp_pat
     assert (tmp_path / "rep" / "README.md").exists() and (tmp_path / "rep" / "residuals.png").exists()
     text = capsys.readouterr().out
     assert "which:" in text and "thrust_loss" in text and "examined:" in text
+
+
+def test_cli_json_is_strict_and_can_go_to_stdout(capsys):
+    from bench.cli import main
+
+    assert main(["diagnose", str(bundled.LOG), "--json", "-", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    r = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in the JSON"))
+    assert r["verdict"] == "explained"
