@@ -40,6 +40,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Commands that write `--json -` to standard output themselves.
+STREAMS_JSON_ITSELF = ("hil", "diagnose")
+
+
+def _json_to_stdout(args) -> int:
+    """`--json -`: the command writes its JSON to a temporary file while all
+    it prints goes to standard error; the JSON then goes to standard output,
+    alone."""
+    import contextlib
+    import os
+    import tempfile
+
+    fd, name = tempfile.mkstemp(prefix="proxops-", suffix=".json")
+    os.close(fd)
+    try:
+        args.json = name
+        real = sys.stdout
+        with contextlib.redirect_stdout(sys.stderr):
+            rc = int(args.func(args) or 0)
+        import json
+
+        from bench.report import json_text
+
+        with open(name) as f:
+            text = f.read()
+        real.write(json_text(json.loads(text), strict=True) if text.strip() else "")
+        real.flush()
+        return rc
+    finally:
+        os.unlink(name)
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     try:
@@ -47,6 +79,8 @@ def main(argv=None) -> int:
     except SystemExit as exc:  # --help, or a bad argument (reported already)
         return int(exc.code or 0)
     try:
+        if getattr(args, "json", None) == "-" and args.command not in STREAMS_JSON_ITSELF:
+            return _json_to_stdout(args)
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as exc:
         print(f"proxops {args.command}: error: {exc}", file=sys.stderr)

@@ -162,7 +162,7 @@ def main(args):
         if args.plots:
             _plot_structure(trials[0], report_dir(args.plots))
     if args.json:
-        write_json(args.json, out)
+        write_json(args.json, out, strict=True)
     return 0
 
 
@@ -492,7 +492,7 @@ def timing_main(args):
                 print(f"fit {src} {kind}: c1 = {out[f'fit_{src}_{kind}']['c1']:.3e} s, "
                       f"c2 = {out[f'fit_{src}_{kind}']['c2']:.3e} s")
     if args.json:
-        write_json(args.json, out)
+        write_json(args.json, out, strict=True)
     return 0
 
 

@@ -41,7 +41,7 @@ def _progress(i, n, m, dt):
     print(f"run {i + 1:3d}/{n} seed {m.seed:6d}  {'docked' if m.docked else 'NOT docked'} at {m.t_end_s:6.1f} s  "
           f"max|dr| {m.max_pos_err_m:.4f} m  max|dv| {m.max_vel_err_mps:.4f} m/s  "
           f"NEES {np.mean(m.nees):5.2f}  NIS {np.mean(m.nis) if m.nis.size else float('nan'):5.2f}  "
-          f"({dt:.1f} s)", flush=True)
+          f"({dt:.1f} s)", flush=True, file=sys.stderr)
 
 
 def print_summary(s: dict) -> None:
@@ -168,7 +168,7 @@ def main(args):
     summary, runs = run_campaign(args.runs, args.seed, cfg, progress=_progress, keep_runs=keep)
     print_summary(summary)
     if args.json:
-        write_json(args.json, summary)
+        write_json(args.json, summary, strict=True)
         print(f"wrote {args.json}")
     if args.plots:
         make_plots(runs, summary, args.plots)

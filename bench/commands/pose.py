@@ -83,7 +83,7 @@ def _main_features(args):
     if args.plots:
         result["plots"] = fp.plots(result, args.plots)
     if args.json:
-        write_json(args.json, {k: v for k, v in result.items() if not k.startswith("_")})
+        write_json(args.json, {k: v for k, v in result.items() if not k.startswith("_")}, strict=True)
     return 0
 
 
@@ -104,5 +104,5 @@ def main(args):
     if args.plots:
         result["plots"] = pc.plots(result, args.plots)
     if args.json:
-        write_json(args.json, result)
+        write_json(args.json, result, strict=True)
     return 0

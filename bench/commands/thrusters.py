@@ -119,5 +119,5 @@ def main(args):
                 line += f"  paper {tgt['corr_linear']:.3f}/{tgt['corr_angular']:.3f}"
             print(line)
     if args.json:
-        write_json(args.json, out)
+        write_json(args.json, out, strict=True)
     return 0

@@ -117,3 +117,16 @@ def test_nav_summary_names_statuses_as_text(capsys):
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert last.startswith("gated 0, statuses init 1, ok ")
     assert "np." not in last
+
+
+def test_json_dash_sends_strict_json_alone_to_stdout(capsys):
+    # The generic path (commands that do not stream it themselves): what the
+    # command prints goes to stderr, the JSON alone to stdout.
+    import json as _json
+
+    from bench.cli import main
+
+    assert main(["cw-check", "--json", "-"]) == 0
+    cap = capsys.readouterr()
+    _json.loads(cap.out, parse_constant=lambda c: (_ for _ in ()).throw(AssertionError(f"bare {c}")))
+    assert cap.err.strip()  # the summary went to stderr
