@@ -13,14 +13,6 @@
 #include "fsw/modal_tracker.hpp"
 #include "fsw/nav_ukf.hpp"
 
-// Compiled in instantiate_modal.cpp (built in parallel with this file).
-namespace fsw {
-extern template class ModalDecomposition<float, 10>;
-extern template class ModalUkfJoint<float, 10>;
-extern template class ModalAcquisition<float, 10, 256>;
-extern template class ModalTracker<float, 10>;
-}  // namespace fsw
-
 namespace fwtest {
 namespace {
 

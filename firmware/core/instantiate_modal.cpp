@@ -1,6 +1,6 @@
-// The modal estimator at the flight application's mode count, float: the
-// longest compile of the firmware, in its own translation unit so that it
-// builds beside selftest.cpp (which declares these extern).
+// The firmware's flight core, float only: the modal estimator at the flight
+// application's mode count. (The host's fsw/src/instantiate_*.cpp compile
+// float and double at every mode count; the firmware needs this one.)
 #include "fsw/modal_tracker.hpp"
 
 namespace fsw {
