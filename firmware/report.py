@@ -47,6 +47,7 @@ COMPONENTS = [
                                  r"build_packet|frame_bytes|encode|decode|pack_|unpack_|get_|put_|"
                                  r"packet_|data_length|kCrc|Rejec)"),
     ("Eigen kernels", r"Eigen::"),
+    ("recorded self-test input", r"^fw_input_begin$"),
     ("self-test harness, startup", r"(fwtest::|semihosting::|Reset_Handler|Fault_Handler|g_vectors|main$|"
                                    r"fw_input|fw_eigen_alloca_forbidden|__stack|__data|__bss|fw_)"),
 ]

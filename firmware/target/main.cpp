@@ -21,9 +21,11 @@ asm(".section .rodata.fw_input,\"a\",%progbits\n"
     ".global fw_input_begin\n"
     ".global fw_input_end\n"
     ".balign 4\n"
+    ".type fw_input_begin, %object\n"
     "fw_input_begin:\n"
     ".incbin \"" FW_INPUT_PATH "\"\n"
     "fw_input_end:\n"
+    ".size fw_input_begin, fw_input_end - fw_input_begin\n"
     ".previous\n");
 
 namespace {
