@@ -4,6 +4,9 @@
 #               Cortex-M7 firmware built and its self-test run under QEMU
 # and one builds the flight processor image (docs/FIRMWARE.md):
 #   make firmware   cross toolchain installed if missing, image, size and stack report
+# and, outside CI (tens of minutes of compiling), the flight core's
+# GoogleTest suite built for aarch64 Linux and run under qemu-aarch64:
+#   make test-aarch64
 # Both are idempotent: stamps under build/ skip the set-up when nothing changed.
 
 SHELL      := /bin/bash
@@ -26,7 +29,10 @@ FW_SRC     := $(shell find fsw/include fsw/src firmware cmake -type f 2>/dev/nul
 # The harness's indirect calls (output sink, instruction counter), for the stack report.
 FW_INDIRECT := --indirect "(anonymous namespace)::SemihostingOutput::write" --indirect "(anonymous namespace)::instructions"
 
-.PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest
+AARCH64_BUILD := build/aarch64
+AARCH64_APT_PKGS := g++-aarch64-linux-gnu qemu-user
+
+.PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest test-aarch64
 
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
@@ -50,6 +56,14 @@ $(STAMPS)/apt-firmware:
 	  echo "installing Debian packages: $(FW_APT_PKGS)"; \
 	  $(SUDO) apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(FW_APT_PKGS); }
+	@touch $@
+
+$(STAMPS)/apt-aarch64:
+	@mkdir -p $(STAMPS)
+	@dpkg -s $(AARCH64_APT_PKGS) >/dev/null 2>&1 || { \
+	  echo "installing Debian packages: $(AARCH64_APT_PKGS)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(AARCH64_APT_PKGS); }
 	@touch $@
 
 $(STAMPS)/venv: $(STAMPS)/apt
@@ -96,6 +110,13 @@ $(FW_ELF): $(STAMPS)/fw-configure $(FW_SRC)
 
 firmware: $(FW_ELF)
 	$(VPY) firmware/report.py $(FW_ELF) $(FW_INDIRECT) --json $(FW_BUILD)/report.json
+
+# The GoogleTest suite for aarch64 under qemu-aarch64 (CMakePresets.json
+# "aarch64"; ctest runs each test program through the emulator).
+test-aarch64: $(STAMPS)/apt $(STAMPS)/apt-aarch64 $(STAMPS)/venv
+	$(VENV)/bin/cmake --preset aarch64 -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
+	$(VENV)/bin/cmake --build --preset aarch64
+	$(VENV)/bin/ctest --preset aarch64
 
 # The QEMU self-test against the host float build, and instructions per step.
 firmware-selftest: $(FW_ELF) $(STAMPS)/install $(STAMPS)/cpp-configure
