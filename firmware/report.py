@@ -66,12 +66,14 @@ LIBS = [("newlib libm", "libm.a"), ("newlib-nano libc", "libc_nano.a"), ("newlib
 # Step functions whose worst-case stack is reported (demangled name regex).
 STEPS = [
     ("FlightApp<float>::on_bytes (whole app step)", r"^fsw::FlightApp<float>::on_bytes\("),
+    ("FlightApp<float>::on_imu (imu_sample)", r"^fsw::FlightApp<float>::on_imu\("),
+    ("FlightApp<float>::on_pose (led_pose)", r"^fsw::FlightApp<float>::on_pose\("),
     ("NavUkf<float>::predict", r"fsw::NavUkf<float, false, \d+>::predict\("),
     ("NavUkf<float>::update_pose", r"fsw::NavUkf<float, false, \d+>::update_pose\("),
     ("NavUkf<float>::reacquire", r"fsw::NavUkf<float, false, \d+>::reacquire\("),
     ("NavUkf<float>::init", r"fsw::NavUkf<float, false, \d+>::init\("),
     ("Deframer::feed", r"^fsw::Deframer::feed\("),
-    ("Framer::frame_message", r"fsw::Framer::frame_message<"),
+    ("Framer::frame (one telemetry packet)", r"^fsw::Framer::frame\("),
     ("BayesLinReg::add", r"fsw::BayesLinReg<float, 9, 6, 30>::add\("),
     ("BayesLinReg::remove_oldest", r"fsw::BayesLinReg<float, 9, 6, 30>::remove_oldest\("),
     ("BayesLinReg::predict", r"fsw::BayesLinReg<float, 9, 6, 30>::predict\("),
