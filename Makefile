@@ -1,6 +1,12 @@
 # Two commands set up a fresh Debian machine and do the work:
 #   make run    the main job (installs what is missing first)
-#   make test   every test: ctest (GoogleTest) and pytest
+#   make test   every test: ctest (GoogleTest) and pytest, with the
+#               Cortex-M7 firmware built and its self-test run under QEMU
+# and one builds the flight processor image (docs/FIRMWARE.md):
+#   make firmware   cross toolchain installed if missing, image, size and stack report
+# and, outside CI (tens of minutes of compiling), the flight core's
+# GoogleTest suite built for aarch64 Linux and run under qemu-aarch64:
+#   make test-aarch64
 # Both are idempotent: stamps under build/ skip the set-up when nothing changed.
 
 SHELL      := /bin/bash
@@ -16,7 +22,17 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MPLBACKEND ?= Agg
 
-.PHONY: run test test-cpp test-py setup bench bench-modal clean
+FW_BUILD   := build/firmware
+FW_ELF     := $(FW_BUILD)/firmware/proxops_fw.elf
+FW_APT_PKGS := gcc-arm-none-eabi libstdc++-arm-none-eabi-newlib qemu-system-arm
+FW_SRC     := $(shell find fsw/include fsw/src firmware cmake -type f 2>/dev/null) CMakeLists.txt CMakePresets.json
+# The harness's indirect calls (output sink, instruction counter), for the stack report.
+FW_INDIRECT := --indirect "(anonymous namespace)::SemihostingOutput::write" --indirect "(anonymous namespace)::instructions"
+
+AARCH64_BUILD := build/aarch64
+AARCH64_APT_PKGS := g++-aarch64-linux-gnu qemu-user
+
+.PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest test-aarch64
 
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
@@ -31,6 +47,23 @@ $(STAMPS)/apt:
 	  echo "installing Debian packages: $(APT_PKGS)"; \
 	  $(SUDO) apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(APT_PKGS); }
+	@touch $@
+
+# The firmware's cross toolchain and emulator (make firmware, make test).
+$(STAMPS)/apt-firmware:
+	@mkdir -p $(STAMPS)
+	@dpkg -s $(FW_APT_PKGS) >/dev/null 2>&1 || { \
+	  echo "installing Debian packages: $(FW_APT_PKGS)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(FW_APT_PKGS); }
+	@touch $@
+
+$(STAMPS)/apt-aarch64:
+	@mkdir -p $(STAMPS)
+	@dpkg -s $(AARCH64_APT_PKGS) >/dev/null 2>&1 || { \
+	  echo "installing Debian packages: $(AARCH64_APT_PKGS)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(AARCH64_APT_PKGS); }
 	@touch $@
 
 $(STAMPS)/venv: $(STAMPS)/apt
@@ -61,9 +94,34 @@ test-cpp: $(STAMPS)/cpp-configure
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
 	cd $(CPP_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2
 
-test-py: $(STAMPS)/install $(STAMPS)/cpp-configure
+test-py: $(STAMPS)/install $(STAMPS)/cpp-configure $(FW_ELF)
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
-	PROXOPS_CPP_BUILD=$(abspath $(CPP_BUILD)) $(VPY) -m pytest -q
+	PROXOPS_CPP_BUILD=$(abspath $(CPP_BUILD)) PROXOPS_FIRMWARE_BUILD=$(abspath $(FW_BUILD)) $(VPY) -m pytest -q
+
+# The Cortex-M7 self-test firmware (CMakePresets.json "firmware"; -j2: the
+# machine is shared).
+$(STAMPS)/fw-configure: $(STAMPS)/apt-firmware $(STAMPS)/venv CMakeLists.txt CMakePresets.json firmware/CMakeLists.txt \
+    cmake/toolchains/arm-none-eabi-cortex-m7.cmake
+	$(VENV)/bin/cmake --preset firmware -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
+	@touch $@
+
+$(FW_ELF): $(STAMPS)/fw-configure $(FW_SRC)
+	$(VENV)/bin/cmake --build --preset firmware
+
+firmware: $(FW_ELF)
+	$(VPY) firmware/report.py $(FW_ELF) $(FW_INDIRECT) --json $(FW_BUILD)/report.json
+
+# The GoogleTest suite for aarch64 under qemu-aarch64 (CMakePresets.json
+# "aarch64"; ctest runs each test program through the emulator).
+test-aarch64: $(STAMPS)/apt $(STAMPS)/apt-aarch64 $(STAMPS)/venv
+	$(VENV)/bin/cmake --preset aarch64 -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
+	$(VENV)/bin/cmake --build --preset aarch64
+	$(VENV)/bin/ctest --preset aarch64
+
+# The QEMU self-test against the host float build, and instructions per step.
+firmware-selftest: $(FW_ELF) $(STAMPS)/install $(STAMPS)/cpp-configure
+	$(VENV)/bin/cmake --build $(CPP_BUILD) --target fw_selftest_host
+	$(VPY) -m hil_sim.firmware --elf $(FW_ELF) --host-exe $(CPP_BUILD)/fw_selftest_host
 
 # C++ benchmarks (Google Benchmark); results go to docs/PERFORMANCE.md by hand.
 bench: $(STAMPS)/cpp-configure

@@ -296,7 +296,7 @@ void ModalTracker<S, M, F, H>::acquire(Report& out) {
     return;
   }
   const double span_s = image_t_s_ - double(acq_.time(0));
-  const double period1_s = 2.0 * M_PI / double(model_.omega_radps(0));
+  const double period1_s = 2.0 * 3.14159265358979323846 / double(model_.omega_radps(0));
   const bool due = span_s >= cfg_.acquire_after_periods * period1_s || acq_.images() == H;
   if (!due || acq_.images() < acq_.config().min_images) return;
   acquiring_ = false;  // once per reset, whatever the outcome

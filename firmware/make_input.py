@@ -1,0 +1,117 @@
+"""Records the self-test firmware's input (firmware/data/selftest_input.bin):
+the uplink of a docking run and of the vibrating plate's range images, as
+link frames (COBS, each ending in 0x00).
+
+Navigation: one docking run of the bench (bench/scenario_docking.py: plant,
+IMU, LED poses, controller, thruster valve commands) with its navigation in
+the flight application in-process (hil_sim/link_nav.LinkNav over a link that
+records every byte sent up), so the recording is what the ground sent to a
+flight side that answered: cmd_config, cmd_reset, imu_sample, led_pose,
+thruster_valves.
+
+Structure: range images of the seed's 10-mode plate (bench/structure.py),
+one a minute, each thinned to points spread evenly over its rays, as
+range_image_segment packets; enough images for the tracker's frequency
+acquisition (2 periods of the lowest mode). Their packets are interleaved
+with the navigation ones (time tags are ordered per packet stream).
+
+    python firmware/make_input.py [--out firmware/data/selftest_input.bin]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import types
+
+import numpy as np
+
+import fsw_bindings as fb
+from bench import structure as st
+from bench.scenario_docking import ScenarioConfig, nav_config, run_docking
+from hil_sim import packets as pk
+from hil_sim.link_nav import LinkNav
+
+SEG = pk.APID_BY_NAME["range_image_segment"].apid
+
+
+class RecordingLink:
+    """LinkNav's link: the flight application in-process behind it, every
+    write kept as one chunk of the uplink."""
+
+    def __init__(self):
+        self.app = fb.FlightApp(fb.NavConfig())
+        self.chunks: list[bytes] = []
+        self._rx = b""
+        self.down = types.SimpleNamespace(cfg=types.SimpleNamespace(clean=True), originals=())
+
+    def write(self, data: bytes):
+        self.chunks.append(bytes(data))
+        self._rx += self.app.on_bytes(bytes(data))
+
+    def pump(self, timeout_s: float = 0.0) -> int:
+        return 0
+
+    def read_available(self) -> bytes:
+        data, self._rx = self._rx, b""
+        return data
+
+
+def navigation_chunks(seed: int, duration_s: float) -> list[bytes]:
+    sc = dataclasses.replace(ScenarioConfig(), t_max_s=duration_s)
+    link = RecordingLink()
+    nav = LinkNav(link, step_timeout_s=10.0, send_valves=True)
+    nav.configure_nav(nav_config(sc), t_s=0.0)
+    run_docking(seed, sc, nav=nav)
+    c = link.app.counters()
+    if c["pose_fused"] == 0 or c["learner_samples"] == 0:
+        raise RuntimeError(f"the docking run fused no pose or fed no learner sample: {c}")
+    return link.chunks
+
+
+def plate_images(seed: int, n_images: int, points: int, dt_s: float = 60.0) -> list[bytes]:
+    rng = np.random.default_rng(seed)
+    plate = st.Plate(n_modes=10)
+    sensor = st.plate_sensor(plate)
+    amp, phase = st.plate_truth(plate, rng)
+    sender = pk.Sender()
+    out = []
+    for k in range(n_images):
+        t = k * dt_s
+        r_meas, d = st.plate_range_image(plate, sensor, st.plate_coeffs(plate, amp, phase, t), rng)
+        hit = np.nonzero(np.isfinite(r_meas))[0]  # missed rays are not sent
+        keep = hit[np.linspace(0, len(hit) - 1, min(points, len(hit))).round().astype(int)]
+        p = sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
+        sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])
+        out.append(b"".join(sender.frame(SEG, t, pl, seq_flags=f)
+                            for f, pl in pk.range_image_segments(k, p, sigma)))
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="firmware/data/selftest_input.bin")
+    ap.add_argument("--seed", type=int, default=27)
+    ap.add_argument("--duration-s", type=float, default=60.0, help="docking run length [s]")
+    ap.add_argument("--images", type=int, default=84, help="range images (one a minute)")
+    ap.add_argument("--points", type=int, default=96, help="points per range image")
+    a = ap.parse_args(argv)
+    nav = navigation_chunks(a.seed, a.duration_s)
+    img = plate_images(a.seed, a.images, a.points)
+    # One image after every len(nav) / len(img) navigation chunks.
+    out = bytearray()
+    step = len(nav) / len(img)
+    j = 0
+    for i, chunk in enumerate(nav):
+        out += chunk
+        while j < len(img) and (j + 1) * step <= i + 1:
+            out += img[j]
+            j += 1
+    for rest in img[j:]:
+        out += rest
+    with open(a.out, "wb") as f:
+        f.write(out)
+    print(f"{a.out}: {len(out)} bytes, {len(nav)} navigation writes, {len(img)} range images of {a.points} points")
+
+
+if __name__ == "__main__":
+    main()
