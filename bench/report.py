@@ -117,3 +117,21 @@ def matplotlib_agg():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def restore_non_finite(data):
+    """The inverse of strict_json_data on loaded JSON: each field listed
+    under "non_finite_as_null" gets its NaN or infinity back."""
+    found = data.pop("non_finite_as_null", None) if isinstance(data, dict) else None
+    for path, what in (found or {}).items():
+        keys = path.split(".")
+        node = data
+        for k in keys[:-1]:
+            node = node[int(k)] if isinstance(node, list) else node[k]
+        last = keys[-1]
+        value = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}[what]
+        if isinstance(node, list):
+            node[int(last)] = value
+        else:
+            node[last] = value
+    return data

@@ -25,5 +25,5 @@ def main(args):
         print(f"{name:28s} {r['max_pos_err_m']:14.3e} {r['bound_m']:12.3e}  {'yes' if ok else 'NO'}")
         out[name] = {k: r[k] for k in ("max_pos_err_m", "bound_m", "rho_max_m")}
     if args.json:
-        write_json(args.json, out)
+        write_json(args.json, out, strict=True)
     return 0

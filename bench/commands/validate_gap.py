@@ -33,7 +33,7 @@ def main(args):
 
         res = validate_mixtures.run_campaign(args.runs, args.seed, args.json, workers, args.duration)
         if args.json:
-            write_json(args.json, res)
+            write_json(args.json, res, strict=True)
         print(f"mixture runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {workers} workers)")
         for k, v in res["by_kind_scale"].items():
             extra = (f", out-of-library left unexplained {v['out_of_library_left_unexplained']:.2f}"
@@ -54,7 +54,7 @@ def main(args):
 
         from bench.gap.validate import runs_table
 
-        write_json(args.json, res)
+        write_json(args.json, res, strict=True)
         Path(str(args.json) + ".runs.csv").write_text(runs_table(res))
     print(f"runs {res['runs']} (seed {res['seed']}, {res['manoeuvres']}, {res['elapsed_s']:.0f} s on {workers} workers)")
     print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")

@@ -175,15 +175,17 @@ def shrink_by_effect(res: dict) -> str:
 
 
 def main(argv=None) -> int:
+    from bench.report import restore_non_finite
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("json", help="the full JSON of proxops validate-gap --json (or .json.gz)")
     args = ap.parse_args(argv)
     if args.json.endswith(".gz"):
         import gzip
 
-        res = json.loads(gzip.open(args.json, "rt").read())
+        res = restore_non_finite(json.loads(gzip.open(args.json, "rt").read()))
     else:
-        res = json.loads(open(args.json).read())
+        res = restore_non_finite(json.loads(open(args.json).read()))
     if "keys" not in res or "answers" not in res:
         raise SystemExit(f"{args.json}: no 'keys'/'answers' (the summary, not the full JSON the command writes)")
     for title, body in (("Scores against the issue's targets", scores_table(res)),

@@ -130,3 +130,16 @@ def test_json_dash_sends_strict_json_alone_to_stdout(capsys):
     cap = capsys.readouterr()
     _json.loads(cap.out, parse_constant=lambda c: (_ for _ in ()).throw(AssertionError(f"bare {c}")))
     assert cap.err.strip()  # the summary went to stderr
+
+
+def test_strict_json_round_trips_its_non_finite_values():
+    import json as _json
+    import math
+
+    from bench.report import json_text, restore_non_finite
+
+    data = {"a": [1.0, float("nan"), {"b": float("inf")}], "c": -float("inf"), "d": "x"}
+    text = json_text(data, strict=True)
+    back = restore_non_finite(_json.loads(text, parse_constant=lambda c: (_ for _ in ()).throw(AssertionError(c))))
+    assert back["a"][0] == 1.0 and math.isnan(back["a"][1]) and back["a"][2]["b"] == float("inf")
+    assert back["c"] == -float("inf") and back["d"] == "x" and "non_finite_as_null" not in back

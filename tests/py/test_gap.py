@@ -95,7 +95,10 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
     from bench.gap import results_tables
     from bench.report import write_json
 
-    write_json(str(out), res)
+    import json
+
+    write_json(str(out), res, strict=True)  # what validate-gap writes: strict JSON
+    json.loads(out.read_text(), parse_constant=lambda c: pytest.fail(f"bare {c} in the JSON"))
     assert results_tables.main([str(out)]) == 0
     md = capsys.readouterr().out
     assert "| false alarms on null runs |" in md and "### Per in-library effect" in md
