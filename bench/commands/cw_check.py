@@ -1,14 +1,19 @@
 """`proxops cw-check`: CW against exact two-body motion over one orbit."""
 from __future__ import annotations
 
+import argparse
+
 from bench import cw_check, orbit
+from bench.commands.args import number, one_line_errors
 from bench.report import write_json
 
 
 def register(sub):
-    p = sub.add_parser("cw-check", help="CW propagator vs two-body truth at 10 m over one orbit")
-    p.add_argument("--altitude-km", type=float, default=500.0, help="host circular-orbit altitude [km]")
-    p.add_argument("--separation-m", type=float, default=10.0)
+    p = sub.add_parser("cw-check", help="CW propagator vs two-body truth at 10 m over one orbit",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops cw-check")
+    p.add_argument("--altitude-km", type=number(float, 100.0, 100000.0), default=500.0, help="host circular-orbit altitude [km] (100 to 100000)")
+    p.add_argument("--separation-m", type=number(float, 0.0, 100000.0, lo_open=True), default=10.0, help="initial separation [m] (> 0 to 100000)")
     p.add_argument("--json", default=None, help="write results here")
     p.set_defaults(func=main)
 

@@ -3,14 +3,19 @@ lies, which unmodelled effect causes it, how far it shrinks on held-out data,
 and what the log let it examine."""
 from __future__ import annotations
 
+import argparse
 import json
 import shutil
 import tempfile
 from pathlib import Path
 
+from bench.commands.args import number, one_line_errors
+
 
 def register(sub):
-    p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a flight log (where, which, how far)")
+    p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a flight log (where, which, how far)",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops diagnose")
     p.add_argument("log", help="flight log (HDF5, format version 1 or 2, docs/FLIGHT_LOG.md)")
     p.add_argument("--report", default=None, help="write the Markdown report and plots into this folder")
     p.add_argument("--json", default=None,
@@ -19,8 +24,8 @@ def register(sub):
     p.add_argument("--calibration", default=None,
                    help="null calibration JSON, checked against the log (default: the committed one when the log is "
                         "the bench inspector flying the bench's manoeuvres, else one made for the log and cached)")
-    p.add_argument("--null-runs", type=int, default=None,
-                   help="simulated flights in a calibration made for the log (default 40)")
+    p.add_argument("--null-runs", type=number(int, 10, 100000), default=40,
+                   help="simulated flights in a calibration made for the log (10 to 100000)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=main)
 
@@ -56,8 +61,6 @@ def main(args):
 
     _check_output(args.json, "json")
     _check_output(args.report, "report")
-    if args.null_runs is not None and not 10 <= args.null_runs <= 100000:
-        raise ValueError(f"--null-runs {args.null_runs}: must be between 10 and 100000")
     log = read_flight_log(args.log)
     cal = _load_calibration(args.calibration) if args.calibration else None
     try:

@@ -4,19 +4,23 @@ comparison (points, lines, circles, all; EKF and UKF) on the flight feature
 filters (bench/feature_pose.py, docs/FEATURES.md)."""
 from __future__ import annotations
 
+import argparse
 import time
 
+from bench.commands.args import number, one_line_errors
 from bench.report import write_json
 
 
 def register(sub):
-    p = sub.add_parser("pose", help="pose from images (LED campaign) or from image features (seed-001 comparison)")
+    p = sub.add_parser("pose", help="pose from images (LED campaign) or from image features (points, lines, circles)",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops pose")
     p.add_argument("--experiment", choices=["images", "features"], required=True)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--runs", type=int, default=200, help="random poses (each rendered under every condition)")
-    p.add_argument("--distortion-runs", type=int, default=60, help="poses per k1 value in the distortion experiment")
-    p.add_argument("--duration", type=float, default=300.0, help="features: seconds of flight per run (1 s sampling)")
-    p.add_argument("--feature-runs", type=int, default=3, help="features: noise realisations per case")
+    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
+    p.add_argument("--runs", type=number(int, 1, 100000), default=200, help="random poses (each rendered under every condition; 1 to 100000)")
+    p.add_argument("--distortion-runs", type=number(int, 1, 100000), default=60, help="poses per k1 value in the distortion experiment (1 to 100000)")
+    p.add_argument("--duration", type=number(float, 0.0, 86400.0, lo_open=True), default=300.0, help="features: seconds of flight per run (1 s sampling; > 0 to 86400)")
+    p.add_argument("--feature-runs", type=number(int, 1, 1000), default=3, help="features: noise realisations per case (1 to 1000)")
     p.add_argument("--json", default=None)
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)

@@ -10,12 +10,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from bench.commands.args import number, one_line_errors
+
 
 def register(sub):
-    p = sub.add_parser("run", help="the main end-to-end job (make run): HIL docking over a pseudo-terminal")
+    p = sub.add_parser("run", help="the main end-to-end job (make run): HIL docking over a pseudo-terminal",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops run")
     p.add_argument("--report", default="report", help="report folder")
-    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--duration", type=number(float, 0.0, 86400.0, lo_open=True), default=120.0, help="simulated seconds (> 0 to 86400)")
+    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=1)
     p.set_defaults(func=main)
 
 

@@ -2,14 +2,20 @@
 gap diagnoser on drawn null, in-library and out-of-library runs."""
 from __future__ import annotations
 
+import argparse
+
+from bench.commands.args import number, one_line_errors
+
 
 def register(sub):
-    p = sub.add_parser("validate-gap", help="blind validation campaign of the gap diagnoser")
-    p.add_argument("--runs", type=int, default=40)
-    p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("validate-gap", help="blind validation campaign of the gap diagnoser",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops validate-gap")
+    p.add_argument("--runs", type=number(int, 1, 100000), default=40, help="drawn runs (1 to 100000)")
+    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
     p.add_argument("--json", default=None, help="write the scores here (and OUT.prereg.json with the key hashes first)")
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
-    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds of docking per run")
+    p.add_argument("--workers", type=number(int, 1, 1024), default=None, help="processes (1 to 1024; default: all cores)")
+    p.add_argument("--duration", type=number(float, 10.0, 86400.0), default=120.0, help="simulated seconds of docking per run (10 to 86400)")
     p.add_argument("--manoeuvres", default="docking", choices=("docking", "docking+characterisation"),
                    help="what each run flies: docking alone, or docking then a thruster characterisation "
                         "(each valve alone 3 s, then 20 s without firing)")

@@ -1,6 +1,6 @@
-"""Out-of-range, non-finite and nonsensical numeric arguments of `proxops
-hil`, `nav`, `modal` and `thrusters`: one line on stderr naming the
-argument, exit code 2, and the user's output file untouched."""
+"""Out-of-range, non-finite and nonsensical numeric arguments of every
+`proxops` command: one line on stderr naming the argument, exit code 2, and
+the user's output file untouched."""
 from __future__ import annotations
 
 import pytest
@@ -29,6 +29,15 @@ BAD = [
     ("modal", "--range-noise", "1"),
     ("thrusters", "--seeds", "0"),
     ("thrusters", "--samples", "five"),
+    ("diagnose", "--null-runs", "3"),
+    ("validate-gap", "--runs", "0"),
+    ("validate-gap", "--workers", "-2"),
+    ("validate-gap", "--duration", "nan"),
+    ("pose", "--runs", "-1"),
+    ("pose", "--duration", "0"),
+    ("cw-check", "--separation-m", "-5"),
+    ("cw-check", "--altitude-km", "inf"),
+    ("run", "--duration", "-10"),
 ]
 
 
@@ -58,6 +67,9 @@ def test_help_shows_defaults_and_ranges(capsys):
     assert "issue" not in capsys.readouterr().out
     assert cli.main(["thrusters", "--help"]) == 0
     assert "seed 002" not in capsys.readouterr().out
+    for cmd in ("diagnose", "validate-gap", "pose", "cw-check", "run"):
+        assert cli.main([cmd, "--help"]) == 0
+        assert "(default:" in capsys.readouterr().out, cmd
 
 
 def test_ctrl_c_gives_one_line_and_exit_130(monkeypatch, capsys):
