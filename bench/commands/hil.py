@@ -24,7 +24,7 @@ def register(sub):
     one_line_errors(p, "proxops hil")
     prob = number(float, 0.0, 1.0)
     p.add_argument("--scenario", choices=["docking", "plate"], default="docking",
-                   help="docking: navigation at 10 Hz; plate: range images of the seed's plate to the modal estimator")
+                   help="docking: navigation at 10 Hz; plate: range images of the vibrating plate to the modal estimator")
     p.add_argument("--images", type=number(int, 1, 100000), default=120,
                    help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode; 1 to 100000)")
     p.add_argument("--duration", type=number(float, 0.0, 1e6, lo_open=True), default=60.0,

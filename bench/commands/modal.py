@@ -44,7 +44,7 @@ def register(sub):
                    help="image interval [s], > 0 and <= 1e5 (default: structure 60, pendulum 1/15)")
     p.add_argument("--range-noise", type=number(float, 0.0, 1.0, lo_open=True, hi_open=True), default=0.03,
                    metavar="FRAC",
-                   help="structure: range noise as a fraction of the range, in (0, 1) (default 0.03, the seed's)")
+                   help="structure: range noise as a fraction of the range, in (0, 1) (default 0.03, the published experiment's)")
     p.add_argument("--batch-ml-at", type=periods, nargs="+", default=(), metavar="PERIODS",
                    help="structure: also fit the batch maximum-likelihood reference to every coarse estimate up to "
                         "these times [lowest-mode periods] and compare its shape error with the filter's")
@@ -62,7 +62,7 @@ def register(sub):
                    help="structure: the flight search's frequency grid spans +-K a priori sigmas (default 3; the "
                         "a priori sigma is 10 %% of each frequency)")
     p.add_argument("--points-at", choices=["measured", "footprint"], default="measured",
-                   help="structure: evaluate the mode shapes at the measured point (default, the seed's) or where "
+                   help="structure: evaluate the mode shapes at the measured point (default, as published) or where "
                         "the ray meets the undeformed plane")
     p.add_argument("--coarse-check", action="store_true",
                    help="structure: also check every image's coarse amplitudes against the truth with their "
@@ -74,7 +74,7 @@ def register(sub):
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)
 
-    t = sub.add_parser("modal-timing", help="Table I grid: flight code vs numpy vs the seed's figures")
+    t = sub.add_parser("modal-timing", help="timing grid of the modal estimator: flight code vs numpy vs the published figures")
     one_line_errors(t, "proxops modal-timing")
     t.add_argument("--bench-exe", action="append", default=[], metavar="[LABEL=]PATH",
                    help="bench_modal executable (Google Benchmark) for the full flight grid; repeat with labels "
