@@ -70,6 +70,12 @@ def test_help_shows_defaults_and_ranges(capsys):
     for cmd in ("diagnose", "validate-gap", "pose", "cw-check", "run"):
         assert cli.main([cmd, "--help"]) == 0
         assert "(default:" in capsys.readouterr().out, cmd
+    # help speaks of the product, not of the papers it came from
+    for cmd in ("run", "cw-check", "nav", "hil", "modal", "modal-timing", "thrusters", "pose", "diagnose",
+                "validate-gap"):
+        assert cli.main([cmd, "--help"]) == 0
+        text = capsys.readouterr().out.lower()
+        assert "seed's" not in text and "seed 0" not in text and "issue " not in text, cmd
 
 
 def test_ctrl_c_gives_one_line_and_exit_130(monkeypatch, capsys):
