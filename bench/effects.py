@@ -265,6 +265,39 @@ class Realisation:
     lens_k1: float = 0.0  # radial distortion of the camera the pipeline takes for a pinhole
 
 
+def plant_effects(effects, pfx: PlantEffects | None = None) -> tuple:
+    """(PlantEffects, any set): the plant-level physics of ``effects`` (mass
+    depletion, host eccentricity, differential J2 and drag, a flexible mode,
+    fuel slosh); the vehicle's own effects (thrusters, centre of mass) are
+    the caller's."""
+    pfx = pfx if pfx is not None else PlantEffects()
+    e = {k: np.atleast_1d(np.asarray(v, float)) for k, v in effects.items()}
+    on = False
+    if "mass_depletion" in e:
+        pfx.mass_flow_kgps_per_valve = float(e["mass_depletion"][0])
+        on = True
+    if "host_eccentricity" in e:
+        pfx.host_eccentricity, pfx.host_true_anomaly0_rad = (float(x) for x in e["host_eccentricity"])
+        on = True
+    if "differential_j2" in e:
+        pfx.j2 = float(e["differential_j2"][0])
+        on = True
+    if "differential_drag" in e:
+        p = e["differential_drag"]
+        pfx.diff_ballistic_m2pkg = float(p[0])
+        pfx.host_ballistic_m2pkg = float(p[1]) if p.size > 1 else max(0.0, -float(p[0]))
+        if pfx.diff_ballistic_m2pkg + pfx.host_ballistic_m2pkg < 0.0 or pfx.host_ballistic_m2pkg < 0.0:
+            raise ValueError("differential_drag: B_host and B_inspector = dB + B_host must be >= 0")
+        on = True
+    if "flex_mode" in e:
+        pfx.flex_freq_hz, pfx.flex_amplitude_rad = (float(x) for x in e["flex_mode"])
+        on = True
+    if "fuel_slosh" in e:
+        pfx.slosh_mass_kg = float(e["fuel_slosh"][0])
+        on = True
+    return pfx, on
+
+
 def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: int) -> Realisation:
     """Physical settings of plant, vehicle and sensors for ``effects``.
     ``seed`` drives the effects' own randomness (which frames are occluded),
@@ -284,26 +317,8 @@ def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: i
         veh.positions_b_m = veh.positions_b_m - c  # thrust torques about the true centre of mass
         pfx.imu_offset_b_m = -c  # accelerometer at the body origin
         plant_on = True
-    if "mass_depletion" in e:
-        pfx.mass_flow_kgps_per_valve = float(e["mass_depletion"][0])
-        plant_on = True
-    if "host_eccentricity" in e:
-        pfx.host_eccentricity, pfx.host_true_anomaly0_rad = (float(x) for x in e["host_eccentricity"])
-        plant_on = True
-    if "differential_j2" in e:
-        pfx.j2 = float(e["differential_j2"][0])
-        plant_on = True
-    if "differential_drag" in e:
-        pfx.diff_ballistic_m2pkg, pfx.host_ballistic_m2pkg = (float(x) for x in e["differential_drag"])
-        if pfx.diff_ballistic_m2pkg + pfx.host_ballistic_m2pkg < 0.0 or pfx.host_ballistic_m2pkg < 0.0:
-            raise ValueError("differential_drag: B_host and B_inspector = dB + B_host must be >= 0")
-        plant_on = True
-    if "flex_mode" in e:
-        pfx.flex_freq_hz, pfx.flex_amplitude_rad = (float(x) for x in e["flex_mode"])
-        plant_on = True
-    if "fuel_slosh" in e:
-        pfx.slosh_mass_kg = float(e["fuel_slosh"][0])
-        plant_on = True
+    pfx, on = plant_effects(e, pfx)
+    plant_on = plant_on or on
     prof = profile
     if "accel_bias" in e:
         prof = prof.with_(accel_bias_mps2=tuple(np.asarray(prof.accel_bias_mps2) + e["accel_bias"]))

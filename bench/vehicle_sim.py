@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.effects import plant_effects
 from bench.flight_log import FlightLog
 from bench.log_description import resolve
 from bench.plant import Plant, PlantEffects, PlantState, qexp, qlog, qmul, qconj, qnormalize, rotmat
@@ -76,26 +77,8 @@ def _vehicle_with_effects(desc, effects: dict):
         veh.positions_b_m = veh.positions_b_m - c
         pfx.imu_offset_b_m = -c
         on = True
-    if "mass_depletion" in effects:
-        pfx.mass_flow_kgps_per_valve = float(np.atleast_1d(effects["mass_depletion"])[0])
-        on = True
-    if "host_eccentricity" in effects:
-        pfx.host_eccentricity, pfx.host_true_anomaly0_rad = (float(x) for x in effects["host_eccentricity"])
-        on = True
-    if "differential_j2" in effects:
-        pfx.j2 = float(np.atleast_1d(effects["differential_j2"])[0])
-        on = True
-    if "differential_drag" in effects:
-        p = np.atleast_1d(np.asarray(effects["differential_drag"], float))
-        pfx.diff_ballistic_m2pkg = float(p[0])
-        pfx.host_ballistic_m2pkg = float(p[1]) if p.size > 1 else max(0.0, -float(p[0]))
-        on = True
-    if "flex_mode" in effects:
-        pfx.flex_freq_hz, pfx.flex_amplitude_rad = (float(x) for x in effects["flex_mode"])
-        on = True
-    if "fuel_slosh" in effects:
-        pfx.slosh_mass_kg = float(np.atleast_1d(effects["fuel_slosh"])[0])
-        on = True
+    pfx, plant_on = plant_effects(effects, pfx)
+    on = on or plant_on
     return veh, (pfx if on else None)
 
 
