@@ -1,7 +1,9 @@
-"""Relative pose from image features (seed 001): the seed's scenario and its
+"""Relative pose from image features, after the dual-quaternion paper on
+kinematically coupled relative dynamics and feature-based (points, lines,
+circles) pose estimation: the paper's scenario and its
 feature comparison, run on the flight EKF and UKF through the bindings.
 
-Scenario (seed section 5): leader on an orbit with a = 7,200 km, e = 0.02,
+Scenario (the paper's section 5): leader on an orbit with a = 7,200 km, e = 0.02,
 its body held aligned with its orbit frame; follower 500 kg, J = diag(522,
 420, 600) kg m^2, torque free, camera (f = 0.5 m) 1 m off its centre of mass;
 the seed's points D1-D4, lines L1-L4 and circles 1-2 (three imaged points

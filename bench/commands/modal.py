@@ -1,5 +1,7 @@
-"""`proxops modal` and `proxops modal-timing`: the modal estimator (seed 000)
-on the seed's simulation and experiment, and its timing grid (Table I)."""
+"""`proxops modal` and `proxops modal-timing`: the modal estimator on the
+simulation and experiment of "Shape, Motion, and Parameter Estimation of Large
+Flexible Space Structures using Range Images" (Lichter and Dubowsky), and its
+timing grid (that paper's Table I)."""
 from __future__ import annotations
 
 import argparse

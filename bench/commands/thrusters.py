@@ -1,5 +1,6 @@
 """`proxops thrusters`: online thruster learning, BLR (flight code) against
-GPR, on the protocol of seed 002 section 3.4 (see bench/thrusters.py)."""
+GPR, on the protocol of section 3.4 of "Online Dynamic Modeling and Localization
+for Small-Spacecraft Proximity Operations" (Rogers-Marcovitz; bench/thrusters.py)."""
 from __future__ import annotations
 
 import argparse
