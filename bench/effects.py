@@ -208,6 +208,18 @@ EFFECTS = {n: replace(s, max_size=_MAX_SIZE[n], needs_truth=n in _NEEDS_TRUTH, d
                       needs_images=n in _NEEDS_IMAGES)
            for n, s in EFFECTS.items()}
 
+def max_size_for(name: str, envelope_m: float | None = None) -> float:
+    """The largest sensible size of effect ``name`` on a vehicle whose largest
+    dimension is ``envelope_m``: a camera lever arm cannot reach past the
+    vehicle. Without one, the library's size (for the lever arm, 2 m: the
+    bench inspector's docking campaigns, where a lever arm shows only in the
+    error against truth, search that far)."""
+    top = EFFECTS[name].max_size
+    if name == "camera_lever_arm" and envelope_m:
+        return float(min(top, envelope_m))
+    return float(top)
+
+
 # Effects that wait for a part of the bench not yet built (none now: lens
 # distortion joined with the image pipeline).
 PENDING: dict[str, str] = {}

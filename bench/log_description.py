@@ -64,6 +64,11 @@ class Resolved:
     pose_latency_s: float  # known delay of the capture time stamp (subtracted)
     orbit_radius_m: float
     segments: list  # [Segment], empty: found from the data (version 1 rules)
+    # The vehicle's largest dimension: no lever arm on it can be longer.
+    envelope_m: float = 0.0
+    # 1-sigma size of an IMU bias that is not a defect (0: any bias is a gap).
+    accel_bias_stability_mps2: float = 0.0
+    gyro_bias_stability_rps: float = 0.0
     defaults: list = field(default_factory=list)  # "imu.accel_sigma_mps2 = 0.001667 (bench IMU)", ...
 
     @property
@@ -214,7 +219,7 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
         defaults.append(f"{where} = {_short(fallback)} ({why})")
         return fallback
 
-    veh = _obj(desc.get("vehicle"), "vehicle", ("mass_kg", "inertia_kgm2", "com_b_m", "thrusters"))
+    veh = _obj(desc.get("vehicle"), "vehicle", ("mass_kg", "inertia_kgm2", "com_b_m", "thrusters", "envelope_m"))
     cveh = config.get("vehicle") if isinstance(config.get("vehicle"), dict) else {}
     bv = dict(base["vehicle"])
     for k in ("mass_kg", "inertia_kgm2"):  # version 1's config_json, where a log has no description
@@ -232,7 +237,8 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
 
     imu = _obj(desc.get("imu"), "imu", ("rate_hz", "sample", "q_body_imu", "position_b_m", "accel_sigma_mps2",
                                         "gyro_sigma_rps", "accel_noise_density_mps2_rthz",
-                                        "gyro_noise_density_rps_rthz"))
+                                        "gyro_noise_density_rps_rthz", "accel_bias_stability_mps2",
+                                        "gyro_bias_stability_rps"))
     rate = None
     if "rate_hz" in imu:
         rate = _num(imu["rate_hz"], "imu.rate_hz", 0.0, 1e4, strict_lo=True)
@@ -249,6 +255,12 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
     cnoise = config.get("noise") if isinstance(config.get("noise"), dict) else {}
     sig_a = _sigma(imu, cnoise, config, "accel", rate, base["imu"]["accel_sigma_mps2"], defaults)
     sig_g = _sigma(imu, cnoise, config, "gyro", rate, base["imu"]["gyro_sigma_rps"], defaults)
+    bias_a = _num(pick(imu, "accel_bias_stability_mps2", "imu.accel_bias_stability_mps2", 0.0,
+                       "not stated: a constant accelerometer bias of any size is a gap"),
+                  "imu.accel_bias_stability_mps2", 0.0, 1.0)
+    bias_g = _num(pick(imu, "gyro_bias_stability_rps", "imu.gyro_bias_stability_rps", 0.0,
+                       "not stated: a constant gyro bias of any size is a gap"),
+                  "imu.gyro_bias_stability_rps", 0.0, 1.0)
 
     pose = _obj(desc.get("pose_sensor"), "pose_sensor", ("reference_point_b_m", "time_offset_s", "latency_s"))
     pref = _vec(pick(pose, "reference_point_b_m", "pose_sensor.reference_point_b_m", com.tolist(),
@@ -271,12 +283,21 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
         radius = base["orbit"]["radius_m"]
         defaults.append(f"orbit.radius_m = {radius:.0f} (circular, 500 km altitude)")
 
+    if "envelope_m" in veh:
+        envelope = _num(veh["envelope_m"], "vehicle.envelope_m", 0.0, 100.0, strict_lo=True)
+    else:
+        pts = [t.position_b_m for t in thr] + [ipos, pref]
+        envelope = 2.0 * max(float(np.linalg.norm(p)) for p in pts)
+        defaults.append(f"vehicle.envelope_m = {envelope:.3g} (twice the farthest described point from the body "
+                        "origin)")
+
     segs = _segments(desc["segments"], "segments") if "segments" in desc else []
     if "segments" not in desc:
         defaults.append("segments = found from the data (a skipped IMU tick or a break in the pose stream starts a "
                         "run; every run starts at rest; manoeuvres unknown)")
     return Resolved(mass, inertia, com, thr, rate, qbi / np.linalg.norm(qbi), ipos, sig_a, sig_g, pref, toff, lat,
-                    radius, segs, defaults)
+                    radius, segs, envelope_m=envelope, accel_bias_stability_mps2=bias_a,
+                    gyro_bias_stability_rps=bias_g, defaults=defaults)
 
 
 def _sigma(imu: dict, cnoise: dict, config: dict, which: str, rate, fallback: float, defaults: list) -> float:

@@ -127,7 +127,8 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         # The accelerometer sits at rho from the centre of mass (known to the log).
         f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
         acc = (f_imu @ c_ib.T) + ba + desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
-        gyr = (((1.0 + sg) * w_mean) + bg) @ c_ib.T + desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
+        # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
+        gyr = (1.0 + sg) * (w_mean @ c_ib.T) + bg + desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
         keep = np.ones(imu_t.size, bool)
         if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
             keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac

@@ -12,6 +12,8 @@ diagnosis leans on the first vehicle:
     together is a pure force and one alone adds a torque about a second
     axis (x-thrusters turn about z, y about x, z about y). Nozzles are canted
     5 degrees, so no thrust is along an axis; minimum on-time 10 ms;
+  - its largest dimension (the box's diagonal, 0.44 m) stated, so no lever
+    arm longer than that is considered;
   - the centre of mass 3 to 12 mm off the body origin (the geometric
     centre); principal moments of a uniform box with a small product term;
   - a 20 Hz IMU turned 90 degrees about body z, 6 cm from the centre of mass;
@@ -57,10 +59,12 @@ def inspector_12kg() -> dict:
     s = np.sqrt(0.5)
     return {
         "vehicle": {"mass_kg": m, "inertia_kgm2": inertia.round(5).tolist(), "com_b_m": [0.003, -0.005, 0.012],
-                    "thrusters": thrusters},
+                    "thrusters": thrusters, "envelope_m": round(float(np.linalg.norm(2 * half)), 3)},
         "imu": {"rate_hz": 20.0, "sample": "mean", "q_body_imu": [s, 0.0, 0.0, s],
                 "position_b_m": [0.02, 0.03, -0.04],
-                "accel_noise_density_mps2_rthz": 4.0e-4, "gyro_noise_density_rps_rthz": 1.0e-3},
+                "accel_noise_density_mps2_rthz": 4.0e-4, "gyro_noise_density_rps_rthz": 1.0e-3,
+                # Biases calibrated on the ground: any constant bias in flight is a gap.
+                "accel_bias_stability_mps2": 0.0, "gyro_bias_stability_rps": 0.0},
         "pose_sensor": {"reference_point_b_m": [0.0, 0.0, 0.18], "time_offset_s": -0.25, "latency_s": 0.05},
         "orbit": {"altitude_m": 550e3},
     }

@@ -124,16 +124,19 @@ _BUILDERS = {
     "differential_drag": _drag,
 }
 
-def candidates_for(n_thrusters: int = 8) -> dict:
+def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None) -> dict:
     """The candidate models for a vehicle with ``n_thrusters`` valves (the
-    per-valve effects have one parameter, or three, per valve)."""
-    if n_thrusters == 8:
-        return CANDIDATES
-    k = int(n_thrusters)
+    per-valve effects have one parameter, or three, per valve) whose largest
+    dimension is ``envelope_m`` (bounds the camera's lever arm: a camera
+    cannot sit farther from the body origin than the vehicle reaches)."""
     out = dict(CANDIDATES)
-    tl, tm = CANDIDATES["thrust_loss"], CANDIDATES["thruster_misalignment"]
-    out["thrust_loss"] = replace(tl, params=tuple(f"loss_{i} [1]" for i in range(k)))
-    out["thruster_misalignment"] = replace(tm, params=tuple(f"phi_{i}{a} [rad]" for i in range(k) for a in "xyz"))
+    if n_thrusters != 8:
+        k = int(n_thrusters)
+        tl, tm = CANDIDATES["thrust_loss"], CANDIDATES["thruster_misalignment"]
+        out["thrust_loss"] = replace(tl, params=tuple(f"loss_{i} [1]" for i in range(k)))
+        out["thruster_misalignment"] = replace(tm, params=tuple(f"phi_{i}{a} [rad]" for i in range(k) for a in "xyz"))
+    if envelope_m is not None and envelope_m > 0.0:
+        out["camera_lever_arm"] = replace(CANDIDATES["camera_lever_arm"], bound=float(envelope_m))
     return out
 
 

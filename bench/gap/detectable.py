@@ -37,6 +37,8 @@ a quarter of its size.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 POWER = 0.95
@@ -105,7 +107,8 @@ def _next_size(probes: list, lam_req: float) -> float:
 
 
 def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, calibration: dict,
-                        simulate=None, power: float = POWER, then_scripts: list | None = None) -> dict:
+                        simulate=None, power: float = POWER, then_scripts: list | None = None,
+                        max_size: float | None = None) -> dict:
     """The size of effect ``name`` along ``unit_params`` (a draw at size 1)
     that the diagnoser's screen detects with probability ``power`` in the
     run of ``seed`` with the effect at that size. Returns the size and how it
@@ -113,7 +116,9 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
 
     ``simulate(effects, scripts)`` returns (log, scripts): the run closed loop
     (scripts None) or replaying ``scripts`` open loop; ``then_scripts``: a
-    characterisation flown after the docking runs (bench.reality.simulate_runs)."""
+    characterisation flown after the docking runs (bench.reality.simulate_runs);
+    ``max_size``: the largest sensible size on the vehicle flown (default the
+    effect library's, bench.effects.max_size_for)."""
     from bench.effects import EFFECTS
     from bench.gap.attribute import numerical_rank, signature
     from bench.gap.candidates import CANDIDATES
@@ -128,6 +133,8 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
             return log, [r["config"] for r in runs]
 
     spec = EFFECTS[name]
+    if max_size is not None:
+        spec = replace(spec, max_size=float(max_size))
     thr = float(calibration.get("thresholds", {}).get("screen_logp", np.nan))
     if not np.isfinite(thr):
         raise ValueError("the null calibration has no screen_logp threshold (regenerate it: python -m bench.gap.null)")

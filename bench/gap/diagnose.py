@@ -119,7 +119,7 @@ def segment_of(d: LogData, t: np.ndarray) -> np.ndarray:
     return np.searchsorted(d.imu_t[brk], np.asarray(t, float), side="right")
 
 
-def signature_distance(a, b) -> float:
+def signature_distance(a, b, cands: dict | None = None) -> float:
     """|J_a theta_a - J_b theta_b*|^2 on the training rows (screen Jacobians),
     theta_b* the closest fit inside b's physical bounds: how far, in noise
     standard deviations squared, candidate a's fitted signature lies from
@@ -127,8 +127,9 @@ def signature_distance(a, b) -> float:
     Ja, Jb = getattr(a, "J_u", None), getattr(b, "J_u", None)
     if Ja is None or Jb is None or Ja.shape[0] != Jb.shape[0]:
         return float("inf")
-    sa = Ja @ (a.theta / CANDIDATES[a.name].scale)
-    cb = CANDIDATES[b.name]
+    cands = cands or CANDIDATES
+    sa = Ja @ (a.theta / cands[a.name].scale)
+    cb = cands[b.name]
     r = sa - bounded_fit(Jb, sa, cb.lower / cb.scale, cb.bound / cb.scale)
     return float(r @ r)
 
@@ -298,7 +299,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                 # or the best one's fitted signature is one the other reproduces
                 # to within DELTA2_95 (then the Bayes factor between them is only
                 # their priors' Occam factors, not the data).
-                d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]])
+                d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]], d.cands)
                 if dbf < BF_AMBIGUOUS or d2 < DELTA2_95:
                     ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": dbf, "signature_distance2": d2,
                                            "separate_by": f"{best['separate_by']}; {r['separate_by']}"})

@@ -159,7 +159,7 @@ def prepare(log) -> LogData:
                    pose_R=p["R"], pose_tick=p["tick"], pose_start=p["start"], valves=valves, dt_s=dt,
                    n_radps=desc.mean_motion_radps, t_init=float(max(t[0] - dt, p["tc"][0])), truth=truth,
                    config=dict(log.config or {}), desc=desc, imu_seg=imu_seg, pose_align_s=p["align"],
-                   pose_v0_sigma=p["v0"], cands=candidates_for(desc.n_thrusters), dropped=dropped,
+                   pose_v0_sigma=p["v0"], cands=candidates_for(desc.n_thrusters, desc.envelope_m), dropped=dropped,
                    valve_stream=dict(log["valves"]) if log.has("valves") else None)
 
 

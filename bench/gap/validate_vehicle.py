@@ -104,23 +104,25 @@ def draw_campaign(n_runs: int, seed: int) -> list:
 
 def _size_one(arg):
     key, calibration = arg
-    from bench.effects import EFFECTS
+    from bench.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
+    from bench.log_description import resolve
 
     key = dict(key)
     if key["effect"] is None:
         return key
     spec = EFFECTS[key["effect"]]
+    top = max_size_for(key["effect"], resolve(description()).envelope_m)
 
     def sim(effects, scripts=None):
         return simulate_key(key, effects), None
 
-    md = min_detectable_size(key["seed"], key["effect"], key["unit"], 0.0, calibration, simulate=sim)
+    md = min_detectable_size(key["seed"], key["effect"], key["unit"], 0.0, calibration, simulate=sim, max_size=top)
     key["min_detectable"] = md["size"]
     key["detectable"] = md["detectable"]
     key["lambda_at_min_detectable"] = md.get("lambda_at_size")
-    size = key["scale"] * md["size"] if md["detectable"] else spec.max_size
-    size = float(min(size, spec.max_size))
+    size = key["scale"] * md["size"] if md["detectable"] else top
+    size = float(min(size, top))
     key["effects"] = {key["effect"]: [float(x) for x in spec.at(key["unit"], size)]}
     key["size"] = size
     return key

@@ -44,6 +44,9 @@ def test_second_vehicle_resolves_without_defaults_but_segments():
     (("imu", "acel_sigma_mps2"), 0.1, "imu.acel_sigma_mps2: unknown field"),
     (("pose_sensor", "latency_s"), -0.1, "pose_sensor.latency_s: -0.1 must be >= 0.0"),
     (("orbit", "altitude_m"), float("nan"), "orbit.altitude_m: expected a finite number"),
+    (("vehicle", "envelope_m"), 0.0, "vehicle.envelope_m: 0.0 must be > 0.0"),
+    (("imu", "gyro_bias_stability_rps"), -1e-4, "imu.gyro_bias_stability_rps: -0.0001 must be >= 0.0"),
+    (("imu", "accel_bias_stability_mps2"), "small", "imu.accel_bias_stability_mps2: expected a finite number"),
 ])
 def test_bad_field_is_named(path, value, message):
     d = inspector_12kg()
@@ -82,3 +85,33 @@ def test_version1_config_keys_still_read():
     r = resolve(None, {"orbit_radius_m": 7.0e6, "noise": {"accel_sigma_mps2": 0.01}, "vehicle": {"mass_kg": 6.0}})
     assert r.orbit_radius_m == 7.0e6 and r.accel_sigma_mps2 == 0.01 and r.mass_kg == 6.0
     assert not any(x.startswith("vehicle.mass_kg") for x in r.defaults)
+
+
+def test_envelope_defaults_to_the_described_points_and_bounds_the_lever_arm():
+    from bench.gap.candidates import CANDIDATES, candidates_for
+
+    r = resolve(None)  # the bench inspector: thrusters at the corners of a 0.20 m cube
+    assert r.envelope_m == pytest.approx(0.2 * np.sqrt(3.0))
+    assert any(d.startswith("vehicle.envelope_m = 0.346") for d in r.defaults)
+    d = inspector_12kg()
+    assert resolve(d).envelope_m == d["vehicle"]["envelope_m"] == pytest.approx(0.442, abs=1e-3)
+    c = candidates_for(12, resolve(d).envelope_m)
+    assert c["camera_lever_arm"].bound == pytest.approx(0.442, abs=1e-3)
+    assert c["camera_lever_arm"].bound != CANDIDATES["camera_lever_arm"].bound
+    assert c["com_offset"] == CANDIDATES["com_offset"]  # nothing else scaled
+
+
+def test_lever_arm_draws_stay_on_the_vehicle():
+    from bench.effects import EFFECTS, max_size_for
+
+    assert max_size_for("camera_lever_arm", 0.442) == 0.442
+    assert max_size_for("camera_lever_arm", None) == EFFECTS["camera_lever_arm"].max_size
+    assert max_size_for("gyro_bias", 0.442) == EFFECTS["gyro_bias"].max_size
+
+
+def test_bias_stability_is_named_when_not_stated():
+    r = resolve(None)
+    assert r.accel_bias_stability_mps2 == 0.0 and r.gyro_bias_stability_rps == 0.0
+    named = " ".join(r.defaults)
+    assert "imu.accel_bias_stability_mps2 = 0 (not stated" in named
+    assert "imu.gyro_bias_stability_rps = 0 (not stated" in named
