@@ -6,8 +6,8 @@ feature comparison, run on the flight EKF and UKF through the bindings.
 Scenario (the paper's section 5): leader on an orbit with a = 7,200 km, e = 0.02,
 its body held aligned with its orbit frame; follower 500 kg, J = diag(522,
 420, 600) kg m^2, torque free, camera (f = 0.5 m) 1 m off its centre of mass;
-the seed's points D1-D4, lines L1-L4 and circles 1-2 (three imaged points
-each); 1 s sampling; the seed's two initial guesses. The seed leaves out the
+the paper's points D1-D4, lines L1-L4 and circles 1-2 (three imaged points
+each); 1 s sampling; the paper's two initial guesses. The paper leaves out the
 true initial state; ours is stated in TRUTH0 below.
 
 Truth is independent of the flight code: leader and follower are integrated
@@ -28,7 +28,7 @@ MU = 3.986004418e14
 A_M = 7.2e6
 ECC = 0.02
 FOCAL_M = 0.5
-MASS_KG = 500.0  # the seed's follower mass: gravity-only forces, so it cancels
+MASS_KG = 500.0  # the paper's follower mass: gravity-only forces, so it cancels
 INERTIA = np.array([522.0, 420.0, 600.0])
 CAMERA_OFFSET_F_M = np.array([0.3, -0.2, 1.0])   # lens from follower c.m., body frame
 FEATURE_ORIGIN_L_M = np.array([0.0, 0.0, 0.8])   # leader feature frame origin from leader c.m.
@@ -115,7 +115,7 @@ def leader_nu_dot(nu):
 
 def truth0():
     """True initial relative state: the lP origin at [-20, 35, 60] m in the
-    camera, attitude 5.5 deg from the seed's first guess, slow relative rate."""
+    camera, attitude 5.5 deg from the paper's first guess, slow relative rate."""
     q = qexp(np.array([0.03, -0.05, 0.08]))
     R = qrot(q)
     t_c = np.array([-20.0, 35.0, 60.0])
@@ -126,7 +126,7 @@ def truth0():
 
 
 def guess(which):
-    """The seed's initial guesses, its r read as the lP origin in the camera
+    """The paper's initial guesses, its r read as the lP origin in the camera
     frame (the reading that puts the target in front of the lens)."""
     if which == 1:
         q = np.array([1.0, 0.0, 0.0, 0.0])
@@ -360,7 +360,7 @@ def rows_of(case):
 
 
 def comparison(seed, duration_s=300.0, runs=3, ukf=True):
-    """The seed's comparison: every case with the EKF from both guesses, and
+    """The paper's comparison: every case with the EKF from both guesses, and
     the UKF against the EKF on the larger initial error (all features), plus
     the UKF from the first guess. Same truth, the same noise draws per run
     index across cases."""

@@ -1,4 +1,4 @@
-"""Modal-estimator campaigns: the seed's simulation (plate) and experiment
+"""Modal-estimator campaigns: the paper's simulation (plate) and experiment
 (quadruple pendulum), run through the flight code (fsw_bindings).
 
 Per image: the estimator's mode shapes at the measured points -> flight
@@ -113,7 +113,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
                 acquire_with="flight", acquire_grid_sigmas=3.0, ut_alpha=1.0, points_at="measured",
                 coarse_check=False):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
-    uniformly in +-prior_err (the seed assumes it bounded by about 20 %).
+    uniformly in +-prior_err (the paper assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
     reference (bench.modal_batch_ml) is fitted to every coarse estimate so far
     and its shape error compared with the filter's at the same image.

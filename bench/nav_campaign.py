@@ -1,4 +1,5 @@
-"""Seeded Monte Carlo of docking runs and the navigation metrics of issue 3.
+"""Seeded Monte Carlo of docking runs and the navigation metrics
+(docs/perf/nav_campaign.md).
 
 Run i of a campaign with seed S uses the scenario seed S * 1000 + i.
 

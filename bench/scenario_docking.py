@@ -100,7 +100,7 @@ class ScenarioConfig:
     effects: dict | None = None  # EffectSet (bench/effects.py): physics the nominal model leaves out
     # What the filter's predict takes as the specific force during firings:
     # "imu" (the accelerometer) or "blr" (the flight BLR's prediction for the
-    # valve configuration, seed 002 section 3's conclusion). The learner
+    # valve configuration, Rogers-Marcovitz section 3's conclusion). The learner
     # (fsw_bindings.ThrusterBlr, window 30) learns online from the firing
     # steps themselves: accelerometer x dt as the body dv, the gyro's change
     # as dw; it stands in once it holds blr_min_samples samples and where the

@@ -1,8 +1,10 @@
-"""Range images of vibrating structures for the modal estimator (seed 000).
+"""Range images of vibrating structures for the modal estimator (after Lichter and Dubowsky,
+"Shape, Motion, and Parameter Estimation of Large Flexible Space Structures
+using Range Images").
 
 Two documented models:
 
-``Plate`` -- the seed's simulation (section VI.A). A simply supported
+``Plate`` -- the paper's simulation (section VI.A). A simply supported
 rectangular plate, 2000 m x 1732 m (about 2 km across), vibrating out of
 plane. Modes Phi_pq(x, y) = s_pq sin(p pi x / Lx) sin(q pi y / Ly), orthogonal
 on the plate, with plate-bending frequencies
@@ -10,26 +12,26 @@ omega_pq = omega_11 ((p/Lx)^2 + (q/Ly)^2) / ((1/Lx)^2 + (1/Ly)^2); omega_11 is
 set for a first period of 40 min, which puts the 100th mode's period at about
 40 s (37 s here). Energy-normalised: omega_pq^2 s_pq^2 is the same for every
 mode, so a modal coefficient of 1 carries the same elastic energy in every
-mode; s_11 = 25 m (the seed's "amplitude of vibration about 25 m"). Truth:
+mode; s_11 = 25 m (the paper's "amplitude of vibration about 25 m"). Truth:
 A_i(t) = a_i sin(omega_i t + phi_i), a_i ~ U[0, 1], phi_i ~ U[0, 2 pi), no
 damping. One range sensor, 30 x 30 pixels, 80 deg field of view, 600 m
 above the plate centre looking straight down, so it sees about the central
 quarter of the structure; rays that miss the plate return NaN.
 Range noise: Gaussian, 1-sigma 3 % of the range. One image per minute.
 
-``Pendulum`` -- the seed's experiment (section VI.B) as a model. Four equal
+``Pendulum`` -- the paper's experiment (section VI.B) as a model. Four equal
 panels (0.25 m long, 0.30 m wide) hinged in a chain from a fixed top hinge.
 Mode shapes: the horizontal displacement u(s) along the chain of the modes of
 the linearised quadruple pendulum (four equal point masses at the panel ends,
 massless panels), evaluated linearly along each panel. The frequencies and
-damping of the first two modes are set to the seed's 4.31 and 8.68 rad/s,
+damping of the first two modes are set to the paper's 4.31 and 8.68 rad/s,
 0.049 and 0.143 1/s; a third, heavily damped mode (15.5 rad/s, 2.0 1/s, gone
 in under two seconds) is excited too; the fourth is not. Images at 15 Hz:
 600 points per image drawn anew each time over the panels (the sample space
 changes), 5 % of them missing (NaN), range noise 3 mm along the camera axis
 (normal to the panels). The estimator gets mode shapes with an error: each
 hinge-angle mode vector is perturbed by a random vector of 5 % of its norm,
-and mode 3's estimate also leaks 5 % of mode 1 (as the seed observed),
+and mode 3's estimate also leaks 5 % of mode 1 (as the paper observed),
 drawn per trial.
 """
 from __future__ import annotations
@@ -144,7 +146,7 @@ def plate_points(plate: Plate, sensor: RangeSensor, r_meas, d, noise_frac=0.03, 
     """Estimator side: measured points -> (phi (n, M), z (n,), var (n,)).
     Deflection = height of the measured point; its variance is the range
     variance projected on the vertical (eq. 4a inputs). Mode shapes at
-    at = "measured": the measured point (the seed's "points actually seen").
+    at = "measured": the measured point (the paper's "points actually seen").
       Range noise moves it along the ray, so its horizontal position errs
       together with its height (errors in variables): the coarse amplitudes
       of modes symmetric about the view's centre are biased.

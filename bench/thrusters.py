@@ -1,4 +1,6 @@
-"""Online thruster learning on the protocol of seed 002 section 3.4.
+"""Online thruster learning on the protocol of section 3.4 of
+"Online Dynamic Modeling and Localization for Small-Spacecraft Proximity
+Operations" (Rogers-Marcovitz).
 
 Truth (unknown to the learners): the eight valves of bench/vehicle.py
 (20 mN at the corners of a 0.2 m cube, firing along face diagonals, 3 kg)
@@ -33,7 +35,7 @@ Learners, each predicting a sample before it is added (one step ahead):
   * GPR: squared-exponential kernel k = sf^2 exp(-|x1 - x2|^2 / l^2) (eq. 26)
     on the 8 valve states, sliding window of 100, hand-tuned (l, sn^2/sf^2)
     per output kind; Cholesky and triangular solves (Table 2, with the
-    seed's products by L read as solves);
+    paper's products by L read as solves);
   * GPR tuned: the same with (l, sf, sn) per output kind fitted by maximum
     marginal likelihood (scipy.optimize, L-BFGS-B on the logs) over the first
     TUNE_PREFIX samples of the run; before that it uses the hand values.
@@ -241,7 +243,7 @@ class BlrLearner:
 
 
 def se_kernel(a: np.ndarray, b: np.ndarray, length: float) -> np.ndarray:
-    """exp(-|a - b|^2 / l^2) (seed 002 eq. 26), unit signal variance."""
+    """exp(-|a - b|^2 / l^2) (Rogers-Marcovitz eq. 26), unit signal variance."""
     d2 = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * a @ b.T
     return np.exp(-np.maximum(d2, 0.0) / (length * length))
 

@@ -1,4 +1,4 @@
-"""The plate over the link: range images of the seed's vibrating plate
+"""The plate over the link: range images of the paper's vibrating plate
 (bench/structure.py) sent as range_image_segment packets to the flight
 executable behind a pseudo-terminal, its modal estimate back as tm_modal.
 

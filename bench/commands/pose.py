@@ -1,5 +1,5 @@
 """`proxops pose`: the LED pose pipeline's accuracy campaign on rendered
-images (bench/pose_campaign.py, docs/VISION.md), and the seed-001 feature
+images (bench/pose_campaign.py, docs/VISION.md), and the dual-quaternion paper's feature
 comparison (points, lines, circles, all; EKF and UKF) on the flight feature
 filters (bench/feature_pose.py, docs/FEATURES.md)."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Sim-to-real gap diagnosis (issue 5, sections 3 and 4).
+"""Sim-to-real gap diagnosis (docs/GAP.md).
 
 replay     re-runs the flight filter (fsw_bindings.NavUkf) over a log's IMU and
            pose streams with a candidate's corrections applied to the inputs

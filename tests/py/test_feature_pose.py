@@ -1,4 +1,4 @@
-"""Feature navigation (seed 001) through the bindings: the flight dynamics
+"""Feature navigation (docs/FEATURES.md) through the bindings: the flight dynamics
 against the bench's independent inertial truth, the flight models against
 the bench's independent projection, input rejection, and a short seeded run
 of the comparison (combined features best, convergence from both guesses,

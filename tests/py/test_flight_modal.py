@@ -1,5 +1,5 @@
 """The flight app's modal estimator fed by the bench over the link: range
-images of the seed's plate (bench/structure.py: ray-cast, 3 % range noise),
+images of the paper's plate (bench/structure.py: ray-cast, 3 % range noise),
 segmented by hil_sim.packets, into the flight app in-process; tm_modal back.
 Checked against the same decomposition and joint filter called directly."""
 import numpy as np
@@ -49,7 +49,7 @@ def test_range_image_segments_split_and_flag_as_the_link_requires():
 
 
 class _PlateOverLink:
-    """The seed's plate imaged once a minute, each image segmented into the
+    """The paper's plate imaged once a minute, each image segmented into the
     in-process flight app; per image the app's tm_modal and the same image's
     decomposition by the library, and the library's joint filter from the
     model's frequencies (10 % sigma), as the app starts."""

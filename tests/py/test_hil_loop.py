@@ -45,7 +45,7 @@ def test_faulty_link_rejects_every_corrupted_packet_and_keeps_navigating():
     assert sum(res["bench_rejected_by_reason"].values()) > 0
     assert res["faults_up"]["frames_touched"] > 0
     # Bound: twice the clean-link navigation bound of the docking scenario
-    # (0.10 m per axis, issue 3). A 1 % byte loss loses about half of the
+    # (0.10 m per axis, docs/perf/nav_campaign.md). A 1 % byte loss loses about half of the
     # 60-to-90-byte frames, so whole IMU steps and poses go missing.
     e_clean = max(nav_errors(clean["runs"])["max_pos_err_m"])
     e_fault = max(nav_errors(res["runs"])["max_pos_err_m"])
