@@ -34,8 +34,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 from scipy.special import erf
 
-from bench.plant import qexp, qmul, qnormalize, rotmat
-
+from bench.so3 import qexp, qnormalize, quat_from_rotmat, rotmat
 WIDTH, HEIGHT = 640, 480
 FOCAL_PX = 320.0 / np.tan(np.radians(30.0))
 R_BC_DEFAULT = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -84,25 +83,6 @@ class Camera:
         xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
         yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
         return np.column_stack([self.fx_px * xd + self.cx_px, self.fy_px * yd + self.cy_px]), front
-
-
-def quat_from_rotmat(R: np.ndarray) -> np.ndarray:
-    """Rotation matrix -> unit quaternion [w, x, y, z], w >= 0 (Shepperd)."""
-    R = np.asarray(R, float)
-    tr = np.trace(R)
-    if tr > 0:
-        s = 2.0 * np.sqrt(1.0 + tr)
-        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
-        q = [(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s]
-    elif R[1, 1] > R[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
-        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s]
-    else:
-        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
-        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s]
-    return qnormalize(np.array(q))
 
 
 def camera_from_nav(r_hill_m, q_hb, q_h_host, cam: Camera):

@@ -35,7 +35,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.plant import N_RADPS, boxminus, rotmat
+from bench.plant import N_RADPS
+
+from bench.so3 import boxminus, rotmat
 from bench.vehicle import Vehicle, ALL_VALVES
 
 HOST_HALF_SIZE_M = 0.20

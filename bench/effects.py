@@ -23,7 +23,9 @@ from typing import Callable
 
 import numpy as np
 
-from bench.plant import PlantEffects, qexp, rotmat
+from bench.plant import PlantEffects
+
+from bench.so3 import qexp, rotmat
 from bench.sensors import NoiseProfile
 from bench.vehicle import DIRECTIONS_B, N_THRUSTERS, Vehicle
 

@@ -24,6 +24,8 @@ import os
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from bench.so3 import qconj, qexp, qmul, quat_from_rotmat, rotmat
+
 MU = 3.986004418e14
 A_M = 7.2e6
 ECC = 0.02
@@ -56,55 +58,15 @@ CONV_POS_M = 0.1
 CONV_ATT_DEG = 0.1
 
 
-# --------------------------------------------------------------------------- quaternions (scalar first)
-def qmul(a, b):
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
-
-
-def qconj(q):
-    return np.array([q[0], -q[1], -q[2], -q[3]])
-
-
-def qexp(v):
-    th = np.linalg.norm(v)
-    if th < 1e-12:
-        return np.array([1.0, *(0.5 * v)])
-    return np.array([math.cos(th / 2), *(math.sin(th / 2) * v / th)])
-
-
+# --------------------------------------------------------------------------- quaternions (bench/so3.py)
 def qrot(q):
-    """Rotation matrix of q (rotates child vectors into the parent frame)."""
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    """Rotation matrix of q (normalised first; rotates child vectors into the parent frame)."""
+    return rotmat(np.asarray(q, float) / np.linalg.norm(q))
 
 
 def qangle(a, b):
     d = abs(float(np.dot(a, b)) / (np.linalg.norm(a) * np.linalg.norm(b)))
     return 2.0 * math.acos(min(1.0, d))
-
-
-def rot_from_matrix(R):
-    """Scalar-first quaternion of a rotation matrix (Shepperd)."""
-    tr = np.trace(R)
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = math.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k]) * 2
-        q = [0.0] * 4
-        q[0] = (R[k, j] - R[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (R[j, i] + R[i, j]) / s
-        q[1 + k] = (R[k, i] + R[i, k]) / s
-    q = np.array(q)
-    return q if q[0] >= 0 else -q
 
 
 # --------------------------------------------------------------------------- scenario
@@ -179,7 +141,7 @@ def propagate_truth(duration_s, dt_s=1.0, x0=None):
     r_rel, v_rel = x0["r_l_m"], x0["v_l_mps"]
     rf0 = rl0 + C0 @ r_rel
     vf0 = vl0 + C0 @ (v_rel + np.cross(wL0, r_rel))
-    q_il = rot_from_matrix(C0)
+    q_il = quat_from_rotmat(C0)
     q_if0 = qmul(q_il, x0["q_lf"])
     w_f0 = x0["w_fl_f_rps"] + qrot(x0["q_lf"]).T @ wL0
     y0 = np.concatenate([rl0, vl0, rf0, vf0, q_if0, w_f0])
@@ -194,7 +156,7 @@ def propagate_truth(duration_s, dt_s=1.0, x0=None):
         r = C.T @ (y[6:9] - y[0:3])
         v = C.T @ (y[9:12] - y[3:6]) - np.cross(wL, r)
         q_if = y[12:16] / np.linalg.norm(y[12:16])
-        q_lf = qmul(qconj(rot_from_matrix(C)), q_if)
+        q_lf = qmul(qconj(quat_from_rotmat(C)), q_if)
         q_lf = q_lf if q_lf[0] >= 0 else -q_lf
         out["q_lf"].append(q_lf)
         out["r_l_m"].append(r)

@@ -29,6 +29,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from bench.so3 import qexp, qlog, qmul, rotmat  # noqa: E402
+
 
 def _load_bindings():
     d = os.environ.get("PROXOPS_BINDINGS_DIR")
@@ -52,59 +54,22 @@ POS_SIGMA = 0.0375
 ATT_SIGMA = 0.01
 
 
-# --- small scalar-first quaternion helpers for the FilterPy model ----------
-def q_mul(a, b):
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ])
-
-
-def q_exp(phi):
-    th = np.linalg.norm(phi)
-    if th < 1e-9:
-        return np.array([1.0, *(0.5 * phi)])
-    return np.array([np.cos(th / 2), *(np.sin(th / 2) / th * phi)])
-
-
-def q_log(q):
-    if q[0] < 0:
-        q = -q
-    s = np.linalg.norm(q[1:])
-    if s < 1e-12:
-        return 2.0 * q[1:]
-    return 2.0 * np.arctan2(s, q[0]) / s * q[1:]
-
-
-def q_rot(q):
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-
-
 def make_filterpy(n, Q, R, x0, P0):
     from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
     phi = fb.cw_stm(n, DT)
     gam = fb.cw_accel_response(n, DT)
-    hill = q_exp(np.array([0.0, 0.0, -n * DT]))
+    hill = qexp(np.array([0.0, 0.0, -n * DT]))
 
     def fx(x, dt, accel=np.zeros(3), omega=np.zeros(3)):
-        q = q_exp(x[6:9])
+        q = qexp(x[6:9])
         a_mid = accel + 0.5 * dt * np.cross(omega, accel)
-        a_h = q_rot(q) @ a_mid
+        a_h = rotmat(q) @ a_mid
         th = 0.5 * n * dt
         a_h = np.array([a_h[0] + th * a_h[1], a_h[1] - th * a_h[0], a_h[2]])
         out = np.empty(9)
         out[:6] = phi @ x[:6] + gam @ a_h
-        out[6:] = q_log(q_mul(q_mul(hill, q), q_exp(omega * dt)))
+        out[6:] = qlog(qmul(qmul(hill, q), qexp(omega * dt)))
         return out
 
     def hx(x):
@@ -135,7 +100,7 @@ def run(predicts: int, seed: int) -> dict:
     r0 = np.array([0.75, 0.0, 0.0])
     v0 = np.array([0.0, -2.0 * n * 0.75, 0.0])
     phi0 = np.array([0.1, -0.2, 0.3])
-    q0 = q_exp(phi0)
+    q0 = qexp(phi0)
 
     ours = fb.NavUkf(cfg)
     ours.init(0.0, r0, v0, q0, P0)
@@ -164,7 +129,7 @@ def run(predicts: int, seed: int) -> dict:
             e = meas_noise[(k + 1) // 10]
             r_meas = ours.r_hill_m + POS_SIGMA * e[:3]
             q_meas = fb.boxplus(ours.q_hb, ATT_SIGMA * e[3:])
-            z = np.concatenate([r_meas, q_log(q_meas)])
+            z = np.concatenate([r_meas, qlog(q_meas)])
             t0 = clock()
             ours.update_pose(t, r_meas, q_meas, R)
             t1 = clock()

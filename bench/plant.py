@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench import orbit
+from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
 from bench.vehicle import Vehicle
 
 ALTITUDE_M = 500e3
@@ -43,76 +44,9 @@ ORBIT_RADIUS_M = orbit.EARTH_RADIUS + ALTITUDE_M
 N_RADPS = orbit.orbit_rate(ORBIT_RADIUS_M)
 
 
-# --- quaternion helpers (Hamilton, scalar first) ----------------------------
-
-def qmul(p, q):
-    """Hamilton product p (x) q."""
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return np.array(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ]
-    )
-
-
-def qconj(q):
-    return np.array([q[0], -q[1], -q[2], -q[3]])
-
-
-def qnormalize(q):
-    q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q)
-    return q if q[0] >= 0.0 else -q
-
-
-def qexp(phi):
-    """Rotation vector [rad] -> unit quaternion."""
-    phi = np.asarray(phi, dtype=float)
-    a = np.linalg.norm(phi)
-    if a < 1e-8:
-        return qnormalize(np.concatenate([[1.0 - a * a / 8.0], 0.5 * phi]))
-    return np.concatenate([[np.cos(a / 2)], np.sin(a / 2) * phi / a])
-
-
-def qlog(q):
-    """Unit quaternion -> rotation vector [rad], angle in [0, pi]."""
-    q = qnormalize(q)
-    v = q[1:]
-    s = np.linalg.norm(v)
-    if s < 1e-8:
-        return 2.0 * v / q[0]
-    return 2.0 * np.arctan2(s, q[0]) * v / s
-
-
-def boxplus(q, dtheta):
-    """q (x) Exp(dtheta), dtheta in the body frame of q."""
-    return qmul(q, qexp(dtheta))
-
-
-def boxminus(q1, q0):
-    """Log(q0^-1 (x) q1): the body-frame rotation from q0 to q1."""
-    return qlog(qmul(qconj(q0), q1))
-
-
 def cross3(a, b):
     """a x b for 3-vectors; the same arithmetic as np.cross, without its overhead."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def rotmat(q):
-    """3x3 matrix taking body vectors into the frame q points to."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 # --- plant ------------------------------------------------------------------

@@ -79,14 +79,14 @@ def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
     return runs
 
 
-def _clock_rate(effects: EffectSet) -> float:
+def clock_rate(effects: EffectSet) -> float:
     return 1.0 + float(effects["clock_drift"][0]) if "clock_drift" in effects else 1.0
 
 
 def runs_to_log(runs: list, config: dict, clock_rate: float = 1.0, with_truth: bool = True) -> FlightLog:
     """Flight log of chained runs, with the valve stream. With a drifting
     IMU clock every stream is tagged by the flight (IMU) clock."""
-    from hil_sim.report import runs_to_flight_log
+    from bench.flight_log import runs_to_flight_log
 
     if clock_rate != 1.0:
         runs = [dict(r, t=r["t"] * clock_rate) for r in runs]
@@ -137,7 +137,7 @@ def simulate_log_with_key(seed: int, effects: dict | None, duration_s: float = 1
     runs = simulate_runs(seed, eff, duration_s, scenario, scripts, then_scripts)
     cfg = log_config(seed, duration_s, scenario)
     cfg.update(config_extra or {})
-    log = runs_to_log(runs, cfg, _clock_rate(eff), with_truth)
+    log = runs_to_log(runs, cfg, clock_rate(eff), with_truth)
     return log, effect_key(seed, eff, duration_s)
 
 

@@ -58,7 +58,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.controller import APPROACH_AXIS_HILL, ControlDecision, ControllerParams, DockingController, DOCK_HILL_M
-from bench.plant import N_RADPS, Plant, PlantState, boxminus, boxplus, qexp, qnormalize, rotmat
+from bench.plant import N_RADPS, Plant, PlantState
+from bench.so3 import boxminus, boxplus, qexp, qnormalize, rotmat
 from bench.sensors import Imu, NoiseProfile, PoseSensor
 from bench.vehicle import ALL_VALVES, Vehicle
 

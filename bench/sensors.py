@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bench.plant import qexp, qmul, qnormalize, rotmat
+from bench.so3 import qexp, qmul, qnormalize, rotmat
 from bench.vehicle import MASS_KG, THRUST_N
 
 

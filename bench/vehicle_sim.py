@@ -30,9 +30,8 @@ import numpy as np
 from bench.effects import plant_effects
 from bench.flight_log import FlightLog
 from bench.log_description import resolve
-from bench.plant import Plant, PlantEffects, PlantState, qexp, qlog, qmul, qconj, qnormalize, rotmat
-
-
+from bench.plant import Plant, PlantEffects, PlantState
+from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
 @dataclass
 class PlanSegment:
     manoeuvre: str

@@ -1,13 +1,29 @@
 """Sim-to-real gap diagnosis (docs/GAP.md).
 
-replay     re-runs the flight filter (fsw_bindings.NavUkf) over a log's IMU and
-           pose streams with a candidate's corrections applied to the inputs
-null       thresholds from a seeded Monte Carlo of simulated-on-simulated logs
-localise   the gap map: stream, axis, regime, frequency and lag
-candidates parametric models of the in-library effects, as the diagnoser sees them
-attribute  cheap screening of every candidate, confirmation by full fits, ranking
-quantify   train / held-out time blocks, deficit, shrink with bootstrap interval
-report     Markdown page with plots
-diagnose   the whole pipeline on one log (``proxops diagnose``)
-validate   the blind campaign (``proxops validate-gap``)
+In layers, top to bottom (a module imports its own layer or lower ones;
+tests/py/test_architecture.py checks it):
+
+campaigns
+  validate, validate_vehicle, validate_mixtures   blind campaigns (``proxops validate-gap``)
+  detectable, separability, characterise          detection limits, what the data can tell apart
+  bundled, perf_diagnose, results_tables          the bundled run, timing, tables for docs/
+the answer
+  diagnose    the whole pipeline on one log (``proxops diagnose``): verdict, set, shares
+  answers     the answer in words, one text for the command line and the report
+  report      Markdown page with plots
+null calibrations
+  null        the committed thresholds (seeded Monte Carlo of simulated-on-simulated logs)
+  log_null    a calibration made for a log (parametric bootstrap of its own flight)
+  plans       manoeuvre plans the simulated flights fly
+  simlogs     simulated logs of the docking scenario; pool: the campaigns' process pool
+the model
+  detection   the two detection statistics under the nominal model
+  select      several effects at once: forward selection and joint refit
+  attribute   screening of every candidate, confirmation by full fits, Bayes factors
+  localise    the gap map: stream, axis, regime, frequency and lag
+  quantify    train / held-out time blocks, deficit, shrink with bootstrap interval
+  dyn         the dynamics channel: accelerometer and gyro against the valve commands
+  candidates  parametric models of the in-library effects, as the diagnoser sees them
+  replay      re-runs the flight filter (fsw_bindings.NavUkf) over a log's IMU and
+              pose streams with a candidate's corrections applied to the inputs
 """

@@ -37,6 +37,10 @@ def which_text(out: dict) -> str | None:
     v = out["verdict"]
     if v == "unexplained":
         return "unexplained: no effect in the library accounts for the gap on held-out data"
+    if v == "partly_explained":
+        names = " + ".join(m["effect"] for m in out.get("effects") or [])
+        return (f"{names} (partly explained: each accounts for part of the gap on held-out data; "
+                "a remainder no effect in the library accounts for stays)")
     if len(out.get("effects") or []) > 1:
         return " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together)"
     best = out["attribution"][0]
@@ -45,7 +49,7 @@ def which_text(out: dict) -> str | None:
 
 
 def fitted_text(out: dict) -> str | None:
-    if not out["gap_detected"] or out["verdict"] == "unexplained" or not out["attribution"]:
+    if not out["gap_detected"] or out["verdict"] == "unexplained" or not (out["attribution"] or out.get("effects")):
         return None
     members = out.get("effects") or [out["attribution"][0]]
     parts = []
@@ -63,17 +67,27 @@ def how_far_lines(out: dict) -> list:
     if out["verdict"] == "unexplained":
         return ["no shrink to report: no candidate explains the held-out data"]
     es = out.get("effect_set")
-    if es and es.get("explains_heldout"):
+    partly = out["verdict"] == "partly_explained"
+    if es and (es.get("explains_heldout") or partly):
         sh = es["shrink_heldout"]
         lines = []
+        together = "with it" if len(es["members"]) == 1 else f"with all {len(es['members'])} together"
         if sh.get("measurable", True) and _finite(sh.get("fraction")) and _finite(*sh.get("ci95", [None, None])):
             lines.append(f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
-                         f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] with all "
-                         f"{len(es['members'])} together")
+                         f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] {together}")
         for m in es["members"]:
+            if len(es["members"]) == 1:
+                lines.append(f"{m['effect']}: held-out log-likelihood +{m['adds_dll_heldout']:.1f}")
+                continue
             add = f"{100 * m['adds_shrink']:.0f} % of the shrink" if _finite(m.get("adds_shrink")) else "its share"
             lines.append(f"{m['effect']} adds {add} beside the others (held-out log-likelihood "
                          f"+{m['adds_dll_heldout']:.1f})")
+        if partly:
+            rem = es.get("remainder_where") or {}
+            left = (f"{100 * (1 - sh['fraction']):.0f} % of the held-out deficit left; "
+                    if sh.get("measurable", True) and _finite(sh.get("fraction")) else "")
+            lines.append(f"remainder: {left}gap map |z| {es['map_max_abs_z_after']:.1f} after the fit, strongest in "
+                         f"{rem.get('stream')} {rem.get('axis')} ({rem.get('stat')}) while {rem.get('regime_peak')}")
         return lines
     best = out["attribution"][0]
     sh = best["shrink_heldout"]

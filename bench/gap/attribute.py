@@ -24,10 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.gap.candidates import CANDIDATES, Candidate
+from bench.gap.candidates import CANDIDATES, Candidate, candidates_of
 from bench.gap.replay import LogData, replay
 
 BF_AMBIGUOUS = float(np.log(20.0))  # ln Bayes factor below which two candidates are not told apart
+# Two signatures closer than this (in noise variances) are told apart with
+# less than 95 % probability: a one-sided 5 % test either way.
+DELTA2_95 = float((2 * 1.6448536269514722) ** 2)  # 10.82
 
 
 @dataclass
@@ -86,9 +89,9 @@ class Fit:
     after_dyn: np.ndarray | None = None  # (R, 3) dynamics rows with the candidate
 
 
-def _cand(d: LogData, name: str) -> Candidate:
+def candidate(d: LogData, name: str) -> Candidate:
     """Candidate ``name`` sized for the log's vehicle (its number of thrusters)."""
-    return (d.cands or CANDIDATES)[name]
+    return candidates_of(d)[name]
 
 
 def _dyn_jac(ctx: Context, name: str):
@@ -112,7 +115,7 @@ def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
     (finite differences through the filter, closed form on the dynamics
     channel), and the dynamics Jacobian on every row (None without one)."""
     d = ctx.d
-    c = _cand(d, name)
+    c = candidate(d, name)
     e_nav = ctx.nominal.white[ctx.train_nav][rows_ok].ravel()
     n_dyn = int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0
     Jn = np.zeros((e_nav.size, c.n_params))
@@ -215,7 +218,7 @@ def screen(ctx: Context, names=None, progress=None) -> list:
     n_obs = e0.size
     fits = []
     for name in names or CANDIDATES:
-        c = _cand(ctx.d, name)
+        c = candidate(ctx.d, name)
         J, Jd_full = signature(ctx, name, rows_ok, progress)
         rank = numerical_rank(J)
         if rank == 0:
@@ -248,7 +251,7 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
     from scipy.optimize import least_squares
 
     d, nominal = ctx.d, ctx.nominal
-    c: Candidate = _cand(d, fit.name)
+    c: Candidate = candidate(d, fit.name)
     Jd_full = getattr(fit, "Jd_full", None)
     if Jd_full is None:
         Jd_full = _dyn_jac(ctx, fit.name)

@@ -14,10 +14,11 @@ no candidate yet (``NOT_MODELLED``).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 
-from bench.gap.replay import Corrections, LogData
+from bench.gap.replay import Corrections, LogData, rate_derivative
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,6 @@ def _rate_derivative(d: LogData) -> np.ndarray:
     """d(gyro)/dt by central differences within each run (one-sided at its
     ends): a chained log's next run starts from rest, not from the last
     run's final rate. Differences over the time stamps (jitter, dropped samples)."""
-    from bench.gap.replay import _rate_derivative as rate_derivative
 
     seg = getattr(d, "imu_seg", None)
     seg = seg if seg is not None else np.concatenate(
@@ -123,6 +123,18 @@ _BUILDERS = {
     "differential_j2": _j2,
     "differential_drag": _drag,
 }
+
+def candidates_of(d: LogData) -> dict:
+    """The candidate models for the vehicle a prepared log describes."""
+    if d.desc is None:
+        return CANDIDATES
+    return _candidates_cached(int(d.desc.n_thrusters), float(d.desc.envelope_m))
+
+
+@lru_cache(maxsize=16)
+def _candidates_cached(n_thrusters: int, envelope_m: float) -> dict:
+    return candidates_for(n_thrusters, envelope_m)
+
 
 def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None) -> dict:
     """The candidate models for a vehicle with ``n_thrusters`` valves (the

@@ -32,20 +32,9 @@ import sys
 
 import numpy as np
 
-DT_S = 0.1  # control interval of the docking scenario (bench/scenario_docking.py)
-LEAD_S = 2.0  # valves closed until the first pose has initialised navigation
+from bench.gap.plans import scripts_duration_s, single_valve_scripts
+
 RIVAL = {"thruster_misalignment": "thrust_loss", "thrust_loss": "thruster_misalignment"}
-
-
-def single_valve_scripts(fire_s: float = 2.0, coast_s: float = 10.0, lead_s: float = LEAD_S) -> list:
-    """One valve script per valve: closed for lead_s, valve i alone for
-    fire_s, closed for coast_s (configuration k opens valve i when bit i is set)."""
-    n_lead, n_fire, n_coast = (int(round(x / DT_S)) for x in (lead_s, fire_s, coast_s))
-    return [[0] * n_lead + [1 << i] * n_fire + [0] * n_coast for i in range(8)]
-
-
-def scripts_duration_s(scripts: list) -> float:
-    return sum(len(s) for s in scripts) * DT_S
 
 
 def compare(seed: int, effect: str, size: float, fire_s: float, coast_s: float, docking_s: float = 120.0) -> dict:

@@ -62,11 +62,11 @@ def required_noncentrality(k: int, c: float, power: float = POWER) -> float:
     return float(brentq(f, 1e-9, hi, xtol=1e-6))
 
 
-def _residuals(log, ctx_ref=None):
+def residuals_of(log, ctx_ref=None):
     """Whitened training residuals of the nominal model over ``log``, on the
     rows of ``ctx_ref`` (the effect-free run) when given."""
     from bench.gap.attribute import training_residuals
-    from bench.gap.diagnose import context
+    from bench.gap.detection import context
     from bench.gap.replay import prepare
 
     ctx = context(prepare(log))
@@ -85,9 +85,9 @@ def _residuals(log, ctx_ref=None):
 def _cells(ctx) -> dict:
     """The gap map of the nominal pass over ctx's log: {(stream, axis, regime, stat): z}."""
     from bench.gap import localise
-    from bench.gap.diagnose import _map_of
+    from bench.gap.detection import map_cells
 
-    cells = _map_of(ctx.d, ctx.nominal) + localise.dyn_cells(ctx.d, ctx.ch)
+    cells = map_cells(ctx.d, ctx.nominal) + localise.dyn_cells(ctx.d, ctx.ch)
     return {(c["stream"], c["axis"], c["regime"], c["stat"]): c["z"] for c in cells}
 
 
@@ -125,11 +125,11 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
 
     if simulate is None:
         from bench.effects import EffectSet
-        from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
+        from bench.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
         def simulate(eff, scripts=None):
             runs = simulate_runs(seed, eff, duration_s, scripts=scripts, then_scripts=then_scripts)
-            log = runs_to_log(runs, log_config(seed, duration_s), _clock_rate(EffectSet(eff)), with_truth=False)
+            log = runs_to_log(runs, log_config(seed, duration_s), clock_rate(EffectSet(eff)), with_truth=False)
             return log, [r["config"] for r in runs]
 
     spec = EFFECTS[name]
@@ -151,8 +151,8 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
         # difference is the effect's physics on those manoeuvres.
         log1, scripts = simulate({name: spec.at(unit_params, size).tolist()})
         log0, _ = simulate({}, scripts)
-        ctx0, e0, rows_ok = _residuals(log0)
-        ctx1, w, e_dyn = _residuals(log1, ctx0)
+        ctx0, e0, rows_ok = residuals_of(log0)
+        ctx1, w, e_dyn = residuals_of(log1, ctx0)
         s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
         if with_candidate:
             J, _ = signature(ctx0, name, rows_ok)

@@ -21,6 +21,17 @@ Bayes factor among those that explain the held-out data):
                signature to within DELTA2_95 noise variances (the data
                cannot tell the two apart; their Bayes factor is then only
                the priors' Occam factors);
+  explained    (a set) forward selection's set (bench/gap/select.py), refitted
+               jointly, passes the same tests, every member adds more than
+               HELDOUT_DLL_MIN of held-out log-likelihood beside the others,
+               and the set beats the best single answer there by as much;
+  partly_explained
+               no single effect or set explains the gap, but the selected
+               members each earn their place on the held-out data (as above)
+               and contradict no channel, and what is left after their joint
+               fit is still a gap (the gap map above its threshold, or the
+               shrink short of SHRINK_MIN): the members are named with their
+               shares and the remainder is located;
   unexplained  otherwise (nothing in the library accounts for the gap).
 Without a detected gap the verdict is "no_gap".
 """
@@ -31,12 +42,12 @@ import time
 
 import numpy as np
 
-from bench.gap import dyn, localise, null as nullmod, quantify
-from bench.gap.attribute import BF_AMBIGUOUS, Context, Pass, bounded_fit, confirm, screen
-from bench.gap.candidates import CANDIDATES, NOT_MODELLED
-from bench.gap.replay import LogData, prepare, reference, rotmats
-from bench.gap.separability import DELTA2_95
-
+from bench.gap import localise, null as nullmod, quantify
+from bench.gap.attribute import BF_AMBIGUOUS, DELTA2_95, Context, Pass, bounded_fit, confirm, screen
+from bench.gap.candidates import CANDIDATES, NOT_MODELLED, candidates_of
+from bench.gap.detection import detect, map_cells
+from bench.gap.replay import LogData, prepare
+from bench.so3 import rotmats
 HELDOUT_DLL_MIN = 3.0
 SHRINK_MIN = 0.5
 MAP_REMAINDER = 0.1
@@ -77,40 +88,6 @@ class _Progress:
     def close(self):
         if self.enabled:
             print(f"\r  {self.label}: {self.done} replays, {time.time() - self.t0:5.1f} s", file=sys.stderr)
-
-
-def _pass_from(res, d: LogData) -> Pass:
-    m = d.pose_tc.size
-    white = np.full((m, 6), np.nan)
-    nis, ll = np.full(m, np.nan), np.full(m, np.nan)
-    inn = np.full((m, 6), np.nan)
-    white[res.index] = res.whitened()
-    nis[res.index], ll[res.index], inn[res.index] = res.nis, res.loglik, res.innovation
-    return Pass(white, nis, ll, inn, res)
-
-
-def _map_of(d: LogData, p: Pass):
-    ok = np.isfinite(p.nis)
-    res = p.res
-    if res is None:
-        from bench.gap.replay import ReplayResult
-
-        idx = np.flatnonzero(ok)
-        res = ReplayResult(d.pose_tc[idx], idx, p.innovation[idx], np.zeros((idx.size, 6, 6)), p.nis[idx],
-                           p.loglik[idx], np.ones(idx.size, bool))
-    return localise.gap_map(d, res, white=p.white[ok])
-
-
-def context(d: LogData) -> Context:
-    """The nominal pass over a prepared log, its dynamics channel, and the
-    training / held-out split of both channels (even / odd time blocks)."""
-    nominal = _pass_from(reference(d), d)
-    ch = dyn.build(d)
-    edges = quantify.block_edges(d.imu_t[0], d.imu_t[-1])
-    train, held = quantify.split_blocks(d.pose_tc, edges=edges)
-    ok = np.isfinite(nominal.nis)
-    train_dyn, held_dyn = quantify.split_blocks(ch.t, edges=edges) if ch is not None else (None, None)
-    return Context(d, nominal, ch, train & ok, held & ok, train_dyn, held_dyn)
 
 
 def segment_of(d: LogData, t: np.ndarray) -> np.ndarray:
@@ -172,7 +149,7 @@ def heldout_runs_shrink(ctx: Context, name: str) -> dict:
     sh = quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], f.after_nav.nis[held], t_d, q0, q1,
                                   cells=cells, lab_dyn=None if lab is None else lab[hd])
     return {"runs": n_runs, "train_runs": int((n_runs + 1) // 2), "heldout_runs": int(n_runs // 2), **sh,
-            "parameters": {p: float(v) for p, v in zip(d.cands[name].params, f.theta)}}
+            "parameters": {p: float(v) for p, v in zip(candidates_of(d)[name].params, f.theta)}}
 
 
 def diagnose(log, calibration: dict | None = None, progress: bool = False, n_confirm: int = N_CONFIRM,
@@ -199,13 +176,9 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                                         runs=calibration_runs or log_null.DEFAULT_RUNS, progress=progress)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
     prog = _Progress(1 + n_screen, progress)
-    ctx = context(d)
-    prog()
+    det = detect(d, progress=prog)
+    ctx, cells, fits, t_map, t_glr = det.ctx, det.cells, det.fits, det.map_max_abs_z, det.screen_logp_max
     nominal, ch, train, held, held_dyn = ctx.nominal, ctx.ch, ctx.train_nav, ctx.held_nav, ctx.held_dyn
-    cells = _map_of(d, nominal) + localise.dyn_cells(d, ch)
-    t_map = localise.map_statistic(cells)
-    fits = screen(ctx, progress=prog)
-    t_glr = max(f.screen_logp for f in fits)
     thr = cal.get("thresholds", {})
     thr_map, thr_glr = float(thr.get("map_max_abs_z", np.inf)), float(thr.get("screen_logp", np.inf))
     detected = bool(t_map > thr_map or t_glr > thr_glr)
@@ -246,7 +219,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             prog(10)
             sh = held_shrink(f.after_nav, f.after_dyn)
             dll_held = held_dll(f.after_nav, f.after_dyn)
-            cells_after = _map_of(d, f.after_nav) + localise.dyn_cells(d, ch, f.after_dyn)
+            cells_after = map_cells(d, f.after_nav) + localise.dyn_cells(d, ch, f.after_dyn)
             map_after = localise.map_statistic(cells_after)
             # What is left must look like the null, or be a small remainder of a
             # large gap (a first-order candidate model of a large effect).
@@ -263,7 +236,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
             consistent = all(c["z"] >= -Z_CONTRADICT for c in contra.values())
             explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok and consistent
                             and map_after <= max(thr_map, MAP_REMAINDER * t_map))
-            c = d.cands[f.name]
+            c = candidates_of(d)[f.name]
             ranking.append({
                 "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
                                                               "screen_bic": f.screen_bic, "dll_heldout": dll_held},
@@ -299,7 +272,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                 # or the best one's fitted signature is one the other reproduces
                 # to within DELTA2_95 (then the Bayes factor between them is only
                 # their priors' Occam factors, not the data).
-                d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]], d.cands)
+                d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]], candidates_of(d))
                 if dbf < BF_AMBIGUOUS or d2 < DELTA2_95:
                     ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": dbf, "signature_distance2": d2,
                                            "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
@@ -312,10 +285,16 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     effect_set = None
     if detected:
         effect_set = _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels,
-                                 ranking if verdict in ("explained", "ambiguous") else [])
+                                 ranking if verdict in ("explained", "ambiguous") else [],
+                                 one_ok=verdict == "unexplained", null_map=cal.get("null_map_max_abs_z"))
         if effect_set is not None and effect_set["explains_heldout"]:
             verdict = "explained"
             ambiguous_with = []
+        elif verdict == "unexplained" and effect_set is not None:
+            effect_set = _partial_set(effect_set, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll,
+                                      train_channels, cal.get("null_map_max_abs_z"))
+            if effect_set is not None and effect_set["partly_explains"]:
+                verdict = "partly_explained"
 
     summ = localise.summarise(cells, cal.get("null_map_max_abs_z"))
     where = summ["where"]
@@ -339,7 +318,9 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                 or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
     best = ranking[0] if ranking else None
     acts = None
-    is_set = effect_set is not None and effect_set["explains_heldout"]
+    # The set is the answer when it explains the held-out data, or when it
+    # explains part of it (the rest then stays a located remainder).
+    is_set = effect_set is not None and (effect_set["explains_heldout"] or verdict == "partly_explained")
     if verdict in ("explained", "ambiguous"):
         if is_set:
             from bench.gap.select import as_fit
@@ -364,7 +345,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
         "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"],
                      "effect_acts_while": acts},
         "attribution": ranking,
-        "effects": (effect_set["members"] if effect_set is not None and effect_set["explains_heldout"] else
+        "effects": (effect_set["members"] if is_set else
                     ([{"effect": ranking[0]["effect"], "parameters": ranking[0]["parameters"]}]
                      if verdict in ("explained", "ambiguous") else [])),
         "effect_set": effect_set,
@@ -390,21 +371,36 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     return out
 
 
-def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, single: list):
-    """The forward-selected set (two effects or more), jointly refitted and
-    tested on the held-out data like a single candidate; None when the
-    selection stops at one effect."""
+def _partial_set(es: dict, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, null_map):
+    """The set behind a partial answer: the selected members that each earn
+    their place on the held-out data, refitted without the others once."""
+    if es["partly_explains"] or es["explains_heldout"]:
+        return es
+    keep = [st for st, m in zip(es["_steps"], es["members"]) if m["adds_dll_heldout"] > HELDOUT_DLL_MIN]
+    if not keep or len(keep) == len(es["members"]):
+        return es
+    return _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, [],
+                       one_ok=True, null_map=null_map, steps=keep)
+
+
+def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, single: list,
+                one_ok: bool = False, null_map=None, steps: list | None = None):
+    """The forward-selected set, jointly refitted and tested on the held-out
+    data like a single candidate; None when the selection stops at one effect
+    (or at none: ``one_ok`` keeps a set of one, for the partial answer)."""
     from bench.gap import select
 
     d, ch = ctx.d, ctx.ch
-    steps = select.forward_select(ctx, fits, thr_glr)
-    if len(steps) < 2:
+    if steps is None:
+        steps = select.forward_select(ctx, fits, thr_glr)
+    if len(steps) < (1 if one_ok else 2):
         return None
     names = [st["effect"] for st in steps]
     sf = select.confirm_set(ctx, names, fits)
     sh = held_shrink(sf.after_nav, sf.after_dyn)
     dll_h = held_dll(sf.after_nav, sf.after_dyn)
-    map_after = localise.map_statistic(_map_of(d, sf.after_nav) + localise.dyn_cells(d, ch, sf.after_dyn))
+    cells_after = map_cells(d, sf.after_nav) + localise.dyn_cells(d, ch, sf.after_dyn)
+    map_after = localise.map_statistic(cells_after)
     shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
                  or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"])
     consistent = all(c["z"] >= -Z_CONTRADICT for c in train_channels(sf.after_nav, sf.after_dyn).values())
@@ -414,7 +410,7 @@ def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train
         n = st["effect"]
         nav_wo, dyn_wo = select.without(sf, ctx, n)
         sh_wo = held_shrink(nav_wo, dyn_wo)
-        c = d.cands[n]
+        c = candidates_of(d)[n]
         members.append({
             "effect": n, "kind": c.kind, "conditional_logp": st["conditional_logp"],
             "parameters": {p: {"value": float(v), "sigma": float(g)}
@@ -424,12 +420,19 @@ def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train
             "adds_dll_heldout": float(dll_h - held_dll(nav_wo, dyn_wo)),
         })
     needed = all(m["adds_dll_heldout"] > HELDOUT_DLL_MIN for m in members)
-    explains = bool(dll_h > HELDOUT_DLL_MIN and shrink_ok and consistent and needed
-                    and dll_h - best_single > HELDOUT_DLL_MIN and map_after <= max(thr_map, MAP_REMAINDER * t_map))
+    remainder_left = map_after > max(thr_map, MAP_REMAINDER * t_map)
+    explains = bool(len(members) >= 2 and dll_h > HELDOUT_DLL_MIN and shrink_ok and consistent and needed
+                    and dll_h - best_single > HELDOUT_DLL_MIN and not remainder_left)
+    # A partial answer: every member earns its place on the held-out data and
+    # contradicts no channel, and what is left is still a gap.
+    partly = bool(not explains and needed and consistent and dll_h > HELDOUT_DLL_MIN
+                  and (remainder_left or not shrink_ok))
+    rem = localise.summarise(cells_after, null_map)["where"]
     return {"members": members, "shrink_heldout": sh, "dll_heldout": dll_h, "map_max_abs_z_after": map_after,
-            "explains_heldout": explains, "every_member_needed": needed,
+            "explains_heldout": explains, "partly_explains": partly, "every_member_needed": needed,
+            "consistent": bool(consistent), "remainder_where": rem,
             "dll_heldout_gain_over_single": float(dll_h - best_single) if np.isfinite(best_single) else None,
-            "_fit": sf}
+            "_fit": sf, "_steps": steps}
 
 
 MIN_RUN_UPDATES = 10  # fewer fused pose updates than this: a run too short to show a gap

@@ -137,11 +137,9 @@ def stated_biases(description: dict, seed: int) -> dict:
 
 def _one(args):
     log, seed, prepared = args
-    from bench.gap.diagnose import diagnose
+    from bench.gap.detection import null_statistics
 
-    r = diagnose(null_log_like(log, seed, prepared), calibration={}, progress=False, make_calibration=False)
-    return {"seed": int(seed), "map_max_abs_z": r["statistics"]["map_max_abs_z"],
-            "screen_logp": r["statistics"]["screen_logp_max"]}
+    return {"seed": int(seed), **null_statistics(null_log_like(log, seed, prepared))}
 
 
 def default_cache_dir() -> Path:
@@ -151,7 +149,7 @@ def default_cache_dir() -> Path:
 def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: int | None = None,
                       cache_dir=None, progress: bool = True) -> dict:
     """The null calibration for ``log`` (from the cache when it was made before)."""
-    from bench.gap.validate import pool_map
+    from bench.gap.pool import pool_map
 
     prepared = plan_of(log)
     key = fingerprint(log, runs, seed)

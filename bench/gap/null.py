@@ -42,7 +42,7 @@ def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
     """One simulated-on-simulated log: bench.reality without effects when
     available, else the bench's docking scenario."""
     from bench.gap.simlogs import docking_log, reality_available
-    from bench.gap.validate import then_scripts
+    from bench.gap.plans import then_scripts
 
     then = then_scripts({"manoeuvres": manoeuvres})
     if reality_available():
@@ -57,11 +57,9 @@ def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
 
 def _stats_one(args):
     seed, duration_s, manoeuvres = args
-    from bench.gap.diagnose import diagnose
+    from bench.gap.detection import null_statistics
 
-    r = diagnose(null_log(seed, duration_s, manoeuvres), calibration={}, progress=False)
-    return {"seed": seed, "map_max_abs_z": r["statistics"]["map_max_abs_z"],
-            "screen_logp": r["statistics"]["screen_logp_max"]}
+    return {"seed": seed, **null_statistics(null_log(seed, duration_s, manoeuvres))}
 
 
 def _threshold(values: np.ndarray, fa: float) -> float:
@@ -74,7 +72,7 @@ def _threshold(values: np.ndarray, fa: float) -> float:
 
 def calibrate(seeds, duration_s: float = 120.0, workers: int = 1, progress: bool = True,
               manoeuvres: str = "docking") -> dict:
-    from bench.gap.validate import pool_map
+    from bench.gap.pool import pool_map
 
     t0 = time.time()
     rows = pool_map(_stats_one, [(int(s), duration_s, manoeuvres) for s in seeds], workers, progress,

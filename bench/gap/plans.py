@@ -16,8 +16,18 @@ from __future__ import annotations
 import numpy as np
 
 from bench.log_description import resolve
-from bench.plant import qexp, qnormalize
+from bench.so3 import qexp, qnormalize
 from bench.vehicle_sim import PlanSegment
+
+# What a bench-inspector campaign run flies: the docking runs alone, or the
+# docking runs then the thruster characterisation the diagnoser names to
+# separate a nozzle tilt from a thrust loss (each valve alone
+# CHARACTERISATION_FIRE_S, then CHARACTERISATION_COAST_S without firing;
+# python -m bench.gap.characterise compares the two on it).
+MANOEUVRES = ("docking", "docking+characterisation")
+CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S = 3.0, 20.0
+DT_S = 0.1  # control interval of the docking scenario (bench/scenario_docking.py)
+LEAD_S = 2.0  # valves closed until the first pose has initialised navigation
 
 
 def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.0, coast_s: float = 5.0,
@@ -44,3 +54,23 @@ def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.0,
         q0 = qnormalize(qexp(rng.normal(0.0, 0.3, 3)))
         plan.append(PlanSegment("characterisation", t, r0, q0, np.asarray(t_cmd), np.asarray(on).reshape(-1, k)))
     return plan
+
+
+def single_valve_scripts(fire_s: float = 2.0, coast_s: float = 10.0, lead_s: float = LEAD_S) -> list:
+    """The bench inspector's characterisation, one valve script per valve:
+    closed for lead_s, valve i alone for fire_s, closed for coast_s
+    (configuration k opens valve i when bit i is set)."""
+    n_lead, n_fire, n_coast = (int(round(x / DT_S)) for x in (lead_s, fire_s, coast_s))
+    return [[0] * n_lead + [1 << i] * n_fire + [0] * n_coast for i in range(8)]
+
+
+def scripts_duration_s(scripts: list) -> float:
+    return sum(len(s) for s in scripts) * DT_S
+
+
+def then_scripts(key: dict) -> list | None:
+    """The valve scripts flown after the docking runs of a bench-inspector
+    campaign run (``key["manoeuvres"]``)."""
+    if key.get("manoeuvres", "docking") == "docking":
+        return None
+    return single_valve_scripts(CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S)

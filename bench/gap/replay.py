@@ -27,55 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.so3 import qexp_many, qmul_many, rotmats, rotvec_matrix
+
 V0_SIGMA_MPS = 0.003
 ORBIT_RADIUS_DEFAULT_M = 6378137.0 + 500e3
 MU_EARTH = 3.986004418e14
-
-
-# --- vectorised rotation helpers (Hamilton, scalar first) -------------------
-
-def rotmats(q: np.ndarray) -> np.ndarray:
-    """(N, 4) wxyz -> (N, 3, 3) body-to-frame matrices."""
-    q = np.atleast_2d(q)
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    out = np.empty((q.shape[0], 3, 3))
-    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    out[:, 0, 1] = 2 * (x * y - w * z)
-    out[:, 0, 2] = 2 * (x * z + w * y)
-    out[:, 1, 0] = 2 * (x * y + w * z)
-    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    out[:, 1, 2] = 2 * (y * z - w * x)
-    out[:, 2, 0] = 2 * (x * z - w * y)
-    out[:, 2, 1] = 2 * (y * z + w * x)
-    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return out
-
-
-def rotvec_matrix(phi) -> np.ndarray:
-    """Exp(phi) as a 3x3 matrix (Rodrigues)."""
-    phi = np.asarray(phi, float)
-    a = np.linalg.norm(phi)
-    k = np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])
-    if a < 1e-9:
-        return np.eye(3) + k
-    return np.eye(3) + np.sin(a) / a * k + (1 - np.cos(a)) / a**2 * (k @ k)
-
-
-def qmul_many(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    pw, px, py, pz = p.T
-    qw, qx, qy, qz = q.T
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=1)
-
-
-def qexp_many(phi: np.ndarray) -> np.ndarray:
-    a = np.linalg.norm(phi, axis=1)
-    half = 0.5 * a
-    s = np.where(a < 1e-9, 0.5 - a * a / 48.0, np.sin(half) / np.where(a < 1e-9, 1.0, a))
-    q = np.concatenate([np.cos(half)[:, None], s[:, None] * phi], axis=1)
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
 # --- the log in replay form --------------------------------------------------
@@ -106,7 +62,6 @@ class LogData:
     imu_seg: np.ndarray | None = None  # (N,) run (segment) of each IMU sample
     pose_align_s: np.ndarray | None = None  # (M,) IMU tick minus the pose's capture time
     pose_v0_sigma: np.ndarray | None = None  # (M,) initial velocity sigma where a pose starts a run
-    cands: dict | None = None  # the candidate models for this vehicle (bench/gap/candidates.py)
     valve_stream: dict | None = None  # the log's valves stream (open times over any span: open_fractions)
     dropped: dict = field(default_factory=dict)  # samples the replay could not use, and why
 
@@ -136,7 +91,6 @@ def prepare(log) -> LogData:
     point and clock, orbit, vehicle, segments; pose capture times are moved
     to the nearest IMU tick (the flight filter fuses a pose at a stored tick),
     the motion over that shift corrected like a known latency."""
-    from bench.gap.candidates import candidates_for
     from bench.log_description import resolve
 
     desc = resolve(getattr(log, "description", None), log.config)
@@ -159,7 +113,7 @@ def prepare(log) -> LogData:
                    pose_R=p["R"], pose_tick=p["tick"], pose_start=p["start"], valves=valves, dt_s=dt,
                    n_radps=desc.mean_motion_radps, t_init=float(max(t[0] - dt, p["tc"][0])), truth=truth,
                    config=dict(log.config or {}), desc=desc, imu_seg=imu_seg, pose_align_s=p["align"],
-                   pose_v0_sigma=p["v0"], cands=candidates_for(desc.n_thrusters, desc.envelope_m), dropped=dropped,
+                   pose_v0_sigma=p["v0"], dropped=dropped,
                    valve_stream=dict(log["valves"]) if log.has("valves") else None)
 
 
@@ -193,7 +147,7 @@ def _accel_at_com(accel, gyro, t, imu_seg, valves, desc):
         J = np.asarray(veh.inertia_kgm2, float)
         wdot = (valves @ veh.thruster_torques_b_nm() - np.cross(gyro, gyro @ J.T)) @ np.linalg.inv(J).T
     else:
-        wdot = _rate_derivative(gyro, t, imu_seg)
+        wdot = rate_derivative(gyro, t, imu_seg)
     return accel - np.cross(wdot, rho) - np.cross(gyro, np.cross(gyro, rho))
 
 
@@ -260,7 +214,7 @@ def _drop(dropped: dict, why: str, mask) -> None:
         dropped[why] = dropped.get(why, 0) + k
 
 
-def _rate_derivative(gyro: np.ndarray, t: np.ndarray, seg: np.ndarray) -> np.ndarray:
+def rate_derivative(gyro: np.ndarray, t: np.ndarray, seg: np.ndarray) -> np.ndarray:
     """d(gyro)/dt by differences within each run (one-sided at its ends)."""
     out = np.zeros_like(gyro)
     brk = np.flatnonzero(np.diff(seg) != 0) + 1

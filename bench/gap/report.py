@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.gap import localise
+from bench.gap.candidates import candidates_of
 from bench.report import matplotlib_agg
 
 CH = ("r_x", "r_y", "r_z", "th_x", "th_y", "th_z")
@@ -84,11 +85,11 @@ def residual_series(result: dict) -> tuple:
     fit = next(x for x in it["fits"] if x.name == best["effect"]) if best else None
     names = [fit.name] if fit is not None else []
     es = result.get("effect_set")
-    if es and es.get("explains_heldout"):
+    if es and (es.get("explains_heldout") or result["verdict"] == "partly_explained"):
         from bench.gap.select import as_fit
 
         fit, names = as_fit(es["_fit"]), [m["effect"] for m in es["members"]]
-    nav = fit is None or any(d.cands[n].nav for n in names) or ctx.ch is None
+    nav = fit is None or any(candidates_of(d)[n].nav for n in names) or ctx.ch is None
     if nav:
         after = fit.after_nav.white if fit is not None else None
         series = [(f"{CH[i]} (whitened)", d.pose_tc, nominal.white[:, i], None if after is None else after[:, i],

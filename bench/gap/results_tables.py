@@ -22,11 +22,11 @@ def _pct(x) -> str:
 def _answer(a: dict) -> str:
     if not a["gap_detected"]:
         return "no_gap"
-    return "unexplained" if a["verdict"] == "unexplained" else a["top1"]
+    return a["verdict"] if a["verdict"] in ("unexplained", "partly_explained") else a["top1"]
 
 
 def _correct(k: dict, a: dict) -> bool:
-    return bool(a["gap_detected"] and a["verdict"] != "unexplained" and a["top1"] == k["effect"])
+    return bool(a["gap_detected"] and a["verdict"] in ("explained", "ambiguous") and a["top1"] == k["effect"])
 
 
 def scores_table(res: dict) -> str:

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.gap.attribute import Context, Fit, _cand, numerical_rank, run_pass, screen_logp, training_residuals
+from bench.gap.attribute import Context, Fit, candidate, numerical_rank, run_pass, screen_logp, training_residuals
 
 MAX_EFFECTS = 3
 
@@ -47,7 +47,7 @@ class SetFit:
         th = theta or self.theta
         c = Corrections()
         for n in self.names:
-            c = c.add(_cand(d, n).corrections(th[n], d))
+            c = c.add(candidate(d, n).corrections(th[n], d))
         return c
 
 
@@ -65,8 +65,8 @@ def _two_dll(ctx: Context, fits_by: dict, names: list, e0: np.ndarray) -> tuple:
     if not names:
         return 0.0, 0
     J = np.hstack([fits_by[n].J_u for n in names])  # in units of each candidate's scale
-    lo = np.concatenate([np.full(fits_by[n].J_u.shape[1], _cand(ctx.d, n).lower / _cand(ctx.d, n).scale) for n in names])
-    hi = np.concatenate([np.full(fits_by[n].J_u.shape[1], _cand(ctx.d, n).bound / _cand(ctx.d, n).scale) for n in names])
+    lo = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).lower / candidate(ctx.d, n).scale) for n in names])
+    hi = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).bound / candidate(ctx.d, n).scale) for n in names])
     u = _bounded_lstsq(J, -e0, lo, hi)
     r = e0 + J @ u
     return float(e0 @ e0 - r @ r), numerical_rank(J)
@@ -105,7 +105,7 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
 
     d, nominal = ctx.d, ctx.nominal
     fits_by = {f.name: f for f in fits}
-    cands = [_cand(d, n) for n in names]
+    cands = [candidate(d, n) for n in names]
     sizes = [c.n_params for c in cands]
     sc = np.concatenate([np.full(c.n_params, c.scale) for c in cands])
     lb = np.concatenate([np.full(c.n_params, c.lower / c.scale) for c in cands])
@@ -172,7 +172,7 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
 def without(sf: SetFit, ctx: Context, name: str):
     """(after_nav, after_dyn) of the joint fit with ``name``'s parameters at zero."""
     th = np.concatenate([np.zeros_like(sf.theta[n]) if n == name else sf.theta[n] for n in sf.names])
-    any_nav = any(_cand(ctx.d, n).nav for n in sf.names)
+    any_nav = any(candidate(ctx.d, n).nav for n in sf.names)
     nav = run_pass(ctx.d, sf._corr(th)) if any_nav else ctx.nominal
     return nav, sf._dyn_after(th)
 

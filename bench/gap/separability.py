@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-DELTA2_95 = float((2 * 1.6448536269514722) ** 2)  # 10.82: 95 % correct between two hypotheses
+from bench.gap.attribute import DELTA2_95
+from bench.gap.candidates import candidates_of
 
 
 def separability(seed: int, name: str, effects: dict, duration_s: float, in_library: bool,
@@ -36,12 +37,12 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
     of the closed-loop docking runs; ``then_scripts``: fly these after the
     docking runs (bench.reality.simulate_runs)."""
     from bench.effects import EffectSet
-    from bench.reality import _clock_rate, log_config, runs_to_log, simulate_runs
+    from bench.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
     runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts, then_scripts=then_scripts)
     scripts = [r["config"] for r in runs1]
     runs0 = simulate_runs(seed, {}, duration_s, scripts=scripts, then_scripts=then_scripts)
-    log1 = runs_to_log(runs1, log_config(seed, duration_s), _clock_rate(EffectSet(effects)), with_truth=False)
+    log1 = runs_to_log(runs1, log_config(seed, duration_s), clock_rate(EffectSet(effects)), with_truth=False)
     log0 = runs_to_log(runs0, log_config(seed, duration_s), 1.0, with_truth=False)
     return separability_of_logs(log0, log1, name, in_library)
 
@@ -49,22 +50,22 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
 def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
     """delta2 of the effect that makes ``log1`` differ from ``log0`` (the same
     flight and noise without it) against every library candidate."""
-    from bench.gap.attribute import _cand, bounded_fit, signature
-    from bench.gap.detectable import _residuals
+    from bench.gap.attribute import candidate, bounded_fit, signature
+    from bench.gap.detectable import residuals_of
 
-    ctx0, e0, rows_ok = _residuals(log0)
+    ctx0, e0, rows_ok = residuals_of(log0)
     try:
-        _, w, e_dyn = _residuals(log1, ctx0)
+        _, w, e_dyn = residuals_of(log1, ctx0)
     except ValueError:
         return {"delta2": {}, "closest": None, "delta2_min": float("nan"), "note": "run length changed"}
     s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
-    cands = ctx0.d.cands
+    cands = candidates_of(ctx0.d)
     jac = {c: signature(ctx0, c, rows_ok)[0] for c in cands}
 
     def fit(c, v):
         # The data's residual s is removed by the candidate's correction J theta,
         # so the candidate reproduces s as -J theta.
-        return bounded_fit(-jac[c], v, _cand(ctx0.d, c).lower, _cand(ctx0.d, c).bound)
+        return bounded_fit(-jac[c], v, candidate(ctx0.d, c).lower, candidate(ctx0.d, c).bound)
 
     if in_library and name in jac:
         s = fit(name, s)

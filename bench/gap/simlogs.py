@@ -9,7 +9,7 @@ from bench.flight_log import FlightLog
 
 
 def run_to_log(run: dict, dt_s: float = 0.1, config: dict | None = None) -> FlightLog:
-    from hil_sim.report import runs_to_flight_log
+    from bench.flight_log import runs_to_flight_log
 
     cfg = {"orbit_radius_m": 6378137.0 + 500e3, "dt_imu_s": dt_s, "source": "bench docking"}
     cfg.update(config or {})

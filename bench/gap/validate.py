@@ -22,21 +22,18 @@ from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing as mp
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from bench.gap.pool import pool_map
+
+# What each campaign run flies: bench/gap/plans.py.
+from bench.gap.plans import MANOEUVRES, then_scripts
+
 FRACTIONS = {"null": 0.2, "in_library": 0.6, "out_of_library": 0.2}
-# What each campaign run flies: the docking runs alone, or the docking runs
-# then the thruster characterisation the diagnoser names to separate a nozzle
-# tilt from a thrust loss (bench/gap/characterise.py: each valve alone
-# CHARACTERISATION_FIRE_S, then CHARACTERISATION_COAST_S without firing).
-MANOEUVRES = ("docking", "docking+characterisation")
-CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S = 3.0, 20.0
 SCALES = (1.0, 2.0)
 USER_CONFIG_KEYS = ("orbit_radius_m", "dt_imu_s", "accel_sigma_mps2", "gyro_sigma_rps", "pose_period_s", "noise",
                     "vehicle", "gate_chi2")
@@ -46,50 +43,8 @@ SAME_PARAMETERS = ("accel_bias", "gyro_bias", "gyro_scale", "imu_misalignment", 
                    "camera_lever_arm", "com_offset", "thrust_loss", "mass_depletion")
 
 
-def pool_map(fn, items, workers: int, progress: bool, label: str):
-    """map over items with a process pool (fork) and a progress line; keeps order."""
-    items = list(items)
-    out = [None] * len(items)
-    t0 = time.time()
-
-    def show(done):
-        if progress:
-            el = time.time() - t0
-            eta = el / done * (len(items) - done) if done else 0.0
-            print(f"\r  {label}: {done}/{len(items)} runs, {el:6.0f} s elapsed, ~{eta:5.0f} s left",
-                  end="", flush=True, file=sys.stderr)
-
-    if workers <= 1 or len(items) <= 1:
-        for i, it in enumerate(items):
-            out[i] = fn(it)
-            show(i + 1)
-    else:
-        ctx = mp.get_context("fork")
-        with ctx.Pool(workers) as pool:
-            for done, (i, r) in enumerate(pool.imap_unordered(_indexed, [(fn, i, it) for i, it in enumerate(items)]), 1):
-                out[i] = r
-                show(done)
-    if progress:
-        print(file=sys.stderr)
-    return out
-
-
-def _indexed(arg):
-    fn, i, it = arg
-    return i, fn(it)
-
-
 def key_hash(key: dict) -> str:
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
-
-
-def then_scripts(key: dict) -> list | None:
-    """The valve scripts flown after the docking runs of ``key``'s run."""
-    if key.get("manoeuvres", "docking") == "docking":
-        return None
-    from bench.gap.characterise import single_valve_scripts
-
-    return single_valve_scripts(CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S)
 
 
 def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
@@ -238,7 +193,7 @@ def score(keys: list, answers: list) -> dict:
     def label_answer(a):
         if not a["gap_detected"]:
             return "no_gap"
-        return "unexplained" if a["verdict"] == "unexplained" else a["top1"]
+        return a["verdict"] if a["verdict"] in ("unexplained", "partly_explained") else a["top1"]
 
     confusion = {}
     for k in keys:
@@ -268,6 +223,8 @@ def score(keys: list, answers: list) -> dict:
             "unexplained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "unexplained" for a in outl])),
             "not_detected_rate": float(np.mean([not a["gap_detected"] for a in outl])),
             "confident_misattribution_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "explained" for a in outl])),
+            "partly_explained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "partly_explained"
+                                                    for a in outl])),
         }
     by_scale = {}
     for s in SCALES:
@@ -276,7 +233,7 @@ def score(keys: list, answers: list) -> dict:
             by_scale[f"{s:g}x"] = {
                 "n": len(sel),
                 "detection": float(np.mean([a["gap_detected"] for _, a in sel])),
-                "top1": float(np.mean([a["gap_detected"] and a["verdict"] != "unexplained" and a["top1"] == k["effect"]
+                "top1": float(np.mean([a["gap_detected"] and a["verdict"] in ("explained", "ambiguous") and a["top1"] == k["effect"]
                                        for k, a in sel])),
             }
     res["in_library_by_scale"] = by_scale
@@ -291,7 +248,7 @@ def score(keys: list, answers: list) -> dict:
         if sel or nsel:
             sep_scale[f"{s:g}x"] = {
                 "n_separable": len(sel), "n_not_separable": len(nsel),
-                "top1_separable": float(np.mean([a["gap_detected"] and a["verdict"] != "unexplained"
+                "top1_separable": float(np.mean([a["gap_detected"] and a["verdict"] in ("explained", "ambiguous")
                                                  and a["top1"] == k["effect"] for k, a in sel])) if sel else None,
                 "not_separable_by_effect": {e: sum(1 for k, _ in nsel if k["effect"] == e)
                                             for e in sorted({k["effect"] for k, _ in nsel})},
@@ -305,7 +262,7 @@ def score(keys: list, answers: list) -> dict:
         c = e.setdefault(f"{k['scale']:g}x", {"n": 0, "detected": 0, "top1": 0})
         c["n"] += 1
         c["detected"] += int(a["gap_detected"])
-        c["top1"] += int(a["gap_detected"] and a["verdict"] != "unexplained" and a["top1"] == k["effect"])
+        c["top1"] += int(a["gap_detected"] and a["verdict"] in ("explained", "ambiguous") and a["top1"] == k["effect"])
     res["in_library_by_effect"] = per_effect
     # Shrink is scored where the held-out deficit stands out of its null spread.
     true_sh = [a["true_fit"]["shrink"] for _, a in inl if "true_fit" in a and a["true_fit"].get("measurable")]

@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.gap.validate import SCALES, blind, key_hash, pool_map
+from bench.gap.pool import pool_map
+from bench.gap.validate import SCALES, blind, key_hash
 
 KINDS = ("pair", "triple", "in+out")
 
@@ -122,7 +123,9 @@ def score_mixtures(keys: list, answers: list) -> dict:
                 exact.append(named == truth_in and a["verdict"] != "unexplained")
                 real.append(named <= set(k["members"]))
                 if kind == "in+out":
-                    remainder.append(a["gap_detected"] and a["verdict"] == "unexplained")
+                    # the out-of-library part left as a remainder, with or
+                    # without the in-library part named beside it
+                    remainder.append(a["gap_detected"] and a["verdict"] in ("unexplained", "partly_explained"))
             res["by_kind_scale"][f"{kind} {s:g}x"] = {
                 "n": len(sel), "exact_set": float(np.mean(exact)), "named_are_real": float(np.mean(real)),
                 **({"out_of_library_left_unexplained": float(np.mean(remainder))} if remainder else {})}

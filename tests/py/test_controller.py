@@ -4,7 +4,8 @@ import numpy as np
 from scipy.optimize import linprog
 
 from bench.controller import DOCK_HILL_M, ControllerParams, DockingController
-from bench.plant import N_RADPS, rotmat
+from bench.plant import N_RADPS
+from bench.so3 import rotmat
 from bench.scenario_docking import ScenarioConfig, run_docking
 from bench.vehicle import ALL_VALVES, Vehicle, config_valves
 

@@ -10,7 +10,8 @@ from scipy.integrate import solve_ivp
 
 from bench import orbit
 from bench.effects import EFFECTS, PENDING, EffectSet, canonical, realise, true_anomaly_after
-from bench.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantEffects, PlantState, boxminus, qexp, rotmat
+from bench.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantEffects, PlantState
+from bench.so3 import boxminus, qexp, rotmat
 from bench.scenario_docking import ScenarioConfig, run_docking
 from bench.sensors import Imu, NoiseProfile
 from bench.vehicle import DIRECTIONS_B, POSITIONS_B_M, Vehicle

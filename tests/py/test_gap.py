@@ -225,7 +225,8 @@ def test_a_nozzle_tilt_in_a_docking_run_is_not_separable_from_thrust_loss():
 
 
 def test_single_valve_characterisation_separates_thrust_loss_that_docking_cannot():
-    from bench.gap.characterise import compare, single_valve_scripts
+    from bench.gap.characterise import compare
+    from bench.gap.plans import single_valve_scripts
     from bench.gap.separability import DELTA2_95
 
     scripts = single_valve_scripts(fire_s=3.0, coast_s=20.0)
@@ -320,7 +321,7 @@ def test_half_cauchy_prior_doubles_the_density_and_a_parameter_held_at_zero_keep
 
 
 def test_a_characterisation_flown_after_docking_is_replayed_run_for_run():
-    from bench.gap.characterise import single_valve_scripts
+    from bench.gap.plans import single_valve_scripts
 
     then = single_valve_scripts(fire_s=1.0, coast_s=2.0)
     runs = reality.simulate_runs(12, {"thrust_loss": [0.0, 0.1, 0, 0, 0, 0, 0, 0]}, 20.0, then_scripts=then)
@@ -383,8 +384,8 @@ def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
     # Each single-valve run ends spinning; the next starts at rest. The
     # candidate must turn a run's last pose by that run's rate.
     from bench.gap.attribute import signature
-    from bench.gap.characterise import single_valve_scripts
-    from bench.gap.detectable import _residuals
+    from bench.gap.plans import single_valve_scripts
+    from bench.gap.detectable import residuals_of
 
     then = single_valve_scripts(fire_s=3.0, coast_s=6.0)
     tau = 0.1
@@ -392,8 +393,8 @@ def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
     scripts = [r["config"] for r in runs1]
     runs0 = reality.simulate_runs(4, {}, 30.0, scripts=scripts, then_scripts=then)
     cfg = reality.log_config(4, 30.0)
-    ctx0, e0, rows_ok = _residuals(reality.runs_to_log(runs0, cfg, 1.0, with_truth=False))
-    _, w, e_dyn = _residuals(reality.runs_to_log(runs1, cfg, 1.0, with_truth=False), ctx0)
+    ctx0, e0, rows_ok = residuals_of(reality.runs_to_log(runs0, cfg, 1.0, with_truth=False))
+    _, w, e_dyn = residuals_of(reality.runs_to_log(runs1, cfg, 1.0, with_truth=False), ctx0)
     s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0  # the effect's whitened signature
     J = signature(ctx0, "camera_latency", rows_ok)[0]
     theta = np.linalg.lstsq(-J, s, rcond=None)[0]

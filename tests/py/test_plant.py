@@ -5,8 +5,8 @@ import pytest
 from scipy.linalg import expm
 
 from bench import orbit
-from bench.plant import (N_RADPS, ORBIT_RADIUS_M, Plant, PlantState, boxminus, qexp, qmul, qnormalize,
-                         rotmat)
+from bench.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantState
+from bench.so3 import boxminus, qexp, qmul, qnormalize, rotmat
 from bench.vehicle import Vehicle
 
 N = N_RADPS

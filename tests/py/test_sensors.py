@@ -2,7 +2,7 @@
 the body-frame attitude-noise convention and the reported covariance."""
 import numpy as np
 
-from bench.plant import boxminus, qexp, qmul, qnormalize
+from bench.so3 import boxminus, qexp, qmul, qnormalize
 from bench.sensors import Imu, NoiseProfile, PoseSensor
 
 

@@ -9,7 +9,7 @@ if not hasattr(fb, "LedPoseEstimator"):
 
 from bench import camera as cm  # noqa: E402
 from bench import pose_campaign as pc  # noqa: E402
-from bench.plant import qexp, qmul  # noqa: E402
+from bench.so3 import qexp, qmul  # noqa: E402
 
 
 @pytest.fixture(scope="module")
