@@ -25,7 +25,7 @@ def register(sub):
                         "its own clock (--duration and --manoeuvres do not apply)")
     p.add_argument("--mixtures", action="store_true",
                    help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
-                        "out-of-library), each at 1x or 2x its own minimum detectable size (docking logs)")
+                        "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)")
     p.set_defaults(func=main)
 
 
@@ -37,12 +37,13 @@ def main(args):
     if args.mixtures:
         from bench.gap import validate_mixtures
 
-        res = validate_mixtures.run_campaign(args.runs, args.seed, args.json, workers, args.duration)
+        res = validate_mixtures.run_campaign(args.runs, args.seed, args.json, workers, args.duration,
+                                             manoeuvres=args.manoeuvres)
         if args.json:
             write_json(args.json, res, strict=True)
         print(f"mixture runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {workers} workers)")
         for k, v in res["by_kind_scale"].items():
-            extra = (f", out-of-library left unexplained {v['out_of_library_left_unexplained']:.2f}"
+            extra = (f", out-of-library left as a remainder {v['out_of_library_left_unexplained']:.2f}"
                      if "out_of_library_left_unexplained" in v else "")
             print(f"{k}: exact set {v['exact_set']:.2f}, named are real {v['named_are_real']:.2f}{extra} (n = {v['n']})")
         print(f"held-out shrink of the true set refitted jointly: median {res['true_set_shrink_median']} "

@@ -42,7 +42,9 @@ def which_text(out: dict) -> str | None:
         return (f"{names} (partly explained: each accounts for part of the gap on held-out data; "
                 "a remainder no effect in the library accounts for stays)")
     if len(out.get("effects") or []) > 1:
-        return " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together)"
+        alts = "; ".join(f"{a['replace']} cannot be told from {a['with']}" for a in out.get("ambiguous_with", [])
+                         if "replace" in a)
+        return " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together" + (f"; {alts}" if alts else "") + ")"
     best = out["attribution"][0]
     amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []))
     return f"{best['effect']} ({v}" + (f"; cannot be told apart from {amb}" if amb else "") + ")"

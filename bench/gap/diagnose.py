@@ -288,8 +288,18 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                                  ranking if verdict in ("explained", "ambiguous") else [],
                                  one_ok=verdict == "unexplained", null_map=cal.get("null_map_max_abs_z"))
         if effect_set is not None and effect_set["explains_heldout"]:
+            from bench.gap.select import look_alike_sets
+
             verdict = "explained"
-            ambiguous_with = []
+            names = [m["effect"] for m in effect_set["members"]]
+            cands = candidates_of(d)
+            # A set the data cannot tell from this one (one member swapped for
+            # a look-alike that reproduces the set's signature): ambiguous.
+            ambiguous_with = [{"set": [a["with"] if n == a["replace"] else n for n in names], **a,
+                               "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}"}
+                              for a in look_alike_sets(ctx, fits, names, DELTA2_95)]
+            if ambiguous_with:
+                verdict = "ambiguous"
         elif verdict == "unexplained" and effect_set is not None:
             effect_set = _partial_set(effect_set, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll,
                                       train_channels, cal.get("null_map_max_abs_z"))

@@ -145,6 +145,11 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     if result["ambiguous_with"]:
         lines += ["### Not told apart", ""]
         for a in result["ambiguous_with"]:
+            if "replace" in a:  # a set with one member swapped for a look-alike
+                lines.append(f"- {' + '.join(a['set'])}: {a['with']} in place of {a['replace']} reproduces the set's "
+                             f"fitted signature to within {a['signature_distance2']:.1f} noise variances: "
+                             f"separate with: {a['separate_by']}")
+                continue
             lines.append(f"- {best['effect']} vs {a['effect']} (ln Bayes factor difference {a['ln_bf_difference']:.1f}; "
                          f"{a['effect']} reproduces {best['effect']}'s fitted signature to within "
                          f"{a['signature_distance2']:.1f} noise variances): "

@@ -60,16 +60,48 @@ def _bounded_lstsq(J: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray)
     return lsq_linear(J, y, bounds=(lo, hi)).x
 
 
+def _stacked(ctx: Context, fits_by: dict, names: list) -> tuple:
+    """(J, lower, upper) of the names' stacked screening Jacobians, in units
+    of each candidate's scale."""
+    J = np.hstack([fits_by[n].J_u for n in names])
+    lo = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).lower / candidate(ctx.d, n).scale) for n in names])
+    hi = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).bound / candidate(ctx.d, n).scale) for n in names])
+    return J, lo, hi
+
+
 def _two_dll(ctx: Context, fits_by: dict, names: list, e0: np.ndarray) -> tuple:
     """(2 dLL, rank) of the names' stacked screening Jacobians on e0."""
     if not names:
         return 0.0, 0
-    J = np.hstack([fits_by[n].J_u for n in names])  # in units of each candidate's scale
-    lo = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).lower / candidate(ctx.d, n).scale) for n in names])
-    hi = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).bound / candidate(ctx.d, n).scale) for n in names])
+    J, lo, hi = _stacked(ctx, fits_by, names)
     u = _bounded_lstsq(J, -e0, lo, hi)
     r = e0 + J @ u
     return float(e0 @ e0 - r @ r), numerical_rank(J)
+
+
+def look_alike_sets(ctx: Context, fits: list, names: list, delta2: float) -> list:
+    """The sets that differ from ``names`` by one member and reproduce the
+    set's fitted signature on the training rows to within ``delta2`` noise
+    variances (inside their physical bounds): sets the data cannot tell
+    from the chosen one. [{"replace", "with", "signature_distance2"}]."""
+    fits_by = {f.name: f for f in fits if getattr(f, "J_u", None) is not None and np.isfinite(f.screen_bic)}
+    if not all(n in fits_by for n in names):
+        return []
+    e0, _ = training_residuals(ctx)
+    J, lo, hi = _stacked(ctx, fits_by, names)
+    sig = J @ _bounded_lstsq(J, -e0, lo, hi)
+    out = []
+    for m in names:
+        for c in fits_by:
+            if c in names:
+                continue
+            alt = [c if n == m else n for n in names]
+            Ja, la, ha = _stacked(ctx, fits_by, alt)
+            r = sig - Ja @ _bounded_lstsq(Ja, sig, la, ha)
+            d2 = float(r @ r)
+            if d2 < delta2:
+                out.append({"replace": m, "with": c, "signature_distance2": d2})
+    return sorted(out, key=lambda a: a["signature_distance2"])
 
 
 def forward_select(ctx: Context, fits: list, threshold_logp: float, max_effects: int = MAX_EFFECTS) -> list:

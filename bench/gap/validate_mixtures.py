@@ -27,12 +27,13 @@ from pathlib import Path
 import numpy as np
 
 from bench.gap.pool import pool_map
+from bench.gap.plans import then_scripts
 from bench.gap.validate import SCALES, blind, key_hash
 
 KINDS = ("pair", "triple", "in+out")
 
 
-def draw_mixtures(n_runs: int, seed: int) -> list:
+def draw_mixtures(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     from bench.effects import EFFECTS
 
     rng = np.random.default_rng(seed)
@@ -53,6 +54,8 @@ def draw_mixtures(n_runs: int, seed: int) -> list:
                      "scale": scale, "members": [str(e) for e in effs],
                      "units": {str(e): [float(x) for x in EFFECTS[e].draw_fn(rng, 1.0)] for e in effs},
                      "effects": {}})
+    if manoeuvres != "docking":  # (docking keys hash as they did before manoeuvres were a choice)
+        keys = [dict(k, manoeuvres=manoeuvres) for k in keys]
     order = rng.permutation(n_runs)
     keys = [dict(keys[i], run=r) for r, i in enumerate(order)]
     return keys
@@ -67,7 +70,8 @@ def _size_one(arg):
     key["min_detectable"], key["effects"] = {}, {}
     for e in key["members"]:
         spec = EFFECTS[e]
-        md = min_detectable_size(key["seed"], e, key["units"][e], duration_s, calibration)
+        md = min_detectable_size(key["seed"], e, key["units"][e], duration_s, calibration,
+                                 then_scripts=then_scripts(key))
         size = key["scale"] * md["size"] if md["detectable"] else spec.max_size
         size = float(min(size, spec.max_size))
         key["min_detectable"][e] = md["size"] if md["detectable"] else None
@@ -85,7 +89,8 @@ def _run_one(arg):
     from bench.gap.diagnose import diagnose, public
     from bench.reality import simulate_log_with_key
 
-    log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False)
+    log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,
+                                   then_scripts=then_scripts(key))
     res = diagnose(blind(log), calibration=calibration)
     pub = public(res)
     named = [m["effect"] for m in pub["effects"]] if pub["gap_detected"] else []
@@ -138,13 +143,13 @@ def score_mixtures(keys: list, answers: list) -> dict:
 
 
 def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration_s: float = 120.0,
-                 progress: bool = True) -> dict:
+                 progress: bool = True, manoeuvres: str = "docking") -> dict:
     from bench.gap import null as nullmod
 
-    cal = nullmod.load()
+    cal = nullmod.load(manoeuvres=manoeuvres)
     t0 = time.time()
-    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_mixtures(n_runs, seed)], workers, progress,
-                    "minimum detectable sizes")
+    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_mixtures(n_runs, seed, manoeuvres)], workers,
+                    progress, "minimum detectable sizes")
     hashes = [key_hash(k) for k in keys]
     if out:
         Path(str(out) + ".prereg.json").write_text(json.dumps({"seed": seed, "runs": n_runs, "mixtures": True,
@@ -155,5 +160,7 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration
     res = score_mixtures(keys, answers)
     res.update({"seed": seed, "duration_s": duration_s, "workers": workers, "elapsed_s": time.time() - t0,
                 "keys_match_preregistration": True, "keys": keys, "answers": answers,
-                "command": f"proxops validate-gap --mixtures --runs {n_runs} --seed {seed}"})
+                "manoeuvres": manoeuvres,
+                "command": f"proxops validate-gap --mixtures --runs {n_runs} --seed {seed}"
+                           + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})
     return res

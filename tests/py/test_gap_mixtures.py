@@ -44,3 +44,30 @@ def test_one_effect_stays_one():
     r = _answer(77, {"accel_bias": [8e-4, -6e-4, 4e-4]})
     assert [m["effect"] for m in r["effects"]] == ["accel_bias"]
     assert r["effect_set"] is None or not r["effect_set"]["explains_heldout"]
+
+
+def test_in_library_member_named_beside_an_out_of_library_remainder():
+    """A gyro bias with LED occlusion (no candidate models it): the bias is
+    named with its share, the rest stays a located remainder; the occlusion
+    alone stays unexplained (no member earns its place on held-out data).
+    Sizes: twice each effect's minimum detectable size in this run (the
+    mixture campaign's seed 2050, run 8)."""
+    from bench.gap.answers import answer_lines
+
+    bias = [0.0007124016836770431, 0.002469201257574553, 0.0016032926799609988]
+    occlusion = [0.09241244798485126, 0.4841359245542046]
+    r = _answer(895331565, {"gyro_bias": bias, "led_occlusion": occlusion})
+    assert r["verdict"] == "partly_explained"
+    assert [m["effect"] for m in r["effects"]] == ["gyro_bias"]
+    es = r["effect_set"]
+    assert es["partly_explains"] and not es["explains_heldout"]
+    assert es["members"][0]["adds_dll_heldout"] > 3.0
+    assert es["remainder_where"]["stream"].startswith("pose")  # occlusion biases the measured position
+    fitted = np.array([v["value"] for v in r["effects"][0]["parameters"].values()])
+    sig = np.array([v["sigma"] for v in r["effects"][0]["parameters"].values()])
+    assert np.all(np.abs(fitted - bias) < 4 * sig + 2e-4)
+    text = "\n".join(t for _, t in answer_lines(r))
+    assert "gyro_bias (partly explained" in text and "remainder:" in text
+
+    alone = _answer(895331565, {"led_occlusion": occlusion})
+    assert alone["gap_detected"] and alone["verdict"] == "unexplained" and alone["effects"] == []
