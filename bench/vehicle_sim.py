@@ -189,9 +189,11 @@ def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: 
     ``latency`` before their stamp)."""
     n = desc.mean_motion_radps
     q0 = qnormalize(np.asarray(seg.q0_hb, float))
-    w0 = rotmat(q0).T @ np.array([0.0, 0.0, n])  # at rest in the Hill frame
     plant = Plant(PlantState(t0, np.asarray(seg.r0_hill_m, float).copy(), np.asarray(seg.v0_hill_mps, float).copy(),
-                             q0, w0), vehicle=veh, radius_m=desc.orbit_radius_m, effects=pfx)
+                             q0, np.zeros(3)), vehicle=veh, radius_m=desc.orbit_radius_m, effects=pfx)
+    # At rest in the Hill frame: the body turns with it, at theta_dot (n unless the host's orbit is eccentric).
+    thd = plant._host(t0)[2] if pfx is not None and pfx.host_eccentricity > 0.0 else n
+    plant.state.omega_bi_b_rps = rotmat(q0).T @ np.array([0.0, 0.0, thd])
     t_end = t0 + seg.duration_s
     if times is not None:
         imu_t = np.asarray(times["imu_t"], float)
