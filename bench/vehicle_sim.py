@@ -107,7 +107,8 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
     if "imu_misalignment" in effects:
         c_ib = rotmat(qexp(effects["imu_misalignment"])).T @ c_ib
     rho = desc.imu_position_b_m - desc.com_b_m  # known lever arm of the accelerometer
-    pref = desc.pose_reference_b_m - desc.com_b_m
+    # The reference point is fixed in B; the truth is the true centre of mass (a centre-of-mass offset moves it).
+    pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
     lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
     latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
     ba = np.asarray(effects.get("accel_bias", np.zeros(3)), float)
