@@ -2,7 +2,8 @@
 
 Floats are written with their shortest exact representation (NaN and
 infinities as JSON's NaN / Infinity), numpy arrays as their raw bytes in
-base64 with dtype and shape, numpy scalars as Python numbers, tuples as
+base64 with dtype and shape, numpy scalars as Python numbers, dataclasses
+as dicts, dicts with keys other than strings as key-value pairs, tuples as
 lists. A result is passed through ``roundtrip`` whether it was just computed
 or read from the store, so a summary sees the same values either way.
 """
@@ -16,6 +17,21 @@ import json
 import numpy as np
 
 ARRAY = "__ndarray__"
+ITEMS = "__dict_items__"  # a dict whose keys are not all strings, as [key, value] pairs
+
+
+def _prepare(o):
+    """Dicts with keys other than strings kept as pairs (JSON would turn
+    their keys into strings)."""
+    if isinstance(o, dict):
+        if all(isinstance(k, str) for k in o):
+            return {k: _prepare(v) for k, v in o.items()}
+        return {ITEMS: [[_prepare(k), _prepare(v)] for k, v in o.items()]}
+    if isinstance(o, (list, tuple)):
+        return [_prepare(v) for v in o]
+    if dataclasses.is_dataclass(o) and not isinstance(o, type):
+        return _prepare({f.name: getattr(o, f.name) for f in dataclasses.fields(o)})
+    return o
 
 
 def _encode(o):
@@ -38,6 +54,8 @@ def _encode(o):
 
 
 def _decode(d: dict):
+    if ITEMS in d and len(d) == 1:
+        return {(tuple(k) if isinstance(k, list) else k): v for k, v in d[ITEMS]}
     if ARRAY not in d:
         return d
     data, dtype, shape = d[ARRAY], d["dtype"], tuple(d["shape"])
@@ -47,7 +65,7 @@ def _decode(d: dict):
 
 
 def dumps(obj, indent=None) -> str:
-    return json.dumps(obj, default=_encode, indent=indent, allow_nan=True)
+    return json.dumps(_prepare(obj), default=_encode, indent=indent, allow_nan=True)
 
 
 def loads(text: str):
@@ -61,4 +79,5 @@ def roundtrip(obj):
 
 def sha256(obj) -> str:
     """The SHA-256 of ``obj``'s canonical JSON (keys sorted)."""
-    return hashlib.sha256(json.dumps(obj, default=_encode, sort_keys=True, allow_nan=True).encode()).hexdigest()
+    return hashlib.sha256(json.dumps(_prepare(obj), default=_encode, sort_keys=True,
+                                     allow_nan=True).encode()).hexdigest()

@@ -79,8 +79,8 @@ class Campaign:
         return cluster.describe(self.scheduler, self.workers)
 
     def map(self, stage: str, fn, items, idents=None, seeds=None, shared=_NO_SHARED, label: str | None = None) -> list:
-        """[record] in item order (None: not stored, with summarise_only).
-        idents: what identifies each item's input (JSON; default the item);
+        """[record] in item order (None: not stored, with summarise_only; and
+        for an item that is None, which is not run). idents: what identifies each item's input (JSON; default the item);
         seeds: each run's seed, for the failure record (default ident["seed"]
         when ident is a dict)."""
         items = list(items)
@@ -92,26 +92,31 @@ class Campaign:
         stored = self.store.load(stage)
         out: list = [None] * len(items)
         todo = []
+        n_items = sum(it is not None for it in items)
         for i, sha in enumerate(want):
+            if items[i] is None:
+                continue
             rec = stored.get(i)
             if rec is not None and rec.get("input_sha256") == sha and (rec.get("ok") or not self.retry_failed):
                 out[i] = rec
             else:
                 todo.append(i)
-        n_stored = len(items) - len(todo)
+        n_stored = n_items - len(todo)
         n_failed_stored = sum(1 for r in out if r is not None and not r.get("ok"))
         where = f"results store {self.store.path}: " if self.store.path is not None else ""
         if self.summarise_only:
-            self.say(f"{label}: {where}{n_stored} of {len(items)} runs stored"
+            self.say(f"{label}: {where}{n_stored} of {n_items} runs stored"
                      + (f" ({n_failed_stored} failed)" if n_failed_stored else "")
                      + (f", {len(todo)} missing (left out of the summary)" if todo else ""))
-            self.stages[stage] = {"runs": len(items), "stored": n_stored, "ran": 0, "missing": len(todo)}
+            self.stages[stage] = {"runs": n_items, "stored": n_stored, "ran": 0, "missing": len(todo)}
             return out
-        if n_stored or self.store.path is not None:
-            self.say(f"{label}: {where}{n_stored} of {len(items)} runs already stored"
+        if n_stored:
+            self.say(f"{label}: {where}{n_stored} of {n_items} runs already stored"
                      + (f" ({n_failed_stored} failed)" if n_failed_stored else "")
                      + (f", skipping them; running {len(todo)} on {self.where()}" if todo else ", nothing to run"))
-        bar = ProgressBar(label, len(items), stored=n_stored, enabled=self.progress and bool(todo), stream=self.stream)
+        elif todo:
+            self.say(f"{label}: {where}running {len(todo)} runs on {self.where()}")
+        bar = ProgressBar(label, n_items, stored=n_stored, enabled=self.progress and bool(todo), stream=self.stream)
         try:
             for i, text in self._run(fn, items, todo, shared):
                 rec = records.loads(text)
@@ -122,7 +127,7 @@ class Campaign:
                 bar.update(failed=not rec["ok"])
         finally:
             bar.close()
-        self.stages[stage] = {"runs": len(items), "stored": n_stored, "ran": len(todo), "missing": 0}
+        self.stages[stage] = {"runs": n_items, "stored": n_stored, "ran": len(todo), "missing": 0}
         return out
 
     def _run(self, fn, items, todo, shared):

@@ -203,39 +203,51 @@ def _null_stats(seed: int) -> dict:
             "screen_logp": r["statistics"]["screen_logp_max"], "elapsed_s": r["elapsed_s"]}
 
 
-def calibrate(runs: int, seed: int, workers: int, progress: bool = True) -> dict:
+def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool = True, campaign=None) -> dict:
     """The null calibration of this vehicle's flight family."""
+    from bench.campaign.runner import failures, results
     from bench.gap.log_null import FA_EACH, frechet_threshold
     from bench.log_description import resolve
 
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    seeds = np.random.default_rng(seed).integers(0, 2**31, runs)
-    rows = pool_map(_null_stats, [int(s) for s in seeds], workers, progress, f"null calibration ({VEHICLE})")
+    seeds = [int(s) for s in np.random.default_rng(seed).integers(0, 2**31, runs)]
+    recs = campaign.map("null", _null_stats, seeds, idents=[{"seed": s} for s in seeds],
+                        label=f"null calibration ({VEHICLE})")
+    rows = [r for r in results(recs) if r is not None]
+    if not rows:
+        raise ValueError("no finished null runs")
     z = np.array([r["map_max_abs_z"] for r in rows])
     b = np.array([r["screen_logp"] for r in rows])
     thr = {"map_max_abs_z": frechet_threshold(z), "screen_logp": frechet_threshold(b)}
     desc = description()
     resolve(desc)
     return {"thresholds": thr, "method": "Frechet tail per statistic (bench/gap/log_null.py)",
-            "false_alarm_target_each": FA_EACH, "runs": int(runs), "seed": int(seed),
+            "false_alarm_target_each": FA_EACH, "runs": len(rows), "seed": int(seed),
             "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
             "manoeuvres": "characterisation", "description": desc, "vehicle": VEHICLE,
             "null_map_max_abs_z": z.tolist(), "null_screen_logp": b.tolist(), "elapsed_s": time.time() - t0,
+            **({"failed_runs": failures(recs)} if failures(recs) else {}),
             "command": f"python -m bench.gap.validate_vehicle calibrate --runs {runs} --seed {seed}"}
 
 
 def main(argv=None):
     import argparse
-    import os
+
+    from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 
     ap = argparse.ArgumentParser(description=f"Null calibration of the {VEHICLE} vehicle's flight family")
     ap.add_argument("what", choices=("calibrate",))
     ap.add_argument("--runs", type=int, default=200)
     ap.add_argument("--seed", type=int, default=1200)
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    add_campaign_arguments(ap)
     a = ap.parse_args(argv)
-    cal = calibrate(a.runs, a.seed, a.workers)
-    CAL_PATH.write_text(json.dumps(cal, indent=1) + "\n")
+    campaign = campaign_from(a, f"null-calibration-{VEHICLE}", {"runs": a.runs, "seed": a.seed})
+    cal = calibrate(a.runs, a.seed, campaign=campaign)
+    if a.summarise_only and cal["runs"] < a.runs:
+        print(f"{cal['runs']} of {a.runs} runs stored: {CAL_PATH} left as it is")
+    else:
+        CAL_PATH.write_text(json.dumps(cal, indent=1) + "\n")
     print(f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs, "
           f"{cal['elapsed_s']:.0f} s")
 
