@@ -40,7 +40,7 @@ def execute(fn, index: int, item, shared=_NO_SHARED) -> str:
         rec["elapsed_s"] = time.perf_counter() - t0
         return records.dumps(rec)
     except Exception as exc:  # noqa: BLE001 - a run's failure is recorded, not fatal
-        rec.update(ok=False, error=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc(),
+        rec.update(ok=False, error=f"{type(exc).__name__}: {exc}", message=str(exc), traceback=traceback.format_exc(),
                    elapsed_s=time.perf_counter() - t0)
         return records.dumps({k: v for k, v in rec.items() if k != "result"})
 
@@ -154,6 +154,7 @@ class Campaign:
                     text = fut.result()
                 except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded against the run
                     text = records.dumps({"index": i, "ok": False, "error": f"{type(exc).__name__}: {exc}",
+                                          "message": str(exc),
                                           "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)), "worker": None,
                                           "elapsed_s": None})
                     if type(exc).__name__ == "CancelledError":
@@ -183,6 +184,14 @@ def failures(recs: list) -> list:
     """[{run, seed, error}] of the failed runs."""
     return [{"run": r["index"], "seed": r.get("seed"), "error": r.get("error")} for r in recs
             if r is not None and not r.get("ok")]
+
+
+def all_failed(recs: list) -> None:
+    """Raises ValueError with the first failure's message when no run finished
+    (a campaign whose every run fails says why, as one run would)."""
+    done = [r for r in recs if r is not None]
+    if done and not any(r.get("ok") for r in done):
+        raise ValueError(done[0].get("message") or done[0].get("error"))
 
 
 def missing(recs: list) -> list:

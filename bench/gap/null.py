@@ -77,7 +77,7 @@ def _threshold(values: np.ndarray, fa: float) -> float:
 
 def calibrate(seeds, duration_s: float = 120.0, workers: int | None = None, progress: bool = True,
               manoeuvres: str = "docking", campaign=None) -> dict:
-    from bench.campaign.runner import failures, results
+    from bench.campaign.runner import all_failed, failures, results
     from bench.gap.validate import new_campaign
 
     campaign = new_campaign(campaign, workers, progress)
@@ -85,6 +85,7 @@ def calibrate(seeds, duration_s: float = 120.0, workers: int | None = None, prog
     seeds = [int(s) for s in seeds]
     recs = campaign.map("null", _stats_one, seeds, idents=[{"seed": s} for s in seeds],
                         shared=(duration_s, manoeuvres), label="null calibration")
+    all_failed(recs)
     rows = [r for r in results(recs) if r is not None]
     if not rows:
         raise ValueError("no finished null runs")

@@ -51,9 +51,10 @@ def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str
     written to ``<out>.prereg.json``, then each run's diagnosis. Returns
     (keys, answers) of the runs that finished both, the hashes of every
     drawn run (None where its sizing failed) and what the campaign did."""
-    from bench.campaign.runner import failures, missing, results
+    from bench.campaign.runner import all_failed, failures, missing, results
 
     sized = campaign.map("size", size_fn, drawn, shared=shared, label="minimum detectable sizes")
+    all_failed(sized)
     keys = results(sized)
     hashes = [None if k is None else key_hash(k) for k in keys]
     if out and not campaign.summarise_only:
@@ -61,6 +62,7 @@ def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps({**prereg, "key_sha256": hashes}, indent=1) + "\n")
     diagnosed = campaign.map("diagnose", run_fn, keys, shared=shared, label=label)
+    all_failed(diagnosed)
     answers = results(diagnosed)
     # Only now: the keys are re-hashed and compared with the answers.
     if [None if k is None else key_hash(k) for k in keys] != hashes:

@@ -205,7 +205,7 @@ def _null_stats(seed: int) -> dict:
 
 def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool = True, campaign=None) -> dict:
     """The null calibration of this vehicle's flight family."""
-    from bench.campaign.runner import failures, results
+    from bench.campaign.runner import all_failed, failures, results
     from bench.gap.log_null import FA_EACH, frechet_threshold
     from bench.log_description import resolve
 
@@ -214,6 +214,7 @@ def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool =
     seeds = [int(s) for s in np.random.default_rng(seed).integers(0, 2**31, runs)]
     recs = campaign.map("null", _null_stats, seeds, idents=[{"seed": s} for s in seeds],
                         label=f"null calibration ({VEHICLE})")
+    all_failed(recs)
     rows = [r for r in results(recs) if r is not None]
     if not rows:
         raise ValueError("no finished null runs")
