@@ -33,7 +33,7 @@ def execute(fn, index: int, item, shared=_NO_SHARED) -> str:
     """One run on a worker: its record as JSON text (encoded here, so a result
     the store cannot hold is a failed run too)."""
     t0 = time.perf_counter()
-    rec = {"index": int(index), "worker": socket.gethostname()}
+    rec = {"index": int(index), "worker": _worker_name()}
     try:
         out = fn(item) if isinstance(shared, str) and shared == _NO_SHARED else fn(item, shared)
         rec.update(ok=True, result=out)
@@ -167,6 +167,15 @@ class Campaign:
                 client.cancel(pending)
             if extra:
                 client.cancel(list(extra))
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return socket.gethostname()
 
 
 def _token() -> str:
