@@ -30,7 +30,7 @@ def _noop(i):
     return {"run": i}
 
 
-def _pool_map(fn, items, workers):
+def _fork_pool_map(fn, items, workers):
     out = [None] * len(items)
     with mp.get_context("fork").Pool(workers) as pool:
         for i, r in pool.imap_unordered(_indexed, [(fn, i, it) for i, it in enumerate(items)]):
@@ -46,7 +46,7 @@ def _indexed(arg):
 def _null_run(seed):
     from bench.gap.null import _stats_one
 
-    return _stats_one((int(seed), 120.0, "docking"))
+    return _stats_one(int(seed), (120.0, "docking"))
 
 
 def main(argv=None):
@@ -70,7 +70,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(a.repeats):
             t0 = time.perf_counter()
-            _pool_map(_noop, items, 2)
+            _fork_pool_map(_noop, items, 2)
             pool_t.append((time.perf_counter() - t0) / len(items))
             t0 = time.perf_counter()
             Campaign(RunStore("noop", {"repeat": r}, root=tmp), workers=2, progress=False,
@@ -92,7 +92,7 @@ def main(argv=None):
         cluster.close_all()
         res.setdefault("null_results_identical", []).append([r["result"] for r in recs])
     t0 = time.perf_counter()
-    pool = _pool_map(_null_run, seeds, 2)
+    pool = _fork_pool_map(_null_run, seeds, 2)
     walls["fork_pool_2"] = time.perf_counter() - t0
     same = res.pop("null_results_identical")
     res["null_results_identical"] = same[0] == same[1] == pool

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.gap.validate import FRACTIONS, SCALES, key_hash, pool_map, score
+from bench.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and_diagnosed
 
 VEHICLE = "12kg"
 CAL_PATH = Path(__file__).resolve().parent / "data" / "null_calibration_12kg.json"
@@ -102,8 +102,7 @@ def draw_campaign(n_runs: int, seed: int) -> list:
     return keys
 
 
-def _size_one(arg):
-    key, calibration = arg
+def _size_one(key, calibration):
     from bench.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
     from bench.log_description import resolve
@@ -128,8 +127,7 @@ def _size_one(arg):
     return key
 
 
-def _run_one(arg):
-    key, calibration = arg
+def _run_one(key, calibration):
     from bench.gap.diagnose import diagnose, public
     from bench.gap.separability import separability_of_logs
     from bench.gap.validate import forced_fit
@@ -165,20 +163,14 @@ def load_calibration() -> dict:
     return json.loads(CAL_PATH.read_text())
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, progress: bool = True) -> dict:
+def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True,
+                 campaign=None) -> dict:
     cal = load_calibration()
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    keys = pool_map(_size_one, [(k, cal) for k in draw_campaign(n_runs, seed)], workers, progress,
-                    "minimum detectable sizes")
-    hashes = [key_hash(k) for k in keys]
-    if out:
-        prereg = Path(str(out) + ".prereg.json")
-        prereg.parent.mkdir(parents=True, exist_ok=True)
-        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "vehicle": VEHICLE, "key_sha256": hashes},
-                                     indent=1) + "\n")
-    answers = pool_map(_run_one, [(k, cal) for k in keys], workers, progress, "validate-gap")
-    if [key_hash(k) for k in keys] != hashes:
-        raise RuntimeError("drawn keys changed during the campaign")
+    keys, answers, hashes, info = sized_and_diagnosed(
+        campaign, draw_campaign(n_runs, seed), _size_one, _run_one, cal, out,
+        {"seed": seed, "runs": n_runs, "vehicle": VEHICLE}, "validate-gap")
     res = score(keys, answers)
     no_valves = [(k, a) for k, a in zip(keys, answers) if k["no_valves"]]
     res["no_valves_stream"] = {
@@ -188,7 +180,7 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, progress
         "answers": [{"effect": k["effect"], "verdict": a["verdict"] if a["gap_detected"] else "no_gap",
                      "top1": a["top1"]} for k, a in no_valves]}
     res.update({"seed": seed, "vehicle": VEHICLE, "workers": workers, "elapsed_s": time.time() - t0,
-                "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
+                "campaign": info, "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
                 "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
                 "command": f"proxops validate-gap --vehicle {VEHICLE} --runs {n_runs} --seed {seed}"})
     return res
