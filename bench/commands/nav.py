@@ -163,14 +163,14 @@ def main(args):
     # Run i depends on the seed and the configuration, not on --runs: a longer campaign reuses a shorter one's runs.
     campaign = campaign_from(args, "nav", {"seed": args.seed, "config": cfg})
     summary, runs = run_campaign(args.runs, args.seed, cfg, keep_runs=keep, campaign=campaign)
+    if "store" in summary:
+        print(f"results store: {summary['store']}")
     print_summary(summary)
     if summary.get("failed_runs") or summary.get("missing_runs"):
         print(f"summary of {summary['runs']} of {summary['runs_requested']} runs: "
               f"{len(summary.get('failed_runs', []))} failed, {len(summary.get('missing_runs', []))} not stored")
         for f in summary.get("failed_runs", [])[:5]:
             print(f"  run {f['run']} (seed {f['seed']}) failed: {f['error']}")
-    if "store" in summary:
-        print(f"results store: {summary['store']}")
     if args.json:
         write_json(args.json, summary, strict=True)
         print(f"wrote {args.json}")
