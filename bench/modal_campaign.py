@@ -48,6 +48,14 @@ def _converged_index(est, truth, rel=None, abs_=None):
     return k if k < est.shape[0] else None
 
 
+def run_trial(item: dict, spec: dict) -> dict:
+    """One trial as a campaign task (bench/campaign/runner.py): ``spec`` names
+    the scenario and its keyword arguments, ``item`` the trial's seed and
+    whether it keeps its series for the plots."""
+    fn = pendulum_trial if spec["scenario"] == "pendulum" else plate_trial
+    return fn(item["seed"], keep_series=item["keep_series"], **spec["kwargs"])
+
+
 # ---------------------------------------------------------------------------
 # Pendulum (experiment analogue)
 

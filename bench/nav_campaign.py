@@ -1,7 +1,9 @@
 """Seeded Monte Carlo of docking runs and the navigation metrics
 (docs/perf/nav_campaign.md).
 
-Run i of a campaign with seed S uses the scenario seed S * 1000 + i.
+Run i of a campaign with seed S uses the scenario seed S * 1000 + i; each
+run is a task on a Dask cluster (bench/campaign), kept in a results store
+as it finishes.
 
 Metrics, every sample from the run's first pose update on:
   * max_pos_err_m / max_vel_err_mps: per run, the largest absolute per-axis
@@ -27,7 +29,6 @@ Metrics, every sample from the run's first pose update on:
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -235,17 +236,33 @@ def summarise(metrics: list[RunMetrics], cfg: ScenarioConfig, seed: int) -> dict
     }
 
 
-def run_campaign(n_runs: int, seed: int, cfg: ScenarioConfig | None = None, progress=None, keep_runs: int = 0):
-    """Returns (summary dict, list of the first ``keep_runs`` raw runs)."""
+def _run_one(item: dict, cfg: ScenarioConfig) -> dict:
+    """One docking run (a campaign task): its metrics, and the raw run when kept for plots."""
+    run = run_docking(item["seed"], cfg)
+    return {"metrics": run_metrics(run), "run": run if item["keep_run"] else None}
+
+
+def run_campaign(n_runs: int, seed: int, cfg: ScenarioConfig | None = None, progress: bool = False,
+                 keep_runs: int = 0, campaign=None, workers: int | None = None):
+    """Returns (summary dict, list of the first ``keep_runs`` raw runs). Each
+    run is a task of ``campaign`` (bench/campaign/runner.py; default a local
+    Dask cluster of ``workers``, nothing kept)."""
+    from bench.campaign.runner import Campaign, all_failed, failures, missing, results
+
     cfg = cfg or ScenarioConfig()
-    metrics, kept = [], []
-    for i in range(n_runs):
-        t0 = time.perf_counter()
-        run = run_docking(run_seed(seed, i), cfg)
-        m = run_metrics(run)
-        metrics.append(m)
-        if i < keep_runs:
-            kept.append(run)
-        if progress is not None:
-            progress(i, n_runs, m, time.perf_counter() - t0)
-    return summarise(metrics, cfg, seed), kept
+    campaign = campaign if campaign is not None else Campaign(workers=workers, progress=progress)
+    items = [{"seed": run_seed(seed, i), "keep_run": i < keep_runs} for i in range(n_runs)]
+    recs = campaign.map("run", _run_one, items, shared=cfg, label="nav")
+    all_failed(recs)
+    done = [r for r in results(recs) if r is not None]
+    if not done:
+        raise ValueError("no finished runs to summarise")
+    summary = summarise([RunMetrics(**r["metrics"]) for r in done], cfg, seed)
+    if len(done) < n_runs:
+        summary["runs_requested"] = n_runs
+        summary["failed_runs"] = failures(recs)
+        summary["missing_runs"] = missing(recs)
+    if campaign.store.path is not None:
+        summary["store"] = str(campaign.store.path)
+    kept = [r["run"] for r in results(recs)[:keep_runs] if r is not None]
+    return summary, kept

@@ -26,6 +26,11 @@ def register(sub):
                         "the bench inspector flying the bench's manoeuvres, else one made for the log and cached)")
     p.add_argument("--null-runs", type=number(int, 10, 100000), default=40,
                    help="simulated flights in a calibration made for the log (10 to 100000)")
+    p.add_argument("--workers", type=number(int, 1, 1024), default=None,
+                   help="local Dask worker processes for a calibration made for the log (1 to 1024; default: all "
+                        "cores)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="make a calibration for the log on the existing Dask cluster at this address")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=main)
 
@@ -59,8 +64,13 @@ def main(args):
     from bench.gap.log_null import CalibrationMismatch
     from bench.report import write_json
 
+    from bench.campaign import cluster
+
     _check_output(args.json, "json")
     _check_output(args.report, "report")
+    if args.scheduler is not None and "://" not in args.scheduler:
+        raise ValueError(f"--scheduler {args.scheduler}: expected an address such as tcp://HOST:PORT")
+    cluster.configure(args.scheduler, args.workers)
     log = read_flight_log(args.log)
     cal = _load_calibration(args.calibration) if args.calibration else None
     try:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.commands.args import number, one_line_errors
+from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 
 # Seed 000, experiment: 20 trials converged to these (value, +- spread).
@@ -74,6 +75,7 @@ def register(sub):
                         "sqrt(n) standard deviations)")
     p.add_argument("--json", default=None)
     p.add_argument("--plots", default=None, help="folder for the figures")
+    add_campaign_arguments(p)
     p.set_defaults(func=main)
 
     t = sub.add_parser("modal-timing", help="timing grid of the modal estimator: flight code vs numpy vs the published figures")
@@ -94,19 +96,37 @@ def _summary(vals):
             "half_range": float((v.max() - v.min()) / 2), "min": float(v.min()), "max": float(v.max())}
 
 
+def _run_trials(args, spec: dict) -> list:
+    """Trials seed, seed + 1, ... as a campaign (bench/campaign): each a Dask
+    task kept in the results store; the first keeps its series for --plots."""
+    from bench import modal_campaign as mc
+    from bench.campaign.runner import all_failed, failures, missing, results
+
+    campaign = campaign_from(args, f"modal-{spec['scenario']}", {"seed": args.seed, **spec})
+    items = [{"seed": args.seed + k, "keep_series": bool(k == 0 and args.plots)} for k in range(args.trials)]
+    recs = campaign.map("trial", mc.run_trial, items, shared=spec, label=f"modal {spec['scenario']}")
+    all_failed(recs)
+    for f in failures(recs):
+        print(f"trial {f['run']} (seed {f['seed']}) failed: {f['error']}")
+    if missing(recs):
+        print(f"{len(missing(recs))} of {len(recs)} trials not stored: left out")
+    trials = [r for r in results(recs) if r is not None]
+    if not trials:
+        raise ValueError("no finished trials")
+    return trials
+
+
 def main(args):
     from bench import modal_campaign as mc
 
-    trials = []
     if args.modes is None:
         args.modes = 3 if args.scenario == "pendulum" else 10
     if args.scenario == "pendulum":
         if args.modes != 3:
             raise ValueError("the pendulum scenario estimates 3 modes (--modes 3)")
         dur = (args.images or 150) * (args.dt or 1 / 15)
-        for k in range(args.trials):
-            trials.append(mc.pendulum_trial(args.seed + k, kind=args.filter, duration_s=dur,
-                                            rate_hz=1 / (args.dt or 1 / 15), keep_series=(k == 0 and args.plots)))
+        trials = _run_trials(args, {"scenario": "pendulum", "kwargs": {"kind": args.filter, "duration_s": dur,
+                                                                       "rate_hz": 1 / (args.dt or 1 / 15)}})
         out = {"scenario": "pendulum", "filter": args.filter, "trials": [], "paper": {
             "omega_radps": PAPER_OMEGA, "alpha_ps": PAPER_ALPHA, "measurements_to_converge_max": 90}}
         for tr in trials:
@@ -128,14 +148,12 @@ def main(args):
         if not 0.0 < args.range_noise < 1.0:
             raise ValueError(f"--range-noise must be a fraction of the range in (0, 1), got {args.range_noise}")
         n_img = args.images or 180
-        for k in range(args.trials):
-            trials.append(mc.plate_trial(args.seed + k, n_modes=args.modes, kind=args.filter, n_images=n_img,
-                                         dt_s=args.dt or 60.0, keep_series=(k == 0 and args.plots),
-                                         noise_frac=args.range_noise, batch_ml_periods=args.batch_ml_at,
-                                         crb_periods=args.crb_at, acquire_periods=args.acquire_at,
-                                         acquire_with=args.acquire_with,
-                                         acquire_grid_sigmas=args.acquire_grid_sigmas, ut_alpha=args.ut_alpha,
-                                         points_at=args.points_at, coarse_check=args.coarse_check))
+        trials = _run_trials(args, {"scenario": "structure", "kwargs": dict(
+            n_modes=args.modes, kind=args.filter, n_images=n_img, dt_s=args.dt or 60.0, noise_frac=args.range_noise,
+            batch_ml_periods=tuple(args.batch_ml_at), crb_periods=tuple(args.crb_at),
+            acquire_periods=args.acquire_at, acquire_with=args.acquire_with,
+            acquire_grid_sigmas=args.acquire_grid_sigmas, ut_alpha=args.ut_alpha, points_at=args.points_at,
+            coarse_check=args.coarse_check)})
         out = {"scenario": "structure", "filter": args.filter, "modes": args.modes, "range_noise": args.range_noise,
                "points_at": args.points_at, "trials": []}
         for tr in trials:

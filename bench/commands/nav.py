@@ -8,6 +8,7 @@ import sys
 import numpy as np
 
 from bench.commands.args import number, one_line_errors
+from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.nav_campaign import run_campaign
 from bench.report import matplotlib_agg, report_dir, write_json
 from bench.scenario_docking import ScenarioConfig, errors_from_first_update
@@ -34,14 +35,8 @@ def register(sub):
                    help="specific force for predict during firings: accelerometer, or the online BLR's prediction")
     p.add_argument("--pose-source", choices=("synthetic", "images"), default="synthetic",
                    help="1 Hz pose: synthetic (5 %% of range) or rendered images through the flight vision pipeline")
+    add_campaign_arguments(p)
     p.set_defaults(func=main)
-
-
-def _progress(i, n, m, dt):
-    print(f"run {i + 1:3d}/{n} seed {m.seed:6d}  {'docked' if m.docked else 'NOT docked'} at {m.t_end_s:6.1f} s  "
-          f"max|dr| {m.max_pos_err_m:.4f} m  max|dv| {m.max_vel_err_mps:.4f} m/s  "
-          f"NEES {np.mean(m.nees):5.2f}  NIS {np.mean(m.nis) if m.nis.size else float('nan'):5.2f}  "
-          f"({dt:.1f} s)", flush=True, file=sys.stderr)
 
 
 def print_summary(s: dict) -> None:
@@ -165,8 +160,17 @@ def main(args):
     cfg = ScenarioConfig(profile=profile, dynamics=args.dynamics, pose_R_from=args.pose_r_from, init=args.init,
                          accel_source=args.accel_source, pose_source=args.pose_source)
     keep = min(args.runs, 5) if args.plots else 0
-    summary, runs = run_campaign(args.runs, args.seed, cfg, progress=_progress, keep_runs=keep)
+    # Run i depends on the seed and the configuration, not on --runs: a longer campaign reuses a shorter one's runs.
+    campaign = campaign_from(args, "nav", {"seed": args.seed, "config": cfg})
+    summary, runs = run_campaign(args.runs, args.seed, cfg, keep_runs=keep, campaign=campaign)
+    if "store" in summary:
+        print(f"results store: {summary['store']}")
     print_summary(summary)
+    if summary.get("failed_runs") or summary.get("missing_runs"):
+        print(f"summary of {summary['runs']} of {summary['runs_requested']} runs: "
+              f"{len(summary.get('failed_runs', []))} failed, {len(summary.get('missing_runs', []))} not stored")
+        for f in summary.get("failed_runs", [])[:5]:
+            print(f"  run {f['run']} (seed {f['seed']}) failed: {f['error']}")
     if args.json:
         write_json(args.json, summary, strict=True)
         print(f"wrote {args.json}")

@@ -4,13 +4,12 @@ for Small-Spacecraft Proximity Operations" (Rogers-Marcovitz; bench/thrusters.py
 from __future__ import annotations
 
 import argparse
-import sys
-import time
 
 import numpy as np
 
 from bench import thrusters as th
 from bench.commands.args import number, one_line_errors
+from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 
 LEARNERS = ("blr", "gpr", "gpr_tuned")
@@ -37,6 +36,7 @@ def register(sub):
     p.add_argument("--noise-model", choices=("component", "norm"), default="component")
     p.add_argument("--extra", nargs="*", default=[], choices=("blr_pairs", "blr_w100"),
                    help="also run BLR with pairwise valve products and/or BLR with window 100")
+    add_campaign_arguments(p)
     p.set_defaults(func=main)
 
 
@@ -77,23 +77,38 @@ def summarise(per_seed, learners):
     return summary
 
 
+def evaluate_seed(item: dict, protocol) -> dict:
+    """One seed of the protocol (a campaign task); the data and predictions
+    too when they are plotted."""
+    cfg, learners = protocol
+    res, data, preds = th.evaluate(item["seed"], cfg, learners)
+    return {"results": res, "data": data if item["plot"] else None, "preds": preds if item["plot"] else None}
+
+
 def main(args):
     cfg = th.ProtocolConfig(n_samples=args.samples, noise_model=args.noise_model)
     learners = LEARNERS + tuple(args.extra)
-    per_seed = []
     print(f"{'seed':>5s} " + " ".join(f"{n + ' lin':>14s} {n + ' ang':>14s}" for n in learners))
-    for seed in range(args.seed, args.seed + args.seeds):
-        t0 = time.perf_counter()
+    # One seed per run of a campaign (bench/campaign): a Dask task each, kept in the results store.
+    from bench.campaign.runner import all_failed, failures, results
 
-        def progress(name, done, total, seed=seed, t0=t0):
-            print(f"\r  seed {seed}: {100 * done // total:3d} % ({name}, {time.perf_counter() - t0:.0f} s)",
-                  end="\n" if done == total else "", file=sys.stderr, flush=True)
-
-        res, data, preds = th.evaluate(seed, cfg, learners, progress=progress)
+    campaign = campaign_from(args, "thrusters", {"seed": args.seed, "config": cfg, "learners": list(learners)})
+    items = [{"seed": seed, "plot": bool(args.plots) and seed == args.seed}
+             for seed in range(args.seed, args.seed + args.seeds)]
+    recs = campaign.map("seed", evaluate_seed, items, shared=(cfg, learners), label="thrusters")
+    all_failed(recs)
+    per_seed = []
+    for item, r in zip(items, results(recs)):
+        if r is None:
+            continue
+        res = r["results"]
         per_seed.append(res)
-        print(f"{seed:5d} " + " ".join(f"{res[n]['corr_linear']:14.4f} {res[n]['corr_angular']:14.4f}" for n in learners))
-        if args.plots and seed == args.seed:
-            res["plots"] = plot(data, preds, res, args.plots)
+        print(f"{item['seed']:5d} " + " ".join(f"{res[n]['corr_linear']:14.4f} {res[n]['corr_angular']:14.4f}"
+                                             for n in learners))
+        if item["plot"]:
+            res["plots"] = plot(r["data"], r["preds"], res, args.plots)
+    for f in failures(recs):
+        print(f"seed {f['seed']} failed: {f['error']}")
     out = dict(per_seed[0]) if args.seeds == 1 else {}
     out["protocol"] = {"n_samples": cfg.n_samples, "dt_s": cfg.dt_s, "noise_linear": cfg.noise_linear,
                        "noise_angular": cfg.noise_angular, "noise_model": cfg.noise_model,

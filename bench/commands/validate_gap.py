@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from bench.commands.args import number, one_line_errors
+from bench.commands.campaign_args import add_campaign_arguments, campaign_from, report_campaign
 
 
 def register(sub):
@@ -14,7 +15,6 @@ def register(sub):
     p.add_argument("--runs", type=number(int, 1, 100000), default=40, help="drawn runs (1 to 100000)")
     p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
     p.add_argument("--json", default=None, help="write the scores here (and OUT.prereg.json with the key hashes first)")
-    p.add_argument("--workers", type=number(int, 1, 1024), default=None, help="processes (1 to 1024; default: all cores)")
     p.add_argument("--duration", type=number(float, 10.0, 86400.0), default=120.0, help="simulated seconds of docking per run (10 to 86400)")
     p.add_argument("--manoeuvres", default="docking", choices=("docking", "docking+characterisation"),
                    help="what each run flies: docking alone, or docking then a thruster characterisation "
@@ -26,22 +26,44 @@ def register(sub):
     p.add_argument("--mixtures", action="store_true",
                    help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
                         "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)")
+    add_campaign_arguments(p)
     p.set_defaults(func=main)
 
 
+def _campaign(args):
+    """The campaign's store is keyed by every argument its runs depend on,
+    and by the null calibration it scores against."""
+    from bench.campaign.records import sha256
+
+    if args.vehicle == "12kg":
+        from bench.gap.validate_vehicle import load_calibration
+
+        cal, kind = load_calibration(), {"vehicle": "12kg"}
+    else:
+        from bench.gap import null as nullmod
+
+        cal = nullmod.load(manoeuvres="docking" if args.mixtures else args.manoeuvres)
+        kind = ({"mixtures": True, "duration_s": args.duration} if args.mixtures else
+                {"manoeuvres": args.manoeuvres, "duration_s": args.duration})
+    return campaign_from(args, "validate-gap", {"runs": args.runs, "seed": args.seed, **kind,
+                                                "calibration_sha256": sha256(cal)})
+
+
 def main(args):
-    from bench.gap.validate import default_workers, run_campaign
+    from bench.gap.validate import run_campaign
     from bench.report import write_json
 
-    workers = args.workers or default_workers()
+    campaign = _campaign(args)
+    where = campaign.where()
     if args.mixtures:
         from bench.gap import validate_mixtures
 
-        res = validate_mixtures.run_campaign(args.runs, args.seed, args.json, workers, args.duration,
-                                             manoeuvres=args.manoeuvres)
+        res = validate_mixtures.run_campaign(args.runs, args.seed, args.json, duration_s=args.duration,
+                                             campaign=campaign, manoeuvres=args.manoeuvres)
         if args.json:
             write_json(args.json, res, strict=True)
-        print(f"mixture runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {workers} workers)")
+        print(f"mixture runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {where})")
+        report_campaign(res)
         for k, v in res["by_kind_scale"].items():
             extra = (f", out-of-library left as a remainder {v['out_of_library_left_unexplained']:.2f}"
                      if "out_of_library_left_unexplained" in v else "")
@@ -52,10 +74,11 @@ def main(args):
     if args.vehicle == "12kg":
         from bench.gap import validate_vehicle
 
-        res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, workers)
+        res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
         res["manoeuvres"] = "characterisation (12 kg)"
     else:
-        res = run_campaign(args.runs, args.seed, args.json, workers, args.duration, manoeuvres=args.manoeuvres)
+        res = run_campaign(args.runs, args.seed, args.json, duration_s=args.duration, manoeuvres=args.manoeuvres,
+                           campaign=campaign)
     if args.json:
         from pathlib import Path
 
@@ -63,7 +86,8 @@ def main(args):
 
         write_json(args.json, res, strict=True)
         Path(str(args.json) + ".runs.csv").write_text(runs_table(res))
-    print(f"runs {res['runs']} (seed {res['seed']}, {res['manoeuvres']}, {res['elapsed_s']:.0f} s on {workers} workers)")
+    print(f"runs {res['runs']} (seed {res['seed']}, {res['manoeuvres']}, {res['elapsed_s']:.0f} s on {where})")
+    report_campaign(res)
     print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")
     for s, v in res["in_library_by_scale"].items():
         print(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")

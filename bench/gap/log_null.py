@@ -32,6 +32,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -135,8 +136,8 @@ def stated_biases(description: dict, seed: int) -> dict:
     return out
 
 
-def _one(args):
-    log, seed, prepared = args
+def _one(seed, flight):
+    log, prepared = flight
     from bench.gap.detection import null_statistics
 
     return {"seed": int(seed), **null_statistics(null_log_like(log, seed, prepared))}
@@ -148,8 +149,12 @@ def default_cache_dir() -> Path:
 
 def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: int | None = None,
                       cache_dir=None, progress: bool = True) -> dict:
-    """The null calibration for ``log`` (from the cache when it was made before)."""
-    from bench.gap.pool import pool_map
+    """The null calibration for ``log`` (from the cache when it was made before).
+    Its runs are a campaign (bench/campaign/runner.py) on the cluster the
+    process was configured with, each kept as it finishes next to the cache
+    entry, so an interrupted calibration resumes."""
+    from bench.campaign.runner import Campaign, results
+    from bench.campaign.store import RunStore
 
     prepared = plan_of(log)
     key = fingerprint(log, runs, seed)
@@ -163,9 +168,19 @@ def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: 
         except ValueError:
             pass  # a damaged cache entry is made again
     t0 = time.time()
-    seeds = np.random.default_rng(seed).integers(0, 2**31, runs)
-    workers = workers or os.cpu_count() or 1
-    rows = pool_map(_one, [(log, int(s), prepared) for s in seeds], workers, progress, "null calibration for the log")
+    seeds = [int(s) for s in np.random.default_rng(seed).integers(0, 2**31, runs)]
+    try:
+        store = RunStore("log-null", {"fingerprint": key}, root=cdir).open()
+    except OSError:
+        store = None
+    recs = Campaign(store, workers=workers, progress=progress).map(
+        "null", _one, seeds, idents=[{"seed": s} for s in seeds], shared=(log, prepared),
+        label="null calibration for the log")
+    failed = [r for r in recs if not r["ok"]]
+    if failed:
+        raise ValueError(f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
+                           f"seed {failed[0]['seed']}: {failed[0]['error']})")
+    rows = results(recs)
     z = np.array([r["map_max_abs_z"] for r in rows])
     b = np.array([r["screen_logp"] for r in rows])
     thr = {"map_max_abs_z": frechet_threshold(z), "screen_logp": frechet_threshold(b)}
@@ -180,6 +195,8 @@ def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: 
         tmp.write_text(json.dumps(cal, indent=1) + "\n")
         tmp.replace(path)
         cal["cached_at"] = str(path)
+        if store is not None:  # every run is in the cache entry now
+            shutil.rmtree(store.path, ignore_errors=True)
     except OSError as exc:
         print(f"note: calibration not cached ({exc})", file=sys.stderr)
     cal["from_cache"] = None

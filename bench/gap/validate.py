@@ -8,7 +8,8 @@ detects with probability 0.95 in that run, from the run's own signature);
 an effect that no sensible size makes detectable in its run is simulated at
 its largest sensible size and scored apart. Every run's key (simulation
 seed, effect, parameters) is hashed and the hashes are written to
-``<OUT>.prereg.json`` before any diagnosis runs. Each worker simulates the log, strips it to what a user's
+``<OUT>.prereg.json`` before any diagnosis runs. Each run (a Dask task,
+bench/campaign/runner.py) simulates the log, strips it to what a user's
 log would hold (the streams, orbit and sensor settings; no key, no truth),
 and diagnoses it. Only then are the keys re-hashed, checked against the
 pre-registered hashes, and compared with the answers.
@@ -22,13 +23,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
-from bench.gap.pool import pool_map
+from bench.campaign.runner import new_campaign  # noqa: F401  (re-exported for the validations)
 
 # What each campaign run flies: bench/gap/plans.py.
 from bench.gap.plans import MANOEUVRES, then_scripts
@@ -41,6 +41,38 @@ USER_CONFIG_KEYS = ("orbit_radius_m", "dt_imu_s", "accel_sigma_mps2", "gyro_sigm
 # definition and sign), so the fitted intervals can be scored.
 SAME_PARAMETERS = ("accel_bias", "gyro_bias", "gyro_scale", "imu_misalignment", "camera_latency",
                    "camera_lever_arm", "com_offset", "thrust_loss", "mass_depletion")
+
+
+def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str | None, prereg: dict,
+                        label: str) -> tuple:
+    """The two stages of a blind validation through ``campaign``
+    (bench/campaign/runner.py): each drawn run's size, the key hashes
+    written to ``<out>.prereg.json``, then each run's diagnosis. Returns
+    (keys, answers) of the runs that finished both, the hashes of every
+    drawn run (None where its sizing failed) and what the campaign did."""
+    from bench.campaign.runner import all_failed, failures, missing, results
+
+    sized = campaign.map("size", size_fn, drawn, shared=shared, label="minimum detectable sizes")
+    all_failed(sized)
+    keys = results(sized)
+    hashes = [None if k is None else key_hash(k) for k in keys]
+    if out and not campaign.summarise_only:
+        path = Path(str(out) + ".prereg.json")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({**prereg, "key_sha256": hashes}, indent=1) + "\n")
+    diagnosed = campaign.map("diagnose", run_fn, keys, shared=shared, label=label)
+    all_failed(diagnosed)
+    answers = results(diagnosed)
+    # Only now: the keys are re-hashed and compared with the answers.
+    if [None if k is None else key_hash(k) for k in keys] != hashes:
+        raise RuntimeError("drawn keys changed during the campaign")
+    done = [i for i, (k, a) in enumerate(zip(keys, answers)) if k is not None and a is not None]
+    if not done:
+        raise ValueError("no finished runs to score" + (f" ({campaign.store.path})" if campaign.store.path else ""))
+    info = {"runs_drawn": len(drawn), "runs_scored": len(done), "failed_runs": failures(sized) + failures(diagnosed),
+            "missing_runs": sorted(set(missing(sized)) | set(i for i in missing(diagnosed) if keys[i] is not None)),
+            "store": None if campaign.store.path is None else str(campaign.store.path), "where": campaign.where()}
+    return [keys[i] for i in done], [answers[i] for i in done], hashes, info
 
 
 def key_hash(key: dict) -> str:
@@ -78,9 +110,9 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     return keys
 
 
-def _size_one(arg):
+def _size_one(key, run_ctx):
     """The drawn run's minimum detectable size, and its effect at scale x that."""
-    key, duration_s, calibration = arg
+    duration_s, calibration = run_ctx
     from bench.effects import EFFECTS
     from bench.gap.detectable import min_detectable_size
 
@@ -145,8 +177,8 @@ def forced_fit(internal: dict, name: str) -> dict:
             "measurable": sh["measurable"]}
 
 
-def _run_one(arg):
-    key, duration_s, calibration = arg
+def _run_one(key, run_ctx):
+    duration_s, calibration = run_ctx
     from bench.gap.candidates import CANDIDATES
     from bench.gap.diagnose import diagnose, public
 
@@ -287,40 +319,28 @@ def score(keys: list, answers: list) -> dict:
     return res
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration_s: float = 120.0,
-                 progress: bool = True, manoeuvres: str = "docking") -> dict:
+def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, duration_s: float = 120.0,
+                 progress: bool = True, manoeuvres: str = "docking", campaign=None) -> dict:
     from bench.gap import null as nullmod
 
     cal = nullmod.load(manoeuvres=manoeuvres)
     if not cal:
         raise FileNotFoundError(f"no null calibration for {manoeuvres!r} logs "
                                 f"(python -m bench.gap.null --manoeuvres {manoeuvres})")
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_campaign(n_runs, seed, manoeuvres)], workers, progress,
-                    "minimum detectable sizes")
-    hashes = [key_hash(k) for k in keys]
-    if out:
-        prereg = Path(str(out) + ".prereg.json")
-        prereg.parent.mkdir(parents=True, exist_ok=True)
-        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "manoeuvres": manoeuvres, "key_sha256": hashes},
-                                     indent=1) + "\n")
-    answers = pool_map(_run_one, [(k, duration_s, cal) for k in keys], workers, progress, "validate-gap")
-    # Only now: the keys are re-hashed and compared with the answers.
-    if [key_hash(k) for k in keys] != hashes:
-        raise RuntimeError("drawn keys changed during the campaign")
+    keys, answers, hashes, info = sized_and_diagnosed(
+        campaign, draw_campaign(n_runs, seed, manoeuvres), _size_one, _run_one, (duration_s, cal), out,
+        {"seed": seed, "runs": n_runs, "manoeuvres": manoeuvres}, "validate-gap")
     res = score(keys, answers)
     res.update({"seed": seed, "duration_s": duration_s, "manoeuvres": manoeuvres, "workers": workers,
-                "elapsed_s": time.time() - t0,
+                "elapsed_s": time.time() - t0, "campaign": info,
                 "calibration": {"runs": cal.get("runs"), "false_alarm_rate": cal.get("false_alarm_rate"),
                                 "thresholds": cal.get("thresholds")},
                 "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
                 "command": f"proxops validate-gap --runs {n_runs} --seed {seed} --duration {duration_s:g}"
                            + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})
     return res
-
-
-def default_workers() -> int:
-    return os.cpu_count() or 1
 
 
 def runs_table(res: dict) -> str:

@@ -20,15 +20,12 @@ apart.
 """
 from __future__ import annotations
 
-import json
 import time
-from pathlib import Path
 
 import numpy as np
 
-from bench.gap.pool import pool_map
 from bench.gap.plans import then_scripts
-from bench.gap.validate import SCALES, blind, key_hash
+from bench.gap.validate import SCALES, blind, new_campaign, sized_and_diagnosed
 
 KINDS = ("pair", "triple", "in+out")
 
@@ -61,8 +58,8 @@ def draw_mixtures(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     return keys
 
 
-def _size_one(arg):
-    key, duration_s, calibration = arg
+def _size_one(key, run_ctx):
+    duration_s, calibration = run_ctx
     from bench.effects import EFFECTS
     from bench.gap.detectable import min_detectable_size
 
@@ -82,8 +79,8 @@ def _size_one(arg):
     return key
 
 
-def _run_one(arg):
-    key, duration_s, calibration = arg
+def _run_one(key, run_ctx):
+    duration_s, calibration = run_ctx
     from bench.effects import EFFECTS
     from bench.gap import select
     from bench.gap.diagnose import diagnose, public
@@ -142,24 +139,19 @@ def score_mixtures(keys: list, answers: list) -> dict:
     return res
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, duration_s: float = 120.0,
-                 progress: bool = True, manoeuvres: str = "docking") -> dict:
+def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, duration_s: float = 120.0,
+                 progress: bool = True, campaign=None, manoeuvres: str = "docking") -> dict:
     from bench.gap import null as nullmod
 
     cal = nullmod.load(manoeuvres=manoeuvres)
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    keys = pool_map(_size_one, [(k, duration_s, cal) for k in draw_mixtures(n_runs, seed, manoeuvres)], workers,
-                    progress, "minimum detectable sizes")
-    hashes = [key_hash(k) for k in keys]
-    if out:
-        Path(str(out) + ".prereg.json").write_text(json.dumps({"seed": seed, "runs": n_runs, "mixtures": True,
-                                                               "key_sha256": hashes}, indent=1) + "\n")
-    answers = pool_map(_run_one, [(k, duration_s, cal) for k in keys], workers, progress, "validate-gap mixtures")
-    if [key_hash(k) for k in keys] != hashes:
-        raise RuntimeError("drawn keys changed during the campaign")
+    keys, answers, hashes, info = sized_and_diagnosed(
+        campaign, draw_mixtures(n_runs, seed, manoeuvres), _size_one, _run_one, (duration_s, cal), out,
+        {"seed": seed, "runs": n_runs, "mixtures": True, "manoeuvres": manoeuvres}, "validate-gap mixtures")
     res = score_mixtures(keys, answers)
     res.update({"seed": seed, "duration_s": duration_s, "workers": workers, "elapsed_s": time.time() - t0,
-                "keys_match_preregistration": True, "keys": keys, "answers": answers,
+                "campaign": info, "keys_match_preregistration": True, "keys": keys, "answers": answers,
                 "manoeuvres": manoeuvres,
                 "command": f"proxops validate-gap --mixtures --runs {n_runs} --seed {seed}"
                            + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})

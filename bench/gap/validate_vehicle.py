@@ -29,8 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.gap.pool import pool_map
-from bench.gap.validate import FRACTIONS, SCALES, key_hash, score
+from bench.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and_diagnosed
 
 VEHICLE = "12kg"
 CAL_PATH = Path(__file__).resolve().parent / "data" / "null_calibration_12kg.json"
@@ -103,8 +102,7 @@ def draw_campaign(n_runs: int, seed: int) -> list:
     return keys
 
 
-def _size_one(arg):
-    key, calibration = arg
+def _size_one(key, calibration):
     from bench.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
     from bench.log_description import resolve
@@ -129,8 +127,7 @@ def _size_one(arg):
     return key
 
 
-def _run_one(arg):
-    key, calibration = arg
+def _run_one(key, calibration):
     from bench.gap.candidates import candidates_of
     from bench.gap.diagnose import diagnose, public
     from bench.gap.separability import separability_of_logs
@@ -167,20 +164,14 @@ def load_calibration() -> dict:
     return json.loads(CAL_PATH.read_text())
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, progress: bool = True) -> dict:
+def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True,
+                 campaign=None) -> dict:
     cal = load_calibration()
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    keys = pool_map(_size_one, [(k, cal) for k in draw_campaign(n_runs, seed)], workers, progress,
-                    "minimum detectable sizes")
-    hashes = [key_hash(k) for k in keys]
-    if out:
-        prereg = Path(str(out) + ".prereg.json")
-        prereg.parent.mkdir(parents=True, exist_ok=True)
-        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "vehicle": VEHICLE, "key_sha256": hashes},
-                                     indent=1) + "\n")
-    answers = pool_map(_run_one, [(k, cal) for k in keys], workers, progress, "validate-gap")
-    if [key_hash(k) for k in keys] != hashes:
-        raise RuntimeError("drawn keys changed during the campaign")
+    keys, answers, hashes, info = sized_and_diagnosed(
+        campaign, draw_campaign(n_runs, seed), _size_one, _run_one, cal, out,
+        {"seed": seed, "runs": n_runs, "vehicle": VEHICLE}, "validate-gap")
     res = score(keys, answers)
     no_valves = [(k, a) for k, a in zip(keys, answers) if k["no_valves"]]
     res["no_valves_stream"] = {
@@ -190,7 +181,7 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, progress
         "answers": [{"effect": k["effect"], "verdict": a["verdict"] if a["gap_detected"] else "no_gap",
                      "top1": a["top1"]} for k, a in no_valves]}
     res.update({"seed": seed, "vehicle": VEHICLE, "workers": workers, "elapsed_s": time.time() - t0,
-                "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
+                "campaign": info, "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
                 "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
                 "command": f"proxops validate-gap --vehicle {VEHICLE} --runs {n_runs} --seed {seed}"})
     return res
@@ -204,39 +195,52 @@ def _null_stats(seed: int) -> dict:
     return {"seed": int(seed), **null_statistics(simulate_key(key)), "elapsed_s": time.time() - t0}
 
 
-def calibrate(runs: int, seed: int, workers: int, progress: bool = True) -> dict:
+def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool = True, campaign=None) -> dict:
     """The null calibration of this vehicle's flight family."""
+    from bench.campaign.runner import all_failed, failures, results
     from bench.gap.log_null import FA_EACH, frechet_threshold
     from bench.log_description import resolve
 
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    seeds = np.random.default_rng(seed).integers(0, 2**31, runs)
-    rows = pool_map(_null_stats, [int(s) for s in seeds], workers, progress, f"null calibration ({VEHICLE})")
+    seeds = [int(s) for s in np.random.default_rng(seed).integers(0, 2**31, runs)]
+    recs = campaign.map("null", _null_stats, seeds, idents=[{"seed": s} for s in seeds],
+                        label=f"null calibration ({VEHICLE})")
+    all_failed(recs)
+    rows = [r for r in results(recs) if r is not None]
+    if not rows:
+        raise ValueError("no finished null runs")
     z = np.array([r["map_max_abs_z"] for r in rows])
     b = np.array([r["screen_logp"] for r in rows])
     thr = {"map_max_abs_z": frechet_threshold(z), "screen_logp": frechet_threshold(b)}
     desc = description()
     resolve(desc)
     return {"thresholds": thr, "method": "Frechet tail per statistic (bench/gap/log_null.py)",
-            "false_alarm_target_each": FA_EACH, "runs": int(runs), "seed": int(seed),
+            "false_alarm_target_each": FA_EACH, "runs": len(rows), "seed": int(seed),
             "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
             "manoeuvres": "characterisation", "description": desc, "vehicle": VEHICLE,
             "null_map_max_abs_z": z.tolist(), "null_screen_logp": b.tolist(), "elapsed_s": time.time() - t0,
+            **({"failed_runs": failures(recs)} if failures(recs) else {}),
             "command": f"python -m bench.gap.validate_vehicle calibrate --runs {runs} --seed {seed}"}
 
 
 def main(argv=None):
     import argparse
-    import os
+
+    from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 
     ap = argparse.ArgumentParser(description=f"Null calibration of the {VEHICLE} vehicle's flight family")
     ap.add_argument("what", choices=("calibrate",))
     ap.add_argument("--runs", type=int, default=200)
     ap.add_argument("--seed", type=int, default=1200)
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    add_campaign_arguments(ap)
     a = ap.parse_args(argv)
-    cal = calibrate(a.runs, a.seed, a.workers)
-    CAL_PATH.write_text(json.dumps(cal, indent=1) + "\n")
+    campaign = campaign_from(a, f"null-calibration-{VEHICLE}", {"runs": a.runs, "seed": a.seed})
+    cal = calibrate(a.runs, a.seed, campaign=campaign)
+    if a.summarise_only and cal["runs"] < a.runs:
+        print(f"{cal['runs']} of {a.runs} runs stored: {CAL_PATH} left as it is")
+    else:
+        CAL_PATH.write_text(json.dumps(cal, indent=1) + "\n")
     print(f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs, "
           f"{cal['elapsed_s']:.0f} s")
 

@@ -1,12 +1,19 @@
+import atexit
 import glob
 import importlib.util
 import os
+import shutil
 import sys
+import tempfile
 
 # One BLAS thread: the machine has two cores and numpy with two threads stalls.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# Campaign results stores and calibration caches of the tests go to a fresh
+# folder, never the user's (a stored run would be reused, not run).
+os.environ["PROXOPS_CACHE"] = tempfile.mkdtemp(prefix="proxops-test-cache-")
+atexit.register(shutil.rmtree, os.environ["PROXOPS_CACHE"], True)
 
 # PROXOPS_BINDINGS_DIR=<cmake build>/python tests a freshly built module
 # instead of the installed one (the editable install's import hook would

@@ -17,8 +17,8 @@ GAP_LAYERS = (
      {"validate", "validate_vehicle", "validate_mixtures", "perf_diagnose", "results_tables", "bundled",
       "characterise", "separability", "detectable"}),
     ("the answer: verdicts, words, report", {"diagnose", "answers", "report"}),
-    ("null calibrations, the flights they simulate, the campaigns' process pool",
-     {"null", "log_null", "plans", "simlogs", "pool"}),
+    ("null calibrations and the flights they simulate",
+     {"null", "log_null", "plans", "simlogs"}),
     ("the model: replay, dynamics channel, candidates, screening, selection, detection",
      {"detection", "select", "attribute", "localise", "quantify", "dyn", "candidates", "replay"}),
 )
