@@ -20,6 +20,7 @@ apart.
 """
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -156,3 +157,58 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = 
                 "command": f"proxops validate-gap --mixtures --runs {n_runs} --seed {seed}"
                            + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})
     return res
+
+
+# Pairs of effects on one docking-then-characterisation log, each effect at a
+# size the diagnosis names when it is alone in the log (python -m
+# bench.gap.validate_mixtures pairs; docs/RESULTS.md).
+_RNG_TILT = np.random.default_rng(5)
+PAIRS = {
+    "thrust loss on one valve + gyro bias": {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],
+                                             "gyro_bias": [2e-3, -1.5e-3, 1e-3]},
+    "centre-of-mass offset + camera latency": {"com_offset": [0.01, -0.008, 0.006], "camera_latency": [1.0]},
+    "thruster misalignment + accelerometer bias": {"thruster_misalignment": (0.03 * _RNG_TILT.normal(size=24)).tolist(),
+                                                   "accel_bias": [8e-4, -6e-4, 4e-4]},
+    "thrust loss on one valve + flexible panel": {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],
+                                                  "flex_mode": [0.3, 0.012]},
+}
+
+
+def _pair_answer(effects: dict, seed: int) -> dict:
+    from bench.gap import null as nullmod
+    from bench.gap.diagnose import diagnose, public
+    from bench.reality import simulate_log_with_key
+
+    key = {"manoeuvres": "docking+characterisation"}
+    log, _ = simulate_log_with_key(seed, effects, duration_s=120.0, with_truth=False, then_scripts=then_scripts(key))
+    pub = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres=key["manoeuvres"])))
+    es = pub.get("effect_set") or {}
+    shares = {m["effect"]: m.get("adds_shrink") for m in es.get("members", [])}
+    return {"verdict": pub["verdict"], "named": [m["effect"] for m in pub["effects"]], "shares": shares,
+            "shrink": (es.get("shrink_heldout") or {}).get("fraction")}
+
+
+def pairs(seed: int = 11) -> list:
+    """Each pair of PAIRS alone and together: [{"pair", "alone", "together"}]."""
+    out = []
+    for name, eff in PAIRS.items():
+        alone = {e: _pair_answer({e: v}, seed) for e, v in eff.items()}
+        out.append({"pair": name, "effects": eff, "alone": alone, "together": _pair_answer(eff, seed)})
+        print(f"{name}: alone {[a['verdict'] + ' ' + '+'.join(a['named']) for a in alone.values()]}; together "
+              f"{out[-1]['together']['verdict']} {'+'.join(out[-1]['together']['named'])}", file=sys.stderr)
+    return out
+
+
+def main(argv=None):
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description="The four pairs of effects on one log, alone and together")
+    ap.add_argument("what", choices=("pairs",))
+    ap.add_argument("--seed", type=int, default=11)
+    a = ap.parse_args(argv)
+    print(json.dumps(pairs(a.seed), indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -71,3 +71,20 @@ def test_in_library_member_named_beside_an_out_of_library_remainder():
 
     alone = _answer(895331565, {"led_occlusion": occlusion})
     assert alone["gap_detected"] and alone["verdict"] == "unexplained" and alone["effects"] == []
+
+
+def test_thrust_loss_named_beside_a_flexible_panel():
+    """A thrust loss on one valve and a flexible panel (no candidate models
+    it) on a docking-then-characterisation log: the loss is named, fitted on
+    its valve, and the panel's part stays a located remainder."""
+    from bench.gap.plans import then_scripts
+
+    then = then_scripts({"manoeuvres": "docking+characterisation"})
+    log, _ = reality.simulate_log_with_key(11, {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0], "flex_mode": [0.3, 0.012]},
+                                           duration_s=120.0, with_truth=False, then_scripts=then)
+    r = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres="docking+characterisation")))
+    assert r["verdict"] == "partly_explained"
+    assert [m["effect"] for m in r["effects"]] == ["thrust_loss"]
+    loss = {k: v for k, v in r["effects"][0]["parameters"].items()}
+    assert abs(loss["loss_3 [1]"]["value"] - 0.05) < 4 * loss["loss_3 [1]"]["sigma"] + 0.005
+    assert r["effect_set"]["remainder_where"] is not None
