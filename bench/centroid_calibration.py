@@ -101,7 +101,7 @@ def measure(est, seed: int, images: int, blur_values=(0.0, 2.0), match_px: float
             blobs = _detect_all(est, img, max_blobs)
             s_eff = np.hypot(sig, blur)
             peak = flux * (_erf_pixel(s_eff) ** 2)
-            for i, (t, f, s, p) in enumerate(zip(truth, flux, sig, peak)):
+            for _i, (t, f, s, p) in enumerate(zip(truth, flux, sig, peak)):
                 cols["blur"].append(blur)
                 cols["flux"].append(f)
                 cols["sigma"].append(s)

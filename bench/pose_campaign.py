@@ -73,7 +73,6 @@ def summarise(cases: list[dict]) -> dict:
          "failures_by_reason": {k: v for k, v in fails.items() if v}}
     if ok:
         nees = np.array([c["nees"] for c in ok])
-        k = len(ok)
         pos = np.array([c["pos_err_m"] for c in ok])
         att = np.array([c["att_err_deg"] for c in ok])
         rel = pos / np.array([c["range_m"] for c in ok])

@@ -280,7 +280,7 @@ class GprLearner:
         out = np.zeros(6)
         if len(self.X) == 0:
             return out
-        for kind, (L, alpha) in self._factor().items():
+        for kind, (_L, alpha) in self._factor().items():
             length, _ = self.hyper[kind]
             kstar = se_kernel(valves[None, :], self.X, length)[0]
             out[KINDS[kind]] = kstar @ alpha
@@ -382,7 +382,7 @@ def evaluate(seed: int, cfg: ProtocolConfig | None = None, learners=("blr", "gpr
         base = len(results) * len(data["masks"])
         total = len(learners) * len(data["masks"])
         r = run_learner(learner, data, None if progress is None else
-                        (lambda k, n, name=name, base=base: progress(name, base + k, total)))
+                        (lambda k, n, name=name, base=base, total=total: progress(name, base + k, total)))
         preds[name] = r["pred"]
         res = {}
         for kind in KINDS:

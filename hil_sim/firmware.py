@@ -256,7 +256,7 @@ def main(argv=None):
         print(f"{label:66s} {n:5d} {lo:10d} {med:10d} {hi:10d}  {med * a.cpi / a.mhz:18.1f}")
     c = compare(tgt, host)
     print(f"\ncomparison with the host float build: {c.packets} telemetry packets, {c.values} values")
-    for g, (ratio, d, v, i) in sorted(c.worst.items()):
+    for g, (ratio, d, _v, i) in sorted(c.worst.items()):
         print(f"  {g:28s} worst |diff| {d:.3g} ({ratio:.3f} of the tolerance) at frame {i}")
     for f in c.failures[:20]:
         print("  FAIL " + f)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import binascii
 import math
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np

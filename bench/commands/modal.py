@@ -4,7 +4,6 @@ Flexible Space Structures using Range Images" (Lichter and Dubowsky), and its
 timing grid (that paper's Table I)."""
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import subprocess

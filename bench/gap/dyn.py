@@ -203,8 +203,8 @@ def turn_weights(valves: dict, t: np.ndarray, rows: np.ndarray, dt: float, n_thr
         if not np.any(m):
             continue
         s, du = vt[m], on[m, i]
-        I = lambda x: _open_time_integral(s, du, x)  # noqa: E731
-        out[:, i] = (I(a) - I(a - dt) - I(b) + I(b - dt)) / dt
+        out[:, i] = (_open_time_integral(s, du, a) - _open_time_integral(s, du, a - dt)
+                     - _open_time_integral(s, du, b) + _open_time_integral(s, du, b - dt)) / dt
     return out
 
 

@@ -36,7 +36,7 @@ def batch_theta(xs, ys):
 def test_theta_matches_batch_solve_of_last_30_samples():
     b = fb.ThrusterBlr(prior_precision=LAMBDA)
     data = samples(500, 1)
-    for mask, x, y in data:
+    for mask, _x, y in data:
         b.add_mask(mask, y)
     ref = batch_theta([d[1] for d in data[-30:]], [d[2] for d in data[-30:]])
     assert b.count == 30
@@ -46,7 +46,7 @@ def test_theta_matches_batch_solve_of_last_30_samples():
 def test_prediction_matches_numpy_implementation():
     b = fb.ThrusterBlr(prior_precision=LAMBDA)
     n = NumpyBlr(prior_precision=LAMBDA)
-    for mask, x, y in samples(200, 2):
+    for _mask, x, y in samples(200, 2):
         b.add(x, y)
         n.add(x, y)
     xq = features(0b10110001)
@@ -93,7 +93,7 @@ def test_variance_of_the_mean_excludes_measurement_noise_and_shrinks_with_data()
 
     rng = np.random.default_rng(4)
     b = fb.ThrusterBlr()
-    for i in range(30):
+    for _i in range(30):
         b.add_mask(int(rng.integers(1, 256)), 1e-3 * rng.standard_normal(6))
     mean, var_mean = b.mean_and_its_variance_mask(3)
     mean_p, var_pred, _ = b.predict_mask(3)

@@ -367,7 +367,7 @@ def test_flex_mode_swings_the_body_at_its_frequency_and_amplitude_and_keeps_mome
     delta = np.sqrt(PlantEffects().flex_participation * 0.020) * np.array([0.0, 0.0, 1.0])
     h0 = p._j @ p.state.omega_bi_b_rps + delta * p.internal_state[1]
     ang, t = [], []
-    for k in range(200):
+    for _k in range(200):
         p.step_wrench(np.zeros(3), np.zeros(3), 0.05)
         q_ib = p.q_ib(p.state.t_s, p.state.q_hb)
         ang.append(2 * q_ib[3] / q_ib[0])

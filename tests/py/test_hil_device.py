@@ -9,7 +9,6 @@ import os
 import select
 import subprocess
 import threading
-import time
 import tty
 
 import numpy as np

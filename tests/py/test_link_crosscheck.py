@@ -249,7 +249,7 @@ def test_seeded_corruption_campaign_never_delivers_a_corrupted_packet():
     frames, sent = [], set()
     to_flight = [a for a in P.APIDS.values() if a.direction == P.TO_FLIGHT]
     t = 0.0
-    for k in range(1500):
+    for _k in range(1500):
         a = rng.choice(to_flight)
         t += 0.01
         payload = valid_payload(a, rng)
