@@ -11,7 +11,9 @@ one joint refit of the chosen set with the full filter:
    when that statistic passes the null-calibrated screening threshold (the
    same threshold that detects a gap: with the right set chosen, what is
    left is the null's noise, and the threshold holds its false-alarm rate
-   for the next step). At most MAX_EFFECTS effects.
+   for the next step). After each addition a member whose statistic beside
+   all the others no longer passes is dropped, the weakest first, and not
+   tried again (stepwise selection). At most MAX_EFFECTS effects.
 2. Refit the chosen set jointly with the full filter (scipy least_squares,
    every residual a full replay with the members' corrections added) on the
    training rows of both channels.
@@ -104,30 +106,54 @@ def look_alike_sets(ctx: Context, fits: list, names: list, delta2: float) -> lis
     return sorted(out, key=lambda a: a["signature_distance2"])
 
 
+def _conditional(ctx, fits_by, names: list, m: str, e0) -> tuple:
+    """(-log10 p, rank added, 2 dLL gain) of member m beside the others of names."""
+    t, rank = _two_dll(ctx, fits_by, names, e0)
+    rest = [n for n in names if n != m]
+    t0, r0 = _two_dll(ctx, fits_by, rest, e0)
+    dr = rank - r0
+    return (screen_logp(t - t0, dr) if dr > 0 else 0.0), dr, t - t0
+
+
 def forward_select(ctx: Context, fits: list, threshold_logp: float, max_effects: int = MAX_EFFECTS) -> list:
-    """[{"effect", "conditional_logp", "rank_added", "two_dll_gain"}] in the order chosen."""
+    """[{"effect", "conditional_logp", "rank_added", "two_dll_gain"}]: the
+    chosen set, each member's statistic beside all the others.
+
+    Stepwise: after each addition, a member that no longer passes the
+    threshold beside the others is dropped (the weakest first). A candidate
+    that absorbs part of two effects is often the first chosen, and the
+    right ones, once in, leave it nothing to explain."""
     fits_by = {f.name: f for f in fits if getattr(f, "J_u", None) is not None and np.isfinite(f.screen_bic)}
     e0, _ = training_residuals(ctx)
-    chosen, steps = [], []
-    base, base_rank = 0.0, 0
-    while len(chosen) < max_effects:
+    chosen, dropped = [], set()
+    for _ in range(4 * max_effects):  # bounded: each pass adds one or drops one
+        base, base_rank = _two_dll(ctx, fits_by, chosen, e0)
         best = None
-        for n in fits_by:
-            if n in chosen:
-                continue
-            t, rank = _two_dll(ctx, fits_by, chosen + [n], e0)
-            dr = rank - base_rank
-            if dr <= 0:
-                continue
-            lp = screen_logp(t - base, dr)
-            if best is None or lp > best["conditional_logp"]:
-                best = {"effect": n, "conditional_logp": lp, "rank_added": dr, "two_dll_gain": t - base,
-                        "_t": t, "_rank": rank}
-        if best is None or not best["conditional_logp"] > threshold_logp:
+        if len(chosen) < max_effects:
+            for n in fits_by:
+                if n in chosen or n in dropped:
+                    continue
+                t, rank = _two_dll(ctx, fits_by, chosen + [n], e0)
+                dr = rank - base_rank
+                if dr <= 0:
+                    continue
+                lp = screen_logp(t - base, dr)
+                if best is None or lp > best[1]:
+                    best = (n, lp)
+        if best is None or not best[1] > threshold_logp:
             break
-        chosen.append(best["effect"])
-        base, base_rank = best.pop("_t"), best.pop("_rank")
-        steps.append(best)
+        chosen.append(best[0])
+        while len(chosen) > 1:
+            cond = {m: _conditional(ctx, fits_by, chosen, m, e0)[0] for m in chosen}
+            weakest = min(cond, key=cond.get)
+            if cond[weakest] > threshold_logp:
+                break
+            chosen.remove(weakest)
+            dropped.add(weakest)
+    steps = []
+    for m in chosen:
+        lp, dr, gain = _conditional(ctx, fits_by, chosen, m, e0)
+        steps.append({"effect": m, "conditional_logp": lp, "rank_added": dr, "two_dll_gain": gain})
     return steps
 
 
