@@ -95,7 +95,7 @@ def _noise_free_bench_pose(description, plan, effects) -> np.ndarray:
     latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
     out = vehicle_sim._fly_segment(seg, 0.0, veh, pfx, desc, 1.0 / (desc.imu_rate_hz or 10.0), clocks, np.random.default_rng(0),
                                    latency)
-    pref = desc.pose_reference_b_m - desc.com_b_m
+    pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
     lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
     return np.array([r + rotmat(q) @ (pref + lever) for _, r, q in out[5]])
 
@@ -122,13 +122,14 @@ def effect_params(name: str, n_thrusters: int) -> list:
     return list(p)
 
 
-def signature_agreement(description: dict, plan: list, name: str, nulls: dict | None = None) -> dict:
+def signature_agreement(description: dict, plan: list, name: str, nulls: dict | None = None,
+                        stream: str | None = None) -> dict:
     """The effect's signature in each engine and their difference as a share
     of the bench's signature, on the stream that shows it (``nulls``: each
     engine's streams without the effect, when already flown)."""
     k = len(description["vehicle"]["thrusters"])
     params = effect_params(name, k)
-    stream = CROSSCHECK_EFFECTS[name][1]
+    stream = stream or CROSSCHECK_EFFECTS[name][1]
     d = quiet(description)
     eff = {name: params}
     if nulls is None:
@@ -242,6 +243,11 @@ def main(argv=None):
     for name in CROSSCHECK_EFFECTS:
         r = signature_agreement(desc, plan, name, nulls)
         res["effects"].append(r)
+        if name == "com_offset":  # it moves the pose reference point too
+            res["effects"].append(signature_agreement(desc, plan, name, nulls, stream="pose_r"))
+            q = res["effects"][-1]
+            print(f"{name:22s} {q['stream']:15s} signature rms {q['signature_rms']:.3e}  difference {q['difference_rms']:.3e}"
+                  f"  share {q['share']:.2e}", flush=True)
         print(f"{name:22s} {r['stream']:15s} signature rms {r['signature_rms']:.3e}  basilisk {r['basilisk_signature_rms']:.3e}"
               f"  difference {r['difference_rms']:.3e}  share {r['share']:.2e}", flush=True)
     res["elapsed_s"] = time.time() - t0

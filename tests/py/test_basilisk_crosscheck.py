@@ -51,6 +51,13 @@ def test_each_in_library_effect_has_the_same_signature_in_both_engines(name, nul
     assert r["share"] < SHARE[name], r
 
 
+def test_a_centre_of_mass_offset_moves_the_pose_as_in_basilisk(nulls):
+    # The pose reference point is fixed in the body frame; the truth is the true centre of mass.
+    r = xc.signature_agreement(DESC, PLAN, "com_offset", nulls=nulls, stream="pose_r")
+    assert r["signature_rms"] > 1e-3
+    assert r["share"] < 1e-3, r
+
+
 def test_imu_delta_v_and_angle_against_the_commanded_impulse():
     r = xc.impulse_check()
     dv = r["dv_commanded_mps"]
