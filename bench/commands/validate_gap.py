@@ -23,6 +23,9 @@ def register(sub):
                    help="3kg: the bench inspector's docking logs; 12kg: the twelve-thruster 6U-class inspector's "
                         "characterisation logs with jittered time stamps, pulse-width-modulated valves and pose on "
                         "its own clock (--duration and --manoeuvres do not apply)")
+    p.add_argument("--engine", default="bench", choices=("bench", "basilisk"),
+                   help="basilisk: the 12 kg campaign with every scored log flown by Basilisk (needs "
+                        "pip install '.[basilisk]'; implies --vehicle 12kg; docs/BASILISK.md)")
     p.add_argument("--mixtures", action="store_true",
                    help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
                         "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)")
@@ -71,7 +74,14 @@ def main(args):
         print(f"held-out shrink of the true set refitted jointly: median {res['true_set_shrink_median']} "
               f"(n = {res['n_shrink_measurable']})")
         return 0
-    if args.vehicle == "12kg":
+    if args.engine == "basilisk":
+        if args.mixtures:
+            raise ValueError("--engine basilisk runs the 12 kg single-effect campaign, not --mixtures")
+        from bench.gap import validate_basilisk
+
+        res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, workers)
+        res["manoeuvres"] = f"characterisation (12 kg, Basilisk {res['basilisk_version']})"
+    elif args.vehicle == "12kg":
         from bench.gap import validate_vehicle
 
         res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
