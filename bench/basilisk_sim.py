@@ -313,7 +313,7 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
             e[ax] = 1.0
             p.pHat_B = e.tolist()
             p.rhoInit, p.rhoDotInit = 0.0, 0.0
-            p.setNameOfMassState(f"sloshMass{ax}")
+            p.nameOfMassState = f"sloshMass{ax}"
             p.nameOfRhoState = f"sloshRho{ax}"
             p.nameOfRhoDotState = f"sloshRhoDot{ax}"
             insp.addStateEffector(p)
@@ -493,8 +493,10 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         n_steps = int(round(seg.duration_s / h))
         nominal = np.arange(nT, n_steps + 1, nT)
         jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
-        imu_i = np.clip(np.rint(nominal + jit / h).astype(np.int64), nT, n_steps)
-        imu_i = np.unique(imu_i)
+        # As the bench: a sample whose interval would start before the run is left out, the last ends at the run's end.
+        t_imu = np.minimum(nominal * h + jit, n_steps * h)
+        t_imu = t_imu[t_imu - T >= -1e-12]
+        imu_i = np.unique(np.clip(np.rint(t_imu / h).astype(np.int64), nT, n_steps))
         n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
         pose_t = clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
         pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
