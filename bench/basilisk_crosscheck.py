@@ -86,7 +86,7 @@ def _noise_free_bench_pose(description, plan, effects) -> np.ndarray:
     """The bench's pose without noise: its truth at the captures, moved to the reference point."""
     from bench import vehicle_sim
     from bench.log_description import resolve
-    from bench.plant import rotmat
+    from bench.so3 import rotmat
 
     clocks = Clocks(pose_period_s=0.5, pose_phase_s=0.4)
     seg = plan[0]

@@ -40,7 +40,7 @@ import numpy as np
 
 from bench.flight_log import FlightLog
 from bench.log_description import resolve
-from bench.plant import qexp, qlog, qmul, qnormalize, rotmat
+from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
 from bench.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
 
 STEP_S = 1e-3
@@ -384,10 +384,7 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
     imu.senTransBias = np.asarray(effects.get("accel_bias", np.zeros(3)), float).tolist()
     imu.senRotBias = np.asarray(effects.get("gyro_bias", np.zeros(3)), float).tolist()
     if "gyro_scale" in effects:
-        # The library's scale factor is per body axis; Basilisk's per IMU
-        # axis: mapped through the mounting (exact when it permutes axes).
-        s_b = np.asarray(effects["gyro_scale"], float)
-        imu.gyroScale = (1.0 + (c_ib**2) @ s_b).tolist()
+        imu.gyroScale = (1.0 + np.asarray(effects["gyro_scale"], float)).tolist()  # per IMU axis, as the library's
 
     # Initial states: the run starts at rest in the Hill frame.
     r_c, v_c = _host_orbit(desc, effects, t0, mu)

@@ -56,6 +56,8 @@ def main(args):
     from bench.gap.validate import run_campaign
     from bench.report import write_json
 
+    if args.engine == "basilisk" and args.mixtures:
+        raise ValueError("--engine basilisk runs the 12 kg single-effect campaign, not --mixtures")
     campaign = _campaign(args)
     where = campaign.where()
     if args.mixtures:
@@ -75,11 +77,9 @@ def main(args):
               f"(n = {res['n_shrink_measurable']})")
         return 0
     if args.engine == "basilisk":
-        if args.mixtures:
-            raise ValueError("--engine basilisk runs the 12 kg single-effect campaign, not --mixtures")
         from bench.gap import validate_basilisk
 
-        res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, workers)
+        res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
         res["manoeuvres"] = f"characterisation (12 kg, Basilisk {res['basilisk_version']})"
     elif args.vehicle == "12kg":
         from bench.gap import validate_vehicle

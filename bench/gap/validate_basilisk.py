@@ -19,14 +19,10 @@ disagreement between the engines, scored as a false alarm.
 """
 from __future__ import annotations
 
-import json
 import time
-from pathlib import Path
-
-import numpy as np
 
 from bench.gap import validate_vehicle as vv
-from bench.gap.validate import key_hash, pool_map, score
+from bench.gap.validate import score, sized_and_diagnosed
 
 
 def simulate_key(key: dict, effects: dict | None = None):
@@ -43,51 +39,22 @@ def simulate_key(key: dict, effects: dict | None = None):
     return log
 
 
-def _run_one(arg):
-    key, calibration = arg
-    from bench.gap.diagnose import diagnose, public
-    from bench.gap.separability import separability_of_logs
-    from bench.gap.validate import forced_fit
-
-    t0 = time.time()
-    log = simulate_key(key)
-    t_sim = time.time() - t0
-    res = diagnose(log, calibration=calibration, calibration_source="the 12 kg vehicle's null calibration")
-    pub = public(res)
-    out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"],
-           "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
-           "ranking": [r["effect"] for r in pub["attribution"]],
-           "map_max_abs_z": pub["statistics"]["map_max_abs_z"], "screen_logp_max": pub["statistics"]["screen_logp_max"],
-           "not_examined": pub["examined"]["not_examined"], "t_sim_s": t_sim, "t_diagnose_s": pub["elapsed_s"]}
-    it = res["_internal"]
-    eff = key["effect"]
-    if key["category"] == "in_library":
-        out["true_fit"] = forced_fit(it, eff)
-        wrong = [n for n in it["d"].cands if n != eff]
-        w = wrong[np.random.default_rng(key["seed"]).integers(len(wrong))]
-        out["wrong_fit"] = {"effect": w, **forced_fit(it, w)}
-    if eff is not None:
-        sep = separability_of_logs(simulate_key(key, {}), log, eff, key["category"] == "in_library")
-        out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable")}
-    return out
+def run_one(key: dict, calibration: dict) -> dict:
+    """The 12 kg campaign's diagnosis of one run, on its Basilisk log."""
+    return vv._run_one(key, calibration, simulate_key)
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, progress: bool = True) -> dict:
+def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True,
+                 campaign=None) -> dict:
     from bench.basilisk_sim import basilisk_version
+    from bench.campaign.runner import new_campaign
 
     cal = vv.load_calibration()
+    campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
-    keys = pool_map(vv._size_one, [(k, cal) for k in vv.draw_campaign(n_runs, seed)], workers, progress,
-                    "minimum detectable sizes (bench engine)")
-    hashes = [key_hash(k) for k in keys]
-    if out:
-        prereg = Path(str(out) + ".prereg.json")
-        prereg.parent.mkdir(parents=True, exist_ok=True)
-        prereg.write_text(json.dumps({"seed": seed, "runs": n_runs, "vehicle": vv.VEHICLE, "engine": "basilisk",
-                                      "key_sha256": hashes}, indent=1) + "\n")
-    answers = pool_map(_run_one, [(k, cal) for k in keys], workers, progress, "validate-gap (Basilisk logs)")
-    if [key_hash(k) for k in keys] != hashes:
-        raise RuntimeError("drawn keys changed during the campaign")
+    keys, answers, hashes, info = sized_and_diagnosed(
+        campaign, vv.draw_campaign(n_runs, seed), vv._size_one, run_one, cal, out,
+        {"seed": seed, "runs": n_runs, "vehicle": vv.VEHICLE, "engine": "basilisk"}, "validate-gap (Basilisk logs)")
     res = score(keys, answers)
     no_valves = [(k, a) for k, a in zip(keys, answers) if k["no_valves"]]
     res["no_valves_stream"] = {
@@ -95,7 +62,7 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int, progress
         "said_dynamics_not_examined": int(sum(any(x.startswith("dynamics") for x in a["not_examined"])
                                               for _, a in no_valves))}
     res.update({"seed": seed, "vehicle": vv.VEHICLE, "engine": "basilisk", "basilisk_version": basilisk_version(),
-                "workers": workers, "elapsed_s": time.time() - t0,
+                "workers": workers, "elapsed_s": time.time() - t0, "campaign": info,
                 "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
                 "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
                 "command": f"proxops validate-gap --engine basilisk --runs {n_runs} --seed {seed}"})
