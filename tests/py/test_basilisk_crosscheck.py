@@ -17,7 +17,6 @@ PLAN = xc.short_plan(DESC, 12.0)
 # Stated share of each effect's own signature (RMS over the log) by which the
 # engines may differ (docs/BASILISK.md gives the measured values).
 SHARE = {name: 1e-3 for name in xc.CROSSCHECK_EFFECTS}
-SHARE["mass_depletion"] = 0.1  # Basilisk adds the expelled propellant's jet damping and depletes continuously
 SHARE["host_eccentricity"] = 0.02
 # Documented disagreement: Basilisk's host feels J2 too; the bench's model
 # keeps the host on its circular reference orbit. A 0.1 micrometre signature.
