@@ -38,10 +38,11 @@ def _campaign(args):
     and by the null calibration it scores against."""
     from bench.campaign.records import sha256
 
-    if args.vehicle == "12kg":
+    if args.vehicle == "12kg" or args.engine == "basilisk":
         from bench.gap.validate_vehicle import load_calibration
 
-        cal, kind = load_calibration(), {"vehicle": "12kg"}
+        # The engine keys the store too: Basilisk's runs are not the bench plant's.
+        cal, kind = load_calibration(), {"vehicle": "12kg", **({"engine": "basilisk"} if args.engine == "basilisk" else {})}
     else:
         from bench.gap import null as nullmod
 
