@@ -71,14 +71,15 @@ $(STAMPS)/venv: $(STAMPS)/apt
 	$(VPY) -m pip install -q --disable-pip-version-check "scikit-build-core>=0.10" "pybind11>=2.12" cmake ninja setuptools wheel
 	@touch $@
 
-# Editable install: Python sources are used in place; the native module is
+# Editable install: Python sources are used in place (with the dev tools and
+# the optional Basilisk engine, whose cross-check runs with the tests); the native module is
 # rebuilt incrementally (build/<wheel tag>) when a native source changes. It
 # links the flight libraries built in $(CPP_BUILD) rather than compiling the
 # flight templates a second time.
 $(STAMPS)/install: $(STAMPS)/venv $(STAMPS)/cpp-configure $(NATIVE_SRC)
 	$(VENV)/bin/cmake --build $(CPP_BUILD) --target fsw_libraries
 	$(VPY) -m pip install -q --disable-pip-version-check --no-build-isolation \
-	  -C cmake.define.PROXOPS_PREBUILT_FSW=$(abspath $(CPP_BUILD)) -e ".[dev]"
+	  -C cmake.define.PROXOPS_PREBUILT_FSW=$(abspath $(CPP_BUILD)) -e ".[dev,basilisk]"
 	@touch $@
 
 # CI (CI=true) builds what the tests need; the Google Benchmark targets

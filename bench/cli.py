@@ -18,6 +18,7 @@ COMMAND_MODULES = [
     "bench.commands.pose",
     "bench.commands.diagnose",
     "bench.commands.validate_gap",
+    "bench.commands.simulate",
 ]
 
 

@@ -244,9 +244,11 @@ def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: 
             snap(i)
             continue
         f, tau = veh.wrench(valves)
+        # Propellant flows during the step: the step flies at the mass of its midpoint.
+        used = mflow * float(valves.sum()) * dt
+        plant.mass_kg -= 0.5 * used
         res = plant.step_wrench(f, tau, dt)
-        if mflow > 0.0:
-            plant.mass_kg -= mflow * float(valves.sum()) * dt
+        plant.mass_kg -= 0.5 * used
         S[i] = S[i - 1] + res.specific_force_b_mps2 * dt
         snap(i)
     idx = {t: i for i, t in enumerate(grid)}

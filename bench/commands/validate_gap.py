@@ -23,6 +23,9 @@ def register(sub):
                    help="3kg: the bench inspector's docking logs; 12kg: the twelve-thruster 6U-class inspector's "
                         "characterisation logs with jittered time stamps, pulse-width-modulated valves and pose on "
                         "its own clock (--duration and --manoeuvres do not apply)")
+    p.add_argument("--engine", default="bench", choices=("bench", "basilisk"),
+                   help="basilisk: the 12 kg campaign with every scored log flown by Basilisk (needs "
+                        "pip install '.[basilisk]'; implies --vehicle 12kg; docs/BASILISK.md)")
     p.add_argument("--mixtures", action="store_true",
                    help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
                         "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)")
@@ -35,10 +38,11 @@ def _campaign(args):
     and by the null calibration it scores against."""
     from bench.campaign.records import sha256
 
-    if args.vehicle == "12kg":
+    if args.vehicle == "12kg" or args.engine == "basilisk":
         from bench.gap.validate_vehicle import load_calibration
 
-        cal, kind = load_calibration(), {"vehicle": "12kg"}
+        # The engine keys the store too: Basilisk's runs are not the bench plant's.
+        cal, kind = load_calibration(), {"vehicle": "12kg", **({"engine": "basilisk"} if args.engine == "basilisk" else {})}
     else:
         from bench.gap import null as nullmod
 
@@ -53,6 +57,8 @@ def main(args):
     from bench.gap.validate import run_campaign
     from bench.report import write_json
 
+    if args.engine == "basilisk" and args.mixtures:
+        raise ValueError("--engine basilisk runs the 12 kg single-effect campaign, not --mixtures")
     campaign = _campaign(args)
     where = campaign.where()
     if args.mixtures:
@@ -71,7 +77,12 @@ def main(args):
         print(f"held-out shrink of the true set refitted jointly: median {res['true_set_shrink_median']} "
               f"(n = {res['n_shrink_measurable']})")
         return 0
-    if args.vehicle == "12kg":
+    if args.engine == "basilisk":
+        from bench.gap import validate_basilisk
+
+        res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
+        res["manoeuvres"] = f"characterisation (12 kg, Basilisk {res['basilisk_version']})"
+    elif args.vehicle == "12kg":
         from bench.gap import validate_vehicle
 
         res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)

@@ -127,14 +127,16 @@ def _size_one(key, calibration):
     return key
 
 
-def _run_one(key, calibration):
+def _run_one(key, calibration, simulate=None):
+    # simulate(key, effects): the flight of the key's run (default: this vehicle's plant).
+    simulate = simulate or simulate_key
     from bench.gap.candidates import candidates_of
     from bench.gap.diagnose import diagnose, public
     from bench.gap.separability import separability_of_logs
     from bench.gap.validate import forced_fit
 
     t0 = time.time()
-    log = simulate_key(key)
+    log = simulate(key)
     t_sim = time.time() - t0
     res = diagnose(log, calibration=calibration, calibration_source="the 12 kg vehicle's null calibration")
     pub = public(res)
@@ -152,7 +154,7 @@ def _run_one(key, calibration):
         w = wrong[np.random.default_rng(key["seed"]).integers(len(wrong))]
         out["wrong_fit"] = {"effect": w, **forced_fit(it, w)}
     if eff is not None:
-        sep = separability_of_logs(simulate_key(key, {}), log, eff, key["category"] == "in_library")
+        sep = separability_of_logs(simulate(key, {}), log, eff, key["category"] == "in_library")
         out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable")}
     return out
 

@@ -14,7 +14,7 @@ grimp = pytest.importorskip("grimp")
 # bench/gap, top to bottom: a module may import its own layer or lower ones.
 GAP_LAYERS = (
     ("campaigns: blind validation, detection limits, separability, the bundled run",
-     {"validate", "validate_vehicle", "validate_mixtures", "perf_diagnose", "results_tables", "bundled",
+     {"validate", "validate_vehicle", "validate_basilisk", "validate_mixtures", "perf_diagnose", "results_tables", "bundled",
       "characterise", "separability", "detectable"}),
     ("the answer: verdicts, words, report", {"diagnose", "answers", "report"}),
     ("null calibrations and the flights they simulate",

@@ -1,0 +1,556 @@
+"""Flight logs (format version 2) from Basilisk, the AVS Lab's astrodynamics
+framework (PyPI ``bsk``, the optional extra ``pip install .[basilisk]``): a
+second truth engine beside bench/vehicle_sim.py, written elsewhere, so a
+mistake the bench's plant shares with the diagnosis shows up beside it.
+
+    log, key = simulate(description, plan, effects, seed, clocks)
+
+The same call as ``bench.vehicle_sim.simulate``, flown by Basilisk:
+
+- two spacecraft in a real Earth orbit, the host (a point mass) and the
+  inspector (hub, thrusters, IMU), both under Basilisk's gravity; the
+  relative state is converted into the host's Hill frame (x radial, z orbit
+  normal, turning at |h| / |r|^2) at every IMU tick. Both fly rather than the
+  inspector alone against an analytic host orbit so that J2 and drag act on
+  the host through the same modules as on the inspector;
+- the inspector's body frame B is the description's structural frame: the
+  hub's centre of mass sits at ``com_b_m`` (plus a centre-of-mass offset),
+  the thrusters (thrusterDynamicEffector) and the IMU (imuSensor) at their
+  described positions in B;
+- the valves are replayed from the plan's commands. Every switching instant
+  is commanded explicitly (on: the time to the thruster's next switch plus a
+  margin; off: zero), because the effector's own on-time countdown leaks one
+  Runge-Kutta stage past the pulse's end (docs/BASILISK.md);
+- the IMU samples are Basilisk's imuSensor run at every integration step,
+  its delta-v and delta-angle outputs summed over each log interval
+  (interval mean, as the log format states); the white noise of the
+  description is added per log sample here, so that it has the described
+  sigma whatever the step;
+- the pose sensor is the bench's (Basilisk has none): the described
+  reference point's Hill position and the attitude, from Basilisk's truth,
+  with the bench's noise.
+
+Time: Basilisk steps at ``STEP_S`` (1 ms); valve switches, IMU stamps and
+pose captures are put on that grid (a jittered stamp moves by at most half a
+step). Effects: ``EFFECTS_HERE`` (docs/BASILISK.md maps each to its module).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bench.flight_log import FlightLog
+from bench.log_description import resolve
+from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
+from bench.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
+
+STEP_S = 1e-3
+J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/plant.py)
+AIR_DENSITY_KGPM3 = 5e-13  # as the bench's differential drag
+SLOSH_FREQ_HZ, SLOSH_DAMPING = 0.3, 0.05  # as the bench's fuel slosh
+PANEL_MASS_FRACTION, PANEL_ARM_M = 0.02, 0.15  # the hinged panel (out of library): 2 % of the mass, 15 cm arm
+EFFECTS_HERE = ("thrust_loss", "thruster_misalignment", "com_offset", "mass_depletion", "host_eccentricity",
+                "differential_j2", "differential_drag", "flex_mode", "fuel_slosh", "accel_bias", "gyro_bias",
+                "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm")
+
+
+def basilisk_version() -> str:
+    import importlib.metadata
+
+    return importlib.metadata.version("bsk")
+
+
+def _require_basilisk():
+    try:
+        import Basilisk  # noqa: F401
+    except ImportError as exc:
+        raise ValueError("the Basilisk engine needs the optional extra: pip install '.[basilisk]' "
+                         f"(PyPI bsk; {exc})") from None
+
+
+# --- frames -------------------------------------------------------------------
+
+def mrp_to_dcm_bn(sigma) -> np.ndarray:
+    """(N, 3) MRPs sigma_BN -> (N, 3, 3) [BN] (N components -> B components)."""
+    s = np.atleast_2d(np.asarray(sigma, float))
+    s2 = np.sum(s * s, axis=1)
+    sk = np.zeros((s.shape[0], 3, 3))
+    sk[:, 0, 1], sk[:, 0, 2], sk[:, 1, 2] = -s[:, 2], s[:, 1], -s[:, 0]
+    sk -= np.transpose(sk, (0, 2, 1))
+    c = np.eye(3) + (8.0 * sk @ sk - 4.0 * (1.0 - s2)[:, None, None] * sk) / ((1.0 + s2) ** 2)[:, None, None]
+    return c
+
+
+def dcm_to_quat(c: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotation matrices (body -> frame) -> (N, 4) [w, x, y, z], w >= 0."""
+    c = np.atleast_3d(c).reshape(-1, 3, 3)
+    out = np.zeros((c.shape[0], 4))
+    for i, m in enumerate(c):
+        tr = np.trace(m)
+        k = int(np.argmax([tr, m[0, 0], m[1, 1], m[2, 2]]))
+        if k == 0:
+            w = 0.5 * np.sqrt(1.0 + tr)
+            q = [w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w)]
+        else:
+            i1, i2 = (k % 3), ((k + 1) % 3)
+            a = k - 1
+            x = 0.5 * np.sqrt(1.0 + 2.0 * m[a, a] - tr)
+            v = np.zeros(3)
+            v[a] = x
+            v[i1] = (m[i1, a] + m[a, i1]) / (4 * x)
+            v[i2] = (m[i2, a] + m[a, i2]) / (4 * x)
+            w = (m[i2, i1] - m[i1, i2]) / (4 * x)
+            q = [w, *v]
+        out[i] = qnormalize(q)
+    return out
+
+
+def dcm_to_mrp(c_bn: np.ndarray) -> np.ndarray:
+    q = dcm_to_quat(c_bn.T)[0]  # q rotating B vectors into N
+    return q[1:] / (1.0 + q[0])
+
+
+def hill_frame(r_c, v_c):
+    """(C_HN (N,3,3), theta_dot (N,)) of the host's Hill frame."""
+    r_c, v_c = np.atleast_2d(r_c), np.atleast_2d(v_c)
+    h = np.cross(r_c, v_c)
+    x = r_c / np.linalg.norm(r_c, axis=1)[:, None]
+    z = h / np.linalg.norm(h, axis=1)[:, None]
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=1), np.linalg.norm(h, axis=1) / np.sum(r_c * r_c, axis=1)
+
+
+def relative_hill(r_c, v_c, r_d, v_d):
+    """Deputy relative to the host in the host's Hill frame: (r, v, C_HN).
+    The frame's rate is taken as |h| / |r|^2 about z (exact on a Kepler
+    orbit; J2's out-of-plane turn, ~1e-6 rad/s, is left out)."""
+    c_hn, thd = hill_frame(r_c, v_c)
+    dr = np.einsum("nij,nj->ni", c_hn, r_d - r_c)
+    dv = np.einsum("nij,nj->ni", c_hn, v_d - v_c)
+    w = np.zeros_like(dr)
+    w[:, 2] = thd
+    return dr, dv - np.cross(w, dr), c_hn
+
+
+def imu_dv_error(accum_dv_b, sigma_bn) -> np.ndarray:
+    """(N, 3) what imuSensor adds to each step's delta-v (body axes) beyond the
+    true one. It turns the spacecraft's body-frame running total A of delta-v
+    (a sum of increments each in its own step's body axes) into inertial axes
+    with the attitude of the step's end and of its start, and differences:
+    C_NB2 A2 - C_NB1 A1 = C_NB2 dA + (C_NB2 - C_NB1) A1. The second term,
+    about (omega x A1) dt, is not a delta-v: it grows with all the delta-v
+    since the start (docs/BASILISK.md). In step-end body axes it is
+    A1 - C_B2N C_NB1 A1."""
+    a = np.asarray(accum_dv_b, float)
+    c_bn = mrp_to_dcm_bn(sigma_bn)
+    err = np.zeros_like(a)
+    err[1:] = a[:-1] - np.einsum("nij,njk,nk->ni", c_bn[1:], np.transpose(c_bn[:-1], (0, 2, 1)), a[:-1])
+    return err
+
+
+# --- one run --------------------------------------------------------------------
+
+def _host_orbit(desc, effects: dict, t0: float, mu: float):
+    """Host position and velocity (inertial) at the run's start: a circular
+    orbit (inclination 51.6 deg, node on x, argument of latitude n t0), or
+    the eccentric orbit of ``host_eccentricity`` with the bench's phase."""
+    from bench.effects import true_anomaly_after
+
+    a = desc.orbit_radius_m
+    n = np.sqrt(mu / a**3)
+    inc = J2_INCLINATION_RAD
+    if "host_eccentricity" in effects:
+        e, f0 = (float(x) for x in np.atleast_1d(effects["host_eccentricity"]))
+        f = true_anomaly_after(e, f0, n * t0)
+        u = f - f0  # argument of latitude 0 at t = 0, as the bench's Hill axes
+        p = a * (1.0 - e * e)
+        r = p / (1.0 + e * np.cos(f))
+        vr, vt = np.sqrt(mu / p) * e * np.sin(f), np.sqrt(mu / p) * (1.0 + e * np.cos(f))
+    else:
+        u, r, vr, vt = n * t0, a, 0.0, np.sqrt(mu / a)
+    xh = np.array([np.cos(u), np.cos(inc) * np.sin(u), np.sin(inc) * np.sin(u)])
+    zh = np.array([0.0, -np.sin(inc), np.cos(inc)])
+    yh = np.cross(zh, xh)
+    return r * xh, vr * xh + vt * yh
+
+
+def _valve_events(seg, k: int, h: float):
+    """Switching instants on the step grid (integer steps) and the valve
+    states from each: [(step, on (K,) bool, steps to each thruster's next switch)]."""
+    t_cmd = np.asarray(seg.cmd_t_s, float)
+    on = np.asarray(seg.cmd_on_s, float).reshape(-1, k)
+    pulses = [[] for _ in range(k)]
+    for tc, row in zip(t_cmd, on):
+        for i in range(k):
+            if row[i] > 0.0:
+                a, b = int(round(tc / h)), int(round((tc + row[i]) / h))
+                if b > a:
+                    pulses[i].append((a, b))
+    steps = sorted({s for p in pulses for ab in p for s in ab})
+    events = []
+    for s in steps:
+        state = np.zeros(k, bool)
+        nxt = np.zeros(k)
+        for i in range(k):
+            for a, b in pulses[i]:
+                if a <= s < b:
+                    state[i] = True
+                    nxt[i] = b - s
+        events.append((s, state, nxt))
+    return events
+
+
+def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap, h: float):
+    """Fly one run in Basilisk. ``imu_t``, ``pose_cap`` are step indices from
+    the run's start. Returns the IMU's summed outputs per log sample (mean
+    specific force, mean rate; IMU axes, without noise) and the truth at the
+    IMU ticks and pose captures."""
+    from Basilisk.architecture import messaging
+    from Basilisk.simulation import imuSensor, spacecraft, thrusterDynamicEffector
+    from Basilisk.utilities import SimulationBaseClass, simIncludeGravBody
+
+    k = desc.n_thrusters
+    sim = SimulationBaseClass.SimBaseClass()
+    sim.SetProgressBar(False) if hasattr(sim, "SetProgressBar") else None
+    proc = sim.CreateNewProcess("dynamics")
+    step_ns = int(round(h * 1e9))
+    proc.addTask(sim.CreateNewTask("step", step_ns))
+
+    grav = simIncludeGravBody.gravBodyFactory()
+    earth = grav.createEarth()
+    earth.isCentralBody = True
+    mu = earth.mu
+    if "differential_j2" in effects:
+        from Basilisk.simulation.sphericalHarmonicsGravityModel import SphericalHarmonicsGravityModel
+
+        j2 = float(np.atleast_1d(effects["differential_j2"])[0])
+        sh = SphericalHarmonicsGravityModel()
+        sh.muBody, sh.radEquator, sh.maxDeg = mu, earth.radEquator, 2
+        # Fully normalised C20 = -J2 / sqrt(5); all else zero.
+        sh.cBar = [[1.0], [0.0, 0.0], [-j2 / np.sqrt(5.0), 0.0, 0.0]]
+        sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
+        earth.gravityModel = sh
+
+    veh = desc.vehicle()  # positions relative to the described centre of mass
+    com = np.asarray(desc.com_b_m, float) + np.asarray(effects.get("com_offset", np.zeros(3)), float)
+    mdot = float(np.atleast_1d(effects.get("mass_depletion", [0.0]))[0])
+    slosh_m = float(np.atleast_1d(effects.get("fuel_slosh", [0.0]))[0])
+    flex = np.atleast_1d(effects.get("flex_mode", [0.0, 0.0])).astype(float)
+
+    host = spacecraft.Spacecraft()
+    host.ModelTag = "host"
+    host.hub.mHub = 100.0
+    host.hub.IHubPntBc_B = np.eye(3).tolist()
+    grav.addBodiesTo(host)
+
+    insp = spacecraft.Spacecraft()
+    insp.ModelTag = "inspector"
+    grav.addBodiesTo(insp)
+    m_total = float(desc.mass_kg)
+    m_hub = m_total - slosh_m - (PANEL_MASS_FRACTION * m_total if flex[1] != 0.0 else 0.0)
+    j_total = np.asarray(desc.inertia_kgm2, float)
+    insp.hub.r_BcB_B = com.reshape(3, 1).tolist()
+    insp.hub.IHubPntBc_B = j_total.tolist()
+    keep = []  # Basilisk objects must outlive the run
+
+    thr = thrusterDynamicEffector.ThrusterDynamicEffector()
+    thr.ModelTag = "thrusters"
+    pos_b = np.asarray(veh.positions_b_m, float) + np.asarray(desc.com_b_m, float)  # back into B
+    dirs = np.asarray(veh.directions_b, float)
+    scale = np.ones(k)
+    if "thrust_loss" in effects:
+        p = np.atleast_1d(np.asarray(effects["thrust_loss"], float))
+        scale = 1.0 - (np.full(k, p[0]) if p.size == 1 else p.reshape(k))
+    if "thruster_misalignment" in effects:
+        phi = np.asarray(effects["thruster_misalignment"], float).reshape(k, 3)
+        dirs = np.array([rotmat(qexp(phi[i])) @ dirs[i] for i in range(k)])
+    thrust = np.asarray(veh.thrust_n, float) * np.asarray(veh.thrust_scale, float) if np.ndim(veh.thrust_n) else \
+        np.full(k, float(veh.thrust_n)) * np.asarray(veh.thrust_scale, float)
+    for i in range(k):
+        c = thrusterDynamicEffector.THRSimConfig()
+        c.thrLoc_B = pos_b[i].tolist()
+        c.thrDir_B = (dirs[i] / np.linalg.norm(dirs[i])).tolist()
+        c.MaxThrust = float(thrust[i] * scale[i])
+        c.MinOnTime = 0.0
+        # mdot = F / (g0 Isp): the bench's flow per open valve.
+        c.steadyIsp = float(thrust[i] * scale[i] / (9.80665 * mdot)) if mdot > 0.0 else 0.0
+        thr.addThruster(c)
+        keep.append(c)
+    cmd = messaging.THRArrayOnTimeCmdMsg()
+    thr.cmdsInMsg.subscribeTo(cmd)
+    insp.addDynamicEffector(thr)
+
+    if mdot > 0.0:
+        from Basilisk.simulation import fuelTank
+
+        # All the propellant the run can use, in a tank at the centre of mass
+        # (a point: the bench's inertia stays fixed as mass is used).
+        fuel = min(0.2 * m_hub, 2.0 * mdot * k * seg.duration_s + 1e-3)
+        tank = fuelTank.FuelTank()
+        model = fuelTank.FuelTankModelConstantVolume()
+        model.propMassInit = fuel
+        model.r_TcT_TInit = [[0.0], [0.0], [0.0]]
+        model.radiusTankInit = 1e-4
+        tank.setTankModel(model)
+        tank.setR_TB_B(com.reshape(3, 1).tolist())
+        tank.addThrusterSet(thr)
+        insp.addStateEffector(tank)
+        sim.AddModelToTask("step", tank, 95)
+        m_hub -= fuel
+        keep += [tank, model]
+    if slosh_m > 0.0:
+        from Basilisk.simulation import linearSpringMassDamper
+
+        # One spring per body axis through the centre of mass, a third of the
+        # slosh mass each (the bench's slosh is one mass on an isotropic spring).
+        ws = 2.0 * np.pi * SLOSH_FREQ_HZ
+        for ax in range(3):
+            p = linearSpringMassDamper.LinearSpringMassDamper()
+            p.massInit = slosh_m / 3.0
+            p.k = slosh_m / 3.0 * ws**2
+            p.c = 2.0 * SLOSH_DAMPING * ws * slosh_m / 3.0
+            p.r_PB_B = com.reshape(3, 1).tolist()
+            e = np.zeros((3, 1))
+            e[ax] = 1.0
+            p.pHat_B = e.tolist()
+            p.rhoInit, p.rhoDotInit = 0.0, 0.0
+            p.nameOfMassState = f"sloshMass{ax}"
+            p.nameOfRhoState = f"sloshRho{ax}"
+            p.nameOfRhoDotState = f"sloshRhoDot{ax}"
+            insp.addStateEffector(p)
+            sim.AddModelToTask("step", p, 95)
+            keep.append(p)
+    if flex[1] != 0.0:
+        from Basilisk.simulation import hingedRigidBodyStateEffector
+
+        # A panel on a hinge about body z, its own frequency flex_mode[0],
+        # started at the deflection that swings the body by ~flex_mode[1].
+        mp = PANEL_MASS_FRACTION * m_total
+        d = PANEL_ARM_M
+        ip = mp * d * d / 3.0
+        panel = hingedRigidBodyStateEffector.HingedRigidBodyStateEffector()
+        panel.mass = mp
+        panel.IPntS_S = np.diag([ip / 10.0, ip, ip]).tolist()
+        panel.d = d
+        i_hinge = ip + mp * d * d
+        panel.k = i_hinge * (2.0 * np.pi * flex[0]) ** 2
+        panel.c = 2.0 * 0.005 * np.sqrt(panel.k * i_hinge)
+        panel.r_HB_B = (com + np.array([0.0, 0.0, 0.0])).reshape(3, 1).tolist()
+        # Hinge axis (the H frame's y) along body z: the panel swings in the body x-y plane.
+        panel.dcm_HB = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
+        panel.thetaInit = float(flex[1]) * float(j_total[2, 2]) / i_hinge
+        panel.thetaDotInit = 0.0
+        panel.nameOfThetaState = "panelTheta"
+        panel.nameOfThetaDotState = "panelThetaDot"
+        insp.addStateEffector(panel)
+        sim.AddModelToTask("step", panel, 95)
+        keep.append(panel)
+    insp.hub.mHub = m_hub
+
+    if "differential_drag" in effects:
+        from Basilisk.simulation import dragDynamicEffector, exponentialAtmosphere
+
+        p = np.atleast_1d(np.asarray(effects["differential_drag"], float))
+        b_host = float(p[1]) if p.size > 1 else max(0.0, -float(p[0]))
+        b_insp = float(p[0]) + b_host
+        atmo = exponentialAtmosphere.ExponentialAtmosphere()
+        atmo.ModelTag = "atmosphere"
+        atmo.planetRadius = earth.radEquator
+        atmo.baseDensity = AIR_DENSITY_KGPM3
+        atmo.scaleHeight = 1e15  # the bench's constant density
+        sim.AddModelToTask("step", atmo, 99)
+        keep.append(atmo)
+        for sc, b, m in ((host, b_host, host.hub.mHub), (insp, b_insp, m_total)):
+            if b <= 0.0:
+                continue
+            atmo.addSpacecraftToModel(sc.scStateOutMsg)
+            drag = dragDynamicEffector.DragDynamicEffector()
+            drag.coreParams.dragCoeff = 2.0
+            drag.coreParams.projectedArea = b * m / 2.0  # B = C_d A / m
+            # Basilisk applies the force about the body origin B; the bench's drag acts through the centre of mass.
+            drag.coreParams.comOffset = (com if sc is insp else np.zeros(3)).tolist()
+            drag.atmoDensInMsg.subscribeTo(atmo.envOutMsgs[-1])
+            sc.addDynamicEffector(drag)
+            sim.AddModelToTask("step", drag, 98)
+            keep.append(drag)
+
+    imu = imuSensor.ImuSensor()
+    imu.ModelTag = "imu"
+    imu.scStateInMsg.subscribeTo(insp.scStateOutMsg)
+    imu.sensorPos_B = np.asarray(desc.imu_position_b_m, float).tolist()
+    c_ib = rotmat(desc.imu_q_body_imu).T
+    if "imu_misalignment" in effects:
+        c_ib = rotmat(qexp(effects["imu_misalignment"])).T @ c_ib
+    imu.dcm_PB = c_ib.tolist()
+    imu.senTransBias = np.asarray(effects.get("accel_bias", np.zeros(3)), float).tolist()
+    imu.senRotBias = np.asarray(effects.get("gyro_bias", np.zeros(3)), float).tolist()
+    if "gyro_scale" in effects:
+        imu.gyroScale = (1.0 + np.asarray(effects["gyro_scale"], float)).tolist()  # per IMU axis, as the library's
+
+    # Initial states: the run starts at rest in the Hill frame.
+    r_c, v_c = _host_orbit(desc, effects, t0, mu)
+    c_hn, thd = hill_frame(r_c, v_c)
+    c_nh = c_hn[0].T
+    r0 = np.asarray(seg.r0_hill_m, float)
+    v0 = np.asarray(seg.v0_hill_mps, float)
+    w_hn = np.array([0.0, 0.0, thd[0]])
+    q0 = qnormalize(np.asarray(seg.q0_hb, float))
+    c_hb = rotmat(q0)
+    host.hub.r_CN_NInit = r_c.reshape(3, 1).tolist()
+    host.hub.v_CN_NInit = v_c.reshape(3, 1).tolist()
+    insp.hub.r_CN_NInit = (r_c + c_nh @ r0).reshape(3, 1).tolist()
+    insp.hub.v_CN_NInit = (v_c + c_nh @ (v0 + np.cross(w_hn, r0))).reshape(3, 1).tolist()
+    insp.hub.sigma_BNInit = dcm_to_mrp((c_nh @ c_hb).T).reshape(3, 1).tolist()
+    insp.hub.omega_BN_BInit = (c_hb.T @ w_hn).reshape(3, 1).tolist()
+
+    sim.AddModelToTask("step", thr, 100)  # reads its command before the spacecraft integrates the step
+    sim.AddModelToTask("step", host, 90)
+    sim.AddModelToTask("step", insp, 90)
+    sim.AddModelToTask("step", imu, 50)
+    rec_imu = imu.sensorOutMsg.recorder()
+    rec_ins = insp.scStateOutMsg.recorder()
+    rec_host = host.scStateOutMsg.recorder()
+    for r in (rec_imu, rec_ins, rec_host):
+        sim.AddModelToTask("step", r, 10)
+    sim.InitializeSimulation()
+
+    n_steps = int(round(seg.duration_s / h))
+    payload = messaging.THRArrayOnTimeCmdMsgPayload()
+    for s, state, nxt in _valve_events(seg, k, h):
+        if s > n_steps:
+            break
+        sim.ConfigureStopTime(s * step_ns)
+        sim.ExecuteSimulation()
+        # On: until the next switch and a step beyond it (the switch itself turns it off).
+        payload.OnTimeRequest = [float((nxt[i] + 1) * h) if state[i] else 0.0 for i in range(k)]
+        cmd.write(payload, s * step_ns)
+    sim.ConfigureStopTime(n_steps * step_ns)
+    sim.ExecuteSimulation()
+
+    steps = np.rint(rec_imu.times() / step_ns).astype(np.int64)
+    if steps.size != n_steps + 1 or np.any(steps != np.arange(n_steps + 1)):
+        raise RuntimeError("Basilisk recorded an unexpected step sequence")
+    dv = np.asarray(rec_imu.DVFramePlatform, float)
+    dv = dv - imu_dv_error(np.asarray(rec_ins.TotalAccumDV_BN_B, float), np.asarray(rec_ins.sigma_BN, float)) @ c_ib.T
+    dr = np.asarray(rec_imu.DRFramePlatform, float)
+    cum_dv = np.cumsum(dv, axis=0)
+    i1 = np.asarray(imu_t, np.int64)
+    i0 = i1 - int(round(T / h))
+    f_mean = (cum_dv[i1] - cum_dv[i0]) / T
+    w_mean = np.zeros((i1.size, 3))
+    for j, (a, b) in enumerate(zip(i0, i1)):
+        q = np.array([1.0, 0.0, 0.0, 0.0])
+        for p in dr[a + 1:b + 1]:
+            q = qmul(q, qexp(p))
+        w_mean[j] = qlog(q) / T
+
+    def truth(idx):
+        idx = np.asarray(idx, np.int64)
+        rc, vc = np.asarray(rec_host.r_CN_N)[idx], np.asarray(rec_host.v_CN_N)[idx]
+        rd, vd = np.asarray(rec_ins.r_CN_N)[idx], np.asarray(rec_ins.v_CN_N)[idx]
+        rb = np.asarray(rec_ins.r_BN_N)[idx]
+        r, v, c_hn = relative_hill(rc, vc, rd, vd)
+        rb_h = np.einsum("nij,nj->ni", c_hn, rb - rc)
+        c_bn = mrp_to_dcm_bn(np.asarray(rec_ins.sigma_BN)[idx])
+        q = dcm_to_quat(c_hn @ np.transpose(c_bn, (0, 2, 1)))
+        w = np.asarray(rec_ins.omega_BN_B)[idx]
+        return r, v, q, w, rb_h
+
+    return f_mean, w_mean, truth(imu_t), truth(pose_cap), com
+
+
+# --- the log ----------------------------------------------------------------------
+
+def simulate(description: dict, plan: list, effects: dict | None = None, seed: int = 0,
+             clocks: Clocks | None = None, with_truth: bool = True, noise: bool = True) -> tuple:
+    """(FlightLog, key) of ``plan`` flown in Basilisk by the described vehicle
+    with ``effects`` (``noise=False``: the sensors without white noise)."""
+    _require_basilisk()
+    effects = dict(effects or {})
+    unknown = sorted(set(effects) - set(EFFECTS_HERE))
+    if unknown:
+        raise ValueError(f"effect {unknown[0]!r} not simulated by the Basilisk engine (known: {', '.join(EFFECTS_HERE)})")
+    clocks = clocks or Clocks()
+    desc = resolve(description)
+    rng = np.random.default_rng(seed)
+    h = STEP_S
+    T = 1.0 / (desc.imu_rate_hz or 10.0)
+    if abs(T / h - round(T / h)) > 1e-9:
+        raise ValueError(f"the IMU interval {T} s is not a whole number of Basilisk steps ({h} s)")
+    nT = int(round(T / h))
+    pref = desc.pose_reference_b_m  # in B: Basilisk knows where B is
+    lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
+    latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
+    s_a = desc.accel_sigma_mps2 if noise else 0.0
+    s_g = desc.gyro_sigma_rps if noise else 0.0
+    out = {k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von",
+                           "tt", "tr", "tv", "tq", "tw")}
+    segments = []
+    t0 = 0.0
+    for seg in plan:
+        n_steps = int(round(seg.duration_s / h))
+        nominal = np.arange(nT, n_steps + 1, nT)
+        jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
+        # As the bench: a sample whose interval would start before the run is left out, the last ends at the run's end.
+        t_imu = np.minimum(nominal * h + jit, n_steps * h)
+        t_imu = t_imu[t_imu - T >= -1e-12]
+        imu_i = np.unique(np.clip(np.rint(t_imu / h).astype(np.int64), nT, n_steps))
+        n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
+        pose_t = clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
+        pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
+        pose_i = np.rint(pose_t / h).astype(np.int64)
+        cap_i = np.rint((pose_t - latency) / h).astype(np.int64)
+        ok = (cap_i >= 0) & (pose_i <= n_steps)
+        pose_i, cap_i = pose_i[ok], cap_i[ok]
+        f_mean, w_mean, tr_imu, tr_pose, _ = _fly_segment(seg, t0, desc, effects, T, imu_i, cap_i, h)
+        acc = f_mean + s_a * rng.standard_normal(f_mean.shape)
+        gyr = w_mean + s_g * rng.standard_normal(w_mean.shape)
+        keep = np.ones(imu_i.size, bool)
+        if clocks.imu_drop_frac > 0.0 and imu_i.size > 4:
+            keep[1:-1] = rng.uniform(size=imu_i.size - 2) >= clocks.imu_drop_frac
+        imu_t = t0 + imu_i * h
+        out["imu_t"].append(imu_t[keep])
+        out["acc"].append(acc[keep])
+        out["gyr"].append(gyr[keep])
+        _, _, q_p, _, rb_p = tr_pose
+        for j in range(pose_i.size):
+            r_meas = rb_p[j] + rotmat(q_p[j]) @ (pref + lever)
+            sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05) if noise else 0.0
+            r_meas = r_meas + sig * rng.standard_normal(3)
+            q_meas = qnormalize(qmul(q_p[j], qexp((POSE_ATT_SIGMA_RAD if noise else 0.0) * rng.standard_normal(3))))
+            stamp = t0 + pose_i[j] * h - desc.pose_time_offset_s + desc.pose_latency_s
+            out["pc"].append(stamp)
+            out["pd"].append(stamp + clocks.pose_delay_s)
+            out["pr"].append(r_meas)
+            out["pq"].append(q_meas)
+            out["prs"].append(max(sig, 1e-6))
+        out["vt"].append(t0 + np.asarray(seg.cmd_t_s, float))
+        out["von"].append(np.asarray(seg.cmd_on_s, float).reshape(-1, desc.n_thrusters))
+        r, v, q, w, _ = tr_imu
+        out["tt"].append(imu_t)
+        out["tr"].append(r)
+        out["tv"].append(v)
+        out["tq"].append(q)
+        out["tw"].append(w)
+        segments.append({"t_start_s": float(t0), "t_end_s": float(t0 + seg.duration_s), "manoeuvre": seg.manoeuvre,
+                         "starts_at_rest": bool(np.all(np.asarray(seg.v0_hill_mps) == 0.0))})
+        t0 += seg.duration_s + clocks.gap_s
+    cat = {k: np.concatenate(v) for k, v in out.items() if k in ("imu_t", "acc", "gyr", "vt", "von", "tt", "tr", "tv",
+                                                                 "tq", "tw")}
+    pc = np.asarray(out["pc"], float)
+    log_desc = dict(description)
+    log_desc["segments"] = segments
+    log = FlightLog(streams={
+        "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
+        "pose": {"t_capture_s": pc, "t_delivered_s": np.asarray(out["pd"], float),
+                 "r_hill_m": np.asarray(out["pr"], float).reshape(-1, 3),
+                 "q_hb": np.asarray(out["pq"], float).reshape(-1, 4),
+                 "r_sigma_m": np.asarray(out["prs"], float), "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD)},
+        "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
+    }, config={"source": "proxops basilisk_sim", "engine": "basilisk", "basilisk_version": basilisk_version(),
+               "step_s": h, "seed": int(seed)}, description=log_desc)
+    if with_truth:
+        log.streams["truth"] = {"t_s": cat["tt"], "r_hill_m": cat["tr"], "v_hill_mps": cat["tv"], "q_hb": cat["tq"],
+                                "omega_bi_b_rps": cat["tw"]}
+    key = {"seed": int(seed), "engine": "basilisk",
+           "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
+    return log, key

@@ -1,0 +1,94 @@
+"""`proxops simulate --engine {bench,basilisk} --vehicle V --manoeuvres characterisation
+--effects JSON --seed S --out LOG.h5`: a flight log (format version 2) of a
+described vehicle flying a characterisation open loop, from the bench's own
+plant (bench/vehicle_sim.py) or from Basilisk (bench/basilisk_sim.py, the
+optional extra `pip install .[basilisk]`)."""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from bench.commands.args import number, one_line_errors
+
+
+def register(sub):
+    p = sub.add_parser("simulate", help="write a simulated flight log from the bench's plant or from Basilisk",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    one_line_errors(p, "proxops simulate")
+    p.add_argument("--engine", default="bench", choices=("bench", "basilisk"),
+                   help="bench: the bench's plant; basilisk: Basilisk's spacecraft, thrusters and IMU "
+                        "(needs pip install '.[basilisk]')")
+    p.add_argument("--vehicle", default="12kg", choices=("3kg", "12kg"),
+                   help="the described vehicle (bench/vehicles.py)")
+    p.add_argument("--description", default=None,
+                   help="a flight-log description JSON file (docs/FLIGHT_LOG.md) instead of --vehicle")
+    p.add_argument("--manoeuvres", default="characterisation", choices=("characterisation",),
+                   help="every thruster alone, pulse-width modulated, then a coast (bench/gap/plans.py), flown open loop")
+    p.add_argument("--effects", default="{}",
+                   help="effects as JSON, name -> parameters (docs/EFFECTS.md), or a JSON file holding them")
+    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
+    p.add_argument("--clocks", default="regular", choices=("regular", "as-real-logs"),
+                   help="regular: IMU on its ticks, a pose a second; as-real-logs: the 12 kg campaign's jittered "
+                        "IMU stamps, dropped samples and pose captures between samples")
+    p.add_argument("--no-truth", action="store_true", help="leave the truth stream out (a blind log)")
+    p.add_argument("--out", required=True, help="the flight log to write (HDF5)")
+    p.add_argument("--key", default=None, help="write the effects and seed (not in the log) to this JSON file")
+    p.set_defaults(func=main)
+
+
+def _effects(text: str) -> dict:
+    src = Path(text)
+    if not text.lstrip().startswith("{") and src.exists():
+        text = src.read_text()
+    try:
+        eff = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--effects: not JSON ({exc})") from None
+    if not isinstance(eff, dict):
+        raise ValueError("--effects: expected a JSON object, name -> parameters")
+    from bench.effects import canonical
+
+    for name, p in eff.items():
+        if name not in ("thrust_loss", "thruster_misalignment"):  # sized per vehicle, checked by the engine
+            canonical(name, p)
+    return eff
+
+
+def main(args):
+    from bench.flight_log import validate_log, write_flight_log
+    from bench.gap.plans import characterisation_plan
+    from bench.vehicle_sim import Clocks
+
+    if args.description:
+        description = json.loads(Path(args.description).read_text())
+    else:
+        from bench.vehicles import VEHICLES
+
+        description = VEHICLES[args.vehicle]()
+    effects = _effects(args.effects)
+    if args.clocks == "as-real-logs":
+        from bench.gap.validate_vehicle import clocks_for
+
+        clocks = clocks_for(args.seed)
+    else:
+        clocks = Clocks()
+    plan = characterisation_plan(description, seed=args.seed)
+    t0 = time.time()
+    if args.engine == "basilisk":
+        from bench.basilisk_sim import simulate
+    else:
+        from bench.vehicle_sim import simulate
+    log, key = simulate(description, plan, effects, seed=args.seed, clocks=clocks, with_truth=not args.no_truth)
+    log.config = dict(log.config or {}, engine=args.engine, manoeuvres=args.manoeuvres)
+    problems = validate_log(log)
+    if problems:
+        raise ValueError("the simulated log does not validate: " + "; ".join(problems[:5]))
+    write_flight_log(args.out, log)
+    if args.key:
+        Path(args.key).write_text(json.dumps(dict(key, engine=args.engine), indent=1) + "\n")
+    n = log.streams["imu"]["t_s"].size
+    print(f"{args.out}: {args.engine} engine, {len(plan)} runs, {n} IMU samples, "
+          f"{log.streams['pose']['t_capture_s'].size} poses, {time.time() - t0:.1f} s")
+    return 0
