@@ -210,15 +210,17 @@ EFFECTS = {n: replace(s, max_size=_MAX_SIZE[n], needs_truth=n in _NEEDS_TRUTH, d
                       needs_images=n in _NEEDS_IMAGES)
            for n, s in EFFECTS.items()}
 
-def max_size_for(name: str, envelope_m: float | None = None) -> float:
-    """The largest sensible size of effect ``name`` on a vehicle whose largest
-    dimension is ``envelope_m``: a camera lever arm cannot reach past the
-    vehicle. Without one, the library's size (for the lever arm, 2 m: the
-    bench inspector's docking campaigns, where a lever arm shows only in the
-    error against truth, search that far)."""
+def max_size_for(name: str, vehicle=None) -> float:
+    """The largest sensible size of effect ``name`` on the described vehicle
+    (a bench.log_description.Resolved): a camera lever arm cannot reach past
+    the vehicle (``envelope_m``), and no valve expels propellant faster than
+    its thrust allows at the lowest specific impulse of any thruster
+    (``max_mass_flow_kgps``). Without a vehicle, the library's size."""
     top = EFFECTS[name].max_size
-    if name == "camera_lever_arm" and envelope_m:
-        return float(min(top, envelope_m))
+    if vehicle is not None and name == "camera_lever_arm":
+        return float(min(top, vehicle.envelope_m))
+    if vehicle is not None and name == "mass_depletion":
+        return float(min(top, vehicle.max_mass_flow_kgps))
     return float(top)
 
 

@@ -24,6 +24,10 @@ MU_EARTH = 3.986004418e14
 MANOEUVRES = ("docking", "characterisation", "other")
 MAX_THRUSTERS = 32
 UNIT_TOL = 1e-3
+G0_MPS2 = 9.80665
+# Below the specific impulse of any thruster a small spacecraft flies (cold
+# gas 45 to 75 s): no valve expels propellant faster than thrust / (g0 Isp).
+ISP_MIN_S = 20.0
 
 
 class DescriptionError(ValueError):
@@ -74,6 +78,11 @@ class Resolved:
     @property
     def n_thrusters(self) -> int:
         return len(self.thrusters)
+
+    @property
+    def max_mass_flow_kgps(self) -> float:
+        """The fastest any one valve can expel propellant (kg/s): its thrust at ISP_MIN_S."""
+        return max(t.thrust_n for t in self.thrusters) / (G0_MPS2 * ISP_MIN_S)
 
     @property
     def mean_motion_radps(self) -> float:

@@ -128,19 +128,22 @@ def candidates_of(d: LogData) -> dict:
     """The candidate models for the vehicle a prepared log describes."""
     if d.desc is None:
         return CANDIDATES
-    return _candidates_cached(int(d.desc.n_thrusters), float(d.desc.envelope_m))
+    return _candidates_cached(int(d.desc.n_thrusters), float(d.desc.envelope_m), float(d.desc.max_mass_flow_kgps))
 
 
 @lru_cache(maxsize=16)
-def _candidates_cached(n_thrusters: int, envelope_m: float) -> dict:
-    return candidates_for(n_thrusters, envelope_m)
+def _candidates_cached(n_thrusters: int, envelope_m: float, max_mass_flow_kgps: float) -> dict:
+    return candidates_for(n_thrusters, envelope_m, max_mass_flow_kgps)
 
 
-def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None) -> dict:
+def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None,
+                   max_mass_flow_kgps: float | None = None) -> dict:
     """The candidate models for a vehicle with ``n_thrusters`` valves (the
     per-valve effects have one parameter, or three, per valve) whose largest
     dimension is ``envelope_m`` (bounds the camera's lever arm: a camera
-    cannot sit farther from the body origin than the vehicle reaches)."""
+    cannot sit farther from the body origin than the vehicle reaches) and
+    whose valves expel at most ``max_mass_flow_kgps`` each (bounds the mass
+    flow: a fit beyond it is not propellant use but something else)."""
     out = dict(CANDIDATES)
     if n_thrusters != 8:
         k = int(n_thrusters)
@@ -149,6 +152,9 @@ def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None) -> dic
         out["thruster_misalignment"] = replace(tm, params=tuple(f"phi_{i}{a} [rad]" for i in range(k) for a in "xyz"))
     if envelope_m is not None and envelope_m > 0.0:
         out["camera_lever_arm"] = replace(CANDIDATES["camera_lever_arm"], bound=float(envelope_m))
+    if max_mass_flow_kgps is not None and max_mass_flow_kgps > 0.0:
+        md = CANDIDATES["mass_depletion"]
+        out["mass_depletion"] = replace(md, bound=float(max_mass_flow_kgps))
     return out
 
 

@@ -22,6 +22,7 @@ wrong one, and the coverage of the fitted parameters' 95 % intervals.
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 import json
 import time
 from pathlib import Path
@@ -113,15 +114,18 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
 def _size_one(key, run_ctx):
     """The drawn run's minimum detectable size, and its effect at scale x that."""
     duration_s, calibration = run_ctx
-    from bench.effects import EFFECTS
+    from bench.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
+    from bench.log_description import resolve
 
     key = dict(key)
     if key["effect"] is None:
         return key
-    spec = EFFECTS[key["effect"]]
+    # The largest size that is physical on the bench inspector (its lever
+    # arms and its valves' mass flow).
+    spec = replace(EFFECTS[key["effect"]], max_size=max_size_for(key["effect"], resolve(None)))
     md = min_detectable_size(key["seed"], key["effect"], key["unit"], duration_s, calibration,
-                             then_scripts=then_scripts(key))
+                             then_scripts=then_scripts(key), max_size=spec.max_size)
     key["min_detectable"] = md["size"]
     key["detectable"] = md["detectable"]
     key["lambda_at_min_detectable"] = md.get("lambda_at_size")

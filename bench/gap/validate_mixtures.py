@@ -61,15 +61,18 @@ def draw_mixtures(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
 
 def _size_one(key, run_ctx):
     duration_s, calibration = run_ctx
-    from bench.effects import EFFECTS
+    from dataclasses import replace
+
+    from bench.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
+    from bench.log_description import resolve
 
     key = dict(key)
     key["min_detectable"], key["effects"] = {}, {}
     for e in key["members"]:
-        spec = EFFECTS[e]
+        spec = replace(EFFECTS[e], max_size=max_size_for(e, resolve(None)))
         md = min_detectable_size(key["seed"], e, key["units"][e], duration_s, calibration,
-                                 then_scripts=then_scripts(key))
+                                 then_scripts=then_scripts(key), max_size=spec.max_size)
         size = key["scale"] * md["size"] if md["detectable"] else spec.max_size
         size = float(min(size, spec.max_size))
         key["min_detectable"][e] = md["size"] if md["detectable"] else None

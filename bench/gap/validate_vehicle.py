@@ -111,7 +111,7 @@ def _size_one(key, calibration):
     if key["effect"] is None:
         return key
     spec = EFFECTS[key["effect"]]
-    top = max_size_for(key["effect"], resolve(description()).envelope_m)
+    top = max_size_for(key["effect"], resolve(description()))
 
     def sim(effects, scripts=None):
         return simulate_key(key, effects), None

@@ -88,3 +88,23 @@ def test_thrust_loss_named_beside_a_flexible_panel():
     loss = {k: v for k, v in r["effects"][0]["parameters"].items()}
     assert abs(loss["loss_3 [1]"]["value"] - 0.05) < 4 * loss["loss_3 [1]"]["sigma"] + 0.005
     assert r["effect_set"]["remainder_where"] is not None
+
+
+def test_propellant_slosh_is_not_half_named_as_propellant_use():
+    """Propellant slosh alone on a docking-then-characterisation log: the
+    mass-flow candidate, bounded by what the valves can physically expel,
+    cannot take the slosh's part, so nothing is named (the mixture campaign's
+    seed 2051, run 3, without its accelerometer bias). Unbounded, it fitted
+    0.02 kg/s per open valve, 200 times the 20 mN valve's flow at 20 s of
+    specific impulse, and the answer was "partly explained: mass_depletion"."""
+    from bench.gap.candidates import candidates_for
+    from bench.gap.plans import then_scripts
+    from bench.log_description import resolve
+
+    assert candidates_for(8, 0.35, resolve(None).max_mass_flow_kgps)["mass_depletion"].bound == pytest.approx(
+        0.02 / (9.80665 * 20.0))
+    then = then_scripts({"manoeuvres": "docking+characterisation"})
+    log, _ = reality.simulate_log_with_key(121894550, {"fuel_slosh": [1.1308307975932066]}, duration_s=120.0,
+                                           with_truth=False, then_scripts=then)
+    r = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres="docking+characterisation")))
+    assert r["gap_detected"] and r["verdict"] == "unexplained" and r["effects"] == []

@@ -101,12 +101,15 @@ def test_envelope_defaults_to_the_described_points_and_bounds_the_lever_arm():
     assert c["com_offset"] == CANDIDATES["com_offset"]  # nothing else scaled
 
 
-def test_lever_arm_draws_stay_on_the_vehicle():
+def test_draws_stay_physical_on_the_vehicle():
     from bench.effects import EFFECTS, max_size_for
 
-    assert max_size_for("camera_lever_arm", 0.442) == 0.442
-    assert max_size_for("camera_lever_arm", None) == EFFECTS["camera_lever_arm"].max_size
-    assert max_size_for("gyro_bias", 0.442) == EFFECTS["gyro_bias"].max_size
+    v = resolve(inspector_12kg())
+    assert max_size_for("camera_lever_arm", v) == pytest.approx(0.442, abs=1e-3)
+    # twelve 0.1 N valves: at most 0.1 / (g0 20 s) kg/s each
+    assert max_size_for("mass_depletion", v) == pytest.approx(0.1 / (9.80665 * 20.0))
+    assert max_size_for("camera_lever_arm") == EFFECTS["camera_lever_arm"].max_size
+    assert max_size_for("gyro_bias", v) == EFFECTS["gyro_bias"].max_size
 
 
 def test_bias_stability_is_named_when_not_stated():
