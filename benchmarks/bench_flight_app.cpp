@@ -10,12 +10,12 @@
 #include <random>
 #include <vector>
 
-#include "fsw/flight_app.hpp"
-#include "fsw/framer.hpp"
-#include "fsw/modal_decomposition.hpp"
-#include "fsw/modal_tracker.hpp"
-#include "fsw/modal_ukf.hpp"
-#include "fsw/plate_modes.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/link/framer.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
+#include "fsw/modal/modal_tracker.hpp"
+#include "fsw/modal/modal_ukf.hpp"
+#include "fsw/modal/plate_modes.hpp"
 
 using namespace fsw;
 

@@ -13,8 +13,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "fsw/modal_decomposition.hpp"
-#include "fsw/modal_ukf.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
+#include "fsw/modal/modal_ukf.hpp"
 #include "modal_decomposition_base.hpp"  // the decomposition before the vectorised gather
 
 using namespace fsw;

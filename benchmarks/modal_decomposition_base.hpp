@@ -1,4 +1,4 @@
-// Frozen copy of fsw/include/fsw/modal_decomposition.hpp at commit a1a6d60
+// Frozen copy of fsw/include/fsw/modal/modal_decomposition.hpp at commit a1a6d60
 // (namespace fsw_base), the reference for bench_modal: per-value scalar
 // finiteness checks before the gather. Benchmark use only.
 // Modal decomposition of one range image (seed 000 section III, eqs. 2-4).

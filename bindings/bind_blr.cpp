@@ -6,7 +6,7 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/blr.hpp"
+#include "fsw/thrusters/blr.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;

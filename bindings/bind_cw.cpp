@@ -1,5 +1,5 @@
 #include "bind.hpp"
-#include "fsw/cw.hpp"
+#include "fsw/dynamics/cw.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/feature_filter.hpp"
+#include "fsw/features/feature_filter.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;

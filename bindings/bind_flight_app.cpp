@@ -1,7 +1,7 @@
 #include <memory>
 
 #include "bind.hpp"
-#include "fsw/flight_app.hpp"
+#include "fsw/app/flight_app.hpp"
 #include "validate.hpp"
 
 namespace {

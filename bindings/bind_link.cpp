@@ -5,10 +5,10 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/cobs.hpp"
-#include "fsw/crc16.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/framer.hpp"
+#include "fsw/link/cobs.hpp"
+#include "fsw/link/crc16.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/link/framer.hpp"
 #include "validate.hpp"
 
 namespace {

@@ -10,10 +10,10 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/modal_acquisition.hpp"
-#include "fsw/modal_decomposition.hpp"
-#include "fsw/modal_shape.hpp"
-#include "fsw/modal_ukf.hpp"
+#include "fsw/modal/modal_acquisition.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
+#include "fsw/modal/modal_shape.hpp"
+#include "fsw/modal/modal_ukf.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/nav_ukf.hpp"
+#include "fsw/nav/nav_ukf.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;

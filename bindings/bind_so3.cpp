@@ -1,6 +1,6 @@
 #include "bind.hpp"
-#include "fsw/hill_attitude.hpp"
-#include "fsw/so3.hpp"
+#include "fsw/dynamics/hill_attitude.hpp"
+#include "fsw/math/so3.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;

@@ -11,7 +11,7 @@
 #include <cmath>
 #include <string>
 
-#include "fsw/so3.hpp"
+#include "fsw/math/so3.hpp"
 
 namespace py = pybind11;
 

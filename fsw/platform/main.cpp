@@ -14,7 +14,7 @@
 #include <cstring>
 #include <memory>
 
-#include "fsw/flight_app.hpp"
+#include "fsw/app/flight_app.hpp"
 #include "serial_port.hpp"
 
 namespace {

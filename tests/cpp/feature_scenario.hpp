@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <random>
 
-#include "fsw/feature_filter.hpp"
+#include "fsw/features/feature_filter.hpp"
 
 namespace feature_scenario {
 

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <vector>
 
-#include "fsw/apid.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/flight_app.hpp"
-#include "fsw/framer.hpp"
+#include "fsw/link/apid.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/link/framer.hpp"
 
 namespace flight_app_test {
 

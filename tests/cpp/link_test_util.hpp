@@ -6,10 +6,10 @@
 #include <cstring>
 #include <vector>
 
-#include "fsw/apid.hpp"
-#include "fsw/crc16.hpp"
-#include "fsw/framer.hpp"
-#include "fsw/space_packet.hpp"
+#include "fsw/link/apid.hpp"
+#include "fsw/link/crc16.hpp"
+#include "fsw/link/framer.hpp"
+#include "fsw/link/space_packet.hpp"
 
 namespace link_test {
 

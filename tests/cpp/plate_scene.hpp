@@ -7,8 +7,8 @@
 #include <random>
 #include <vector>
 
-#include "fsw/plate_modes.hpp"
-#include "fsw/so3.hpp"
+#include "fsw/modal/plate_modes.hpp"
+#include "fsw/math/so3.hpp"
 
 namespace plate_scene {
 

@@ -20,8 +20,8 @@
 #include <cstdlib>
 #include <new>
 
-#include "fsw/deframer.hpp"
-#include "fsw/flight_app.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/app/flight_app.hpp"
 
 namespace {
 
