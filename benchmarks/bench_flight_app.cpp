@@ -33,7 +33,7 @@ Image make_image(std::mt19937_64& rng, double t) {
   PlateModes<double, kM> model;
   std::normal_distribution<double> nd(0.0, 1.0);
   Image im;
-  double phi[kM];
+  double phi[kM] = {};
   for (int r = 0; r < kSide; ++r)
     for (int c = 0; c < kSide; ++c) {
       const double x = 2000.0 * (0.25 + 0.5 * (c + 0.5) / kSide), y = 1732.0 * (0.25 + 0.5 * (r + 0.5) / kSide);

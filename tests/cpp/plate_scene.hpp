@@ -37,7 +37,7 @@ struct PlateScene {
     p.clear();
     sig.clear();
     const double lx = truth.config().lx_m, ly = truth.config().ly_m;
-    double phi[kM];
+    double phi[kM] = {};
     for (int r = 0; r < n_side; ++r)
       for (int c = 0; c < n_side; ++c) {
         const double x = lx * (0.25 + 0.5 * (c + 0.5) / n_side), y = ly * (0.25 + 0.5 * (r + 0.5) / n_side);

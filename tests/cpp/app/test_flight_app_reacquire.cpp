@@ -97,7 +97,9 @@ TYPED_TEST(FlightAppReacquireTest, AfterAnHourWithoutPosesTheFirstPoseReacquires
   EXPECT_LT(double(app->nav().state().r_hill_m.norm()), 0.05);
   EXPECT_LT(boxminus(q_true(n, 3900.0), app->nav().state().q_hb.template cast<double>()).norm(), 0.02);
   EXPECT_EQ(control->counters().reacquisitions, 0u);
-  if constexpr (std::is_same_v<S, float>) EXPECT_GT(count_kind(tm_control, StepKind::PoseUpdate, StepStatus::NotPosDef), 0);
+  if constexpr (std::is_same_v<S, float>) {
+    EXPECT_GT(count_kind(tm_control, StepKind::PoseUpdate, StepStatus::NotPosDef), 0);
+  }
 }
 
 TYPED_TEST(FlightAppReacquireTest, AConfidentlyWrongFilterReacquiresAtTheFifthAgreeingRejectedPose) {

@@ -127,7 +127,9 @@ TEST(FeatureModelsTest, CirclePointEqualsRodriguesAboutTheTwistThenProjection) {
       const bool ok = circle_model(pose(c), cam, lt, mt, S0, phi, z, static_cast<Mat26<double>*>(nullptr),
                                    static_cast<Vec2<double>*>(nullptr));
       ASSERT_EQ(ok, d.z() > cam.min_depth_m);
-      if (ok) EXPECT_LE((z - pinhole(d, cam.focal_m)).norm(), 1e-13);
+      if (ok) {
+        EXPECT_LE((z - pinhole(d, cam.focal_m)).norm(), 1e-13);
+      }
     }
   }
 }
