@@ -1,19 +1,15 @@
 // Explicit instantiations of the modal estimator for float and double, at the
-// mode counts the bench and the flight application use (pendulum 3, flight 10,
-// structure 50), so a float-only compile error cannot hide; everything else
-// links to these. The two filters have their own files (the longest
-// compiles in the build, so they run in parallel).
+// sizes of modal_instances.hpp, so a float-only compile error cannot hide;
+// everything else links to these. The two filters have their own files
+// (the longest compiles in the build, so they run in parallel).
 #include "fsw/modal/modal_decomposition.hpp"
 #include "fsw/modal/modal_shape.hpp"
 #include "fsw/modal/modal_ukf.hpp"
 
 namespace fsw {
-template class ModalDecomposition<double, 3>;
-template class ModalDecomposition<float, 3>;
-template class ModalDecomposition<double, 10>;
-template class ModalDecomposition<float, 10>;
-template class ModalDecomposition<double, 50>;
-template class ModalDecomposition<float, 50>;
+#define FSW_DECOMPOSITION(S, M) template class ModalDecomposition<S, M>;
+FSW_MODAL_INSTANCES(FSW_DECOMPOSITION)
+#undef FSW_DECOMPOSITION
 template class ModeUkf<double>;
 template class ModeUkf<float>;
 template ShapeRecord reconstruct_shape<double, 3>(const Eigen::Matrix<double, 3, 1>&,

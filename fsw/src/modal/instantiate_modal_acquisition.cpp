@@ -1,6 +1,6 @@
 // Explicit instantiations of the modal frequency acquisition, float and
-// double, at 3, 10 and 50 modes with a 256-image history, and its replay
-// into both filters.
+// double, at the sizes of modal_instances.hpp with a 256-image history, and
+// its replay into both filters.
 #include "fsw/modal/modal_acquisition.hpp"
 
 namespace fsw {
@@ -10,11 +10,6 @@ namespace fsw {
       ModalUkfJoint<S, M>&, const ModalFilterConfig<S, M>&, ModalUkfJoint<S, M>::Record&);                  \
   template int ModalAcquisition<S, M, 256>::replay_into<ModalUkfBank<S, M>>(                                \
       ModalUkfBank<S, M>&, const ModalFilterConfig<S, M>&, ModalUkfBank<S, M>::Record&);
-FSW_ACQ(double, 3)
-FSW_ACQ(float, 3)
-FSW_ACQ(double, 10)
-FSW_ACQ(float, 10)
-FSW_ACQ(double, 50)
-FSW_ACQ(float, 50)
+FSW_MODAL_INSTANCES(FSW_ACQ)
 #undef FSW_ACQ
 }  // namespace fsw

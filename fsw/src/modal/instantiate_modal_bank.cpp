@@ -1,12 +1,9 @@
-// Explicit instantiations of the bank of per-mode filters, float and double, at 3, 10
-// and 50 modes (see instantiate_modal.cpp).
+// Explicit instantiations of the bank of per-mode filters, float and double, at the
+// sizes of modal_instances.hpp (see instantiate_modal.cpp).
 #include "fsw/modal/modal_ukf.hpp"
 
 namespace fsw {
-template class ModalUkfBank<double, 3>;
-template class ModalUkfBank<float, 3>;
-template class ModalUkfBank<double, 10>;
-template class ModalUkfBank<float, 10>;
-template class ModalUkfBank<double, 50>;
-template class ModalUkfBank<float, 50>;
+#define FSW_BANK(S, M) template class ModalUkfBank<S, M>;
+FSW_MODAL_INSTANCES(FSW_BANK)
+#undef FSW_BANK
 }  // namespace fsw

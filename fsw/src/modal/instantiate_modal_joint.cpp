@@ -1,12 +1,9 @@
-// Explicit instantiations of the joint modal filter, float and double, at 3, 10
-// and 50 modes (see instantiate_modal.cpp).
+// Explicit instantiations of the joint modal filter, float and double, at the
+// sizes of modal_instances.hpp (see instantiate_modal.cpp).
 #include "fsw/modal/modal_ukf.hpp"
 
 namespace fsw {
-template class ModalUkfJoint<double, 3>;
-template class ModalUkfJoint<float, 3>;
-template class ModalUkfJoint<double, 10>;
-template class ModalUkfJoint<float, 10>;
-template class ModalUkfJoint<double, 50>;
-template class ModalUkfJoint<float, 50>;
+#define FSW_JOINT(S, M) template class ModalUkfJoint<S, M>;
+FSW_MODAL_INSTANCES(FSW_JOINT)
+#undef FSW_JOINT
 }  // namespace fsw

@@ -435,12 +435,9 @@ int ModalAcquisition<S, M, H, G>::replay_into(Filter& filter, const ModalFilterC
 
 // Compiled once, in fsw_core (instantiate_modal_acquisition.cpp).
 #ifndef FSW_IMPLICIT_INSTANTIATION
-extern template class ModalAcquisition<double, 3, 256>;
-extern template class ModalAcquisition<float, 3, 256>;
-extern template class ModalAcquisition<double, 10, 256>;
-extern template class ModalAcquisition<float, 10, 256>;
-extern template class ModalAcquisition<double, 50, 256>;
-extern template class ModalAcquisition<float, 50, 256>;
+#define FSW_EXTERN_ACQUISITION(S, M) extern template class ModalAcquisition<S, M, 256>;
+FSW_MODAL_INSTANCES(FSW_EXTERN_ACQUISITION)
+#undef FSW_EXTERN_ACQUISITION
 #endif
 
 }  // namespace fsw

@@ -38,6 +38,8 @@
 #include <limits>
 #include <type_traits>
 
+#include "fsw/modal/modal_instances.hpp"
+
 namespace fsw {
 
 // Outcome of a modal decomposition. (Estimator steps use StepStatus from
@@ -296,12 +298,9 @@ inline void ModalDecomposition<S, M, K>::flush() {
 
 // Compiled once, in fsw_core (instantiate_modal.cpp); see nav_ukf.hpp.
 #ifndef FSW_IMPLICIT_INSTANTIATION
-extern template class ModalDecomposition<double, 3>;
-extern template class ModalDecomposition<float, 3>;
-extern template class ModalDecomposition<double, 10>;
-extern template class ModalDecomposition<float, 10>;
-extern template class ModalDecomposition<double, 50>;
-extern template class ModalDecomposition<float, 50>;
+#define FSW_EXTERN_DECOMPOSITION(S, M) extern template class ModalDecomposition<S, M>;
+FSW_MODAL_INSTANCES(FSW_EXTERN_DECOMPOSITION)
+#undef FSW_EXTERN_DECOMPOSITION
 #endif
 
 }  // namespace fsw

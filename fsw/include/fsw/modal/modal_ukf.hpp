@@ -239,6 +239,40 @@ inline auto ModeUkf<S>::update(S a_meas, S r, S gate_nis, S& innov, S& innov_var
   return Update::Fused;
 }
 
+namespace modal_detail {
+
+// A step that did nothing: its status and why.
+template <typename Record>
+StepStatus fail(Record& rec, StepStatus s, StepDetail d) {
+  rec.status = s;
+  rec.detail = d;
+  rec.fused = false;
+  return s;
+}
+
+// One step of either modal filter: predict over dt, then update with the
+// image; the first image the filter takes initialises it instead.
+template <typename Filter, typename S>
+StepStatus step(Filter& f, S dt, const typename Filter::Decomp& meas, typename Filter::Record& rec) {
+  using Record = typename Filter::Record;
+  if (!f.initialized()) {
+    rec = Record();
+    rec.decomposition = meas.status;
+    rec.status = f.initialize(meas);
+    rec.fused = rec.status == StepStatus::Ok;
+    return rec.status;
+  }
+  const StepStatus sp = f.predict(dt);
+  if (sp != StepStatus::Ok) {
+    rec = Record();
+    rec.decomposition = meas.status;
+    return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
+  }
+  return f.update(meas, rec);
+}
+
+}  // namespace modal_detail
+
 // Bank of M decoupled per-mode filters.
 template <typename S, int M>
 class ModalUkfBank {
@@ -265,7 +299,7 @@ class ModalUkfBank {
   StepStatus update(const Decomp& meas, Record& rec);
 
   // Predict over dt then update with the image (the first Ok image initialises).
-  StepStatus step(S dt, const Decomp& meas, Record& rec);
+  StepStatus step(S dt, const Decomp& meas, Record& rec) { return modal_detail::step(*this, dt, meas, rec); }
 
   void amplitudes(VecM& a) const {
     for (int i = 0; i < M; ++i) a(i) = f_[i].state()(0);
@@ -277,7 +311,7 @@ class ModalUkfBank {
   const Config& config() const { return cfg_; }
 
  private:
-  static StepStatus fail(Record& rec, StepStatus s, StepDetail d);
+  static StepStatus fail(Record& rec, StepStatus s, StepDetail d) { return modal_detail::fail(rec, s, d); }
 
   Config cfg_;
   UtWeights<S> w_;
@@ -337,35 +371,9 @@ auto ModalUkfBank<S, M>::update(const Decomp& meas, Record& rec) -> StepStatus {
 }
 
 template <typename S, int M>
-auto ModalUkfBank<S, M>::step(S dt, const Decomp& meas, Record& rec) -> StepStatus {
-  if (!initialized_) {
-    rec = Record();
-    rec.decomposition = meas.status;
-    rec.status = initialize(meas);
-    rec.fused = rec.status == StepStatus::Ok;
-    return rec.status;
-  }
-  const StepStatus sp = predict(dt);
-  if (sp != StepStatus::Ok) {
-    rec = Record();
-    rec.decomposition = meas.status;
-    return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
-  }
-  return update(meas, rec);
-}
-
-template <typename S, int M>
 void ModalUkfBank<S, M>::amplitude_cov(MatM& P) const {
   P.setZero();
   for (int i = 0; i < M; ++i) P(i, i) = f_[i].cov()(0, 0);
-}
-
-template <typename S, int M>
-inline auto ModalUkfBank<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
-  rec.status = s;
-  rec.detail = d;
-  rec.fused = false;
-  return s;
 }
 
 // One joint filter over all M modes (N = 4M states).
@@ -398,7 +406,8 @@ class ModalUkfJoint {
 
   StepStatus update(const Decomp& meas, Record& rec);
 
-  StepStatus step(S dt, const Decomp& meas, Record& rec);
+  // As ModalUkfBank::step.
+  StepStatus step(S dt, const Decomp& meas, Record& rec) { return modal_detail::step(*this, dt, meas, rec); }
 
   void amplitudes(VecM& a) const {
     for (int i = 0; i < M; ++i) a(i) = x_.m()(4 * i);
@@ -413,7 +422,7 @@ class ModalUkfJoint {
   static constexpr int C = modal_detail::chunk_width(L - 1, 32);
   static constexpr int C2 = modal_detail::chunk_width(N, 32);
 
-  static StepStatus fail(Record& rec, StepStatus s, StepDetail d);
+  static StepStatus fail(Record& rec, StepStatus s, StepDetail d) { return modal_detail::fail(rec, s, d); }
 
   Config cfg_;
   UtWeights<S> w_;
@@ -562,35 +571,9 @@ auto ModalUkfJoint<S, M>::update(const Decomp& meas, Record& rec) -> StepStatus 
 }
 
 template <typename S, int M>
-auto ModalUkfJoint<S, M>::step(S dt, const Decomp& meas, Record& rec) -> StepStatus {
-  if (!initialized_) {
-    rec = Record();
-    rec.decomposition = meas.status;
-    rec.status = initialize(meas);
-    rec.fused = rec.status == StepStatus::Ok;
-    return rec.status;
-  }
-  const StepStatus sp = predict(dt);
-  if (sp != StepStatus::Ok) {
-    rec = Record();
-    rec.decomposition = meas.status;
-    return fail(rec, sp, sp == StepStatus::NotPosDef ? StepDetail::PriorCholesky : StepDetail::None);
-  }
-  return update(meas, rec);
-}
-
-template <typename S, int M>
 void ModalUkfJoint<S, M>::amplitude_cov(MatM& Pa) const {
   for (int i = 0; i < M; ++i)
     for (int j = 0; j < M; ++j) Pa(i, j) = P_.m()(4 * i, 4 * j);
-}
-
-template <typename S, int M>
-inline auto ModalUkfJoint<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -> StepStatus {
-  rec.status = s;
-  rec.detail = d;
-  rec.fused = false;
-  return s;
 }
 
 // Compiled once, in fsw_core (instantiate_modal.cpp, instantiate_modal_bank.cpp,
@@ -598,18 +581,11 @@ inline auto ModalUkfJoint<S, M>::fail(Record& rec, StepStatus s, StepDetail d) -
 #ifndef FSW_IMPLICIT_INSTANTIATION
 extern template class ModeUkf<double>;
 extern template class ModeUkf<float>;
-extern template class ModalUkfBank<double, 3>;
-extern template class ModalUkfBank<float, 3>;
-extern template class ModalUkfBank<double, 10>;
-extern template class ModalUkfBank<float, 10>;
-extern template class ModalUkfBank<double, 50>;
-extern template class ModalUkfBank<float, 50>;
-extern template class ModalUkfJoint<double, 3>;
-extern template class ModalUkfJoint<float, 3>;
-extern template class ModalUkfJoint<double, 10>;
-extern template class ModalUkfJoint<float, 10>;
-extern template class ModalUkfJoint<double, 50>;
-extern template class ModalUkfJoint<float, 50>;
+#define FSW_EXTERN_FILTERS(S, M)           \
+  extern template class ModalUkfBank<S, M>; \
+  extern template class ModalUkfJoint<S, M>;
+FSW_MODAL_INSTANCES(FSW_EXTERN_FILTERS)
+#undef FSW_EXTERN_FILTERS
 #endif
 
 }  // namespace fsw
