@@ -33,6 +33,13 @@
 
 namespace fsw_vision {
 
+struct SpotFit;
+namespace detail {  // internals of the pipeline (fsw/vision/src/led_pose_detail.hpp)
+struct Hypothesis;
+struct MergedCandidate;
+struct MergedFit;
+}  // namespace detail
+
 enum class PoseStatus : int {
   Ok = 0,
   TooFewLeds,          // fewer than the five pattern LEDs found
@@ -226,27 +233,76 @@ class LedPoseEstimator {
                 Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const;
 
  private:
-  // first_faint: labels from here on are faint-pass spots (distinct maxima,
-  // never absorbed as fragments of another spot).
-  // drifted: set when it failed because the iteration left the first
-  // estimate by 1.5 px or more (the first estimate is then that far off).
-  bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, int first_faint,
-                       double u0, double v0, double width_px, double sigma_w, Blob& out, bool& drifted) const;
-  // The pose when the identifier is merged into its corner's blob (four
-  // blobs, AmbiguousIdentity), with identifier_split set; AmbiguousIdentity
-  // (identifier_split false) when no labelling's two-spot fit stands out
-  // (merged_id_* settings).
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  // What weights the pose covariance: the host attitude and the whitening
+  // 1 / sigma per image coordinate of the chosen labelling's LEDs.
+  struct PoseWeights {
+    Eigen::Quaterniond q_h_host;
+    Eigen::Matrix<double, 2 * kNumLeds, 1> inv_sig;
+  };
+
+  // Identification (identification.cpp). The finite points with positive
+  // sigma, at most max_blobs; true when at least four.
+  bool usable_points(const std::vector<cv::Point2d>& pts_in, const std::vector<double>& sigma_px,
+                     std::vector<cv::Point2d>& pts, std::vector<double>& sig) const;
+  // All points (nearly) on a line or inside a tiny hull.
+  bool spread_degenerate(const std::vector<cv::Point2d>& pts) const;
+  // p within the line tolerance of edge a -> b, at fraction t along it.
+  bool on_edge(const cv::Point2d& a, const cv::Point2d& b, const cv::Point2d& p, double& t) const;
+  // The labellings with identifier ijk[2] on edge ijk[0] -> ijk[1], scored.
+  void corner_labellings(const std::vector<cv::Point2d>& pts, const std::array<int, 3>& ijk, int& candidates,
+                         std::vector<detail::Hypothesis>& hyps) const;
+  // Every labelling, best-scored first, at most max_hypotheses; true when
+  // some three points are collinear with the middle one between the others.
+  bool labellings(const std::vector<cv::Point2d>& pts, std::vector<detail::Hypothesis>& hyps) const;
+  // Why no labelling: a bare square is AmbiguousIdentity, else TooFewLeds.
+  PoseStatus no_labelling_status(const std::vector<cv::Point2d>& pts, bool any_collinear_triple) const;
+
+  // Pose (pose_solution.cpp).
+  Eigen::Vector3d pattern_centre() const;
+  // Every LED in front of the camera and the pattern's face towards it.
+  bool physical(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) const;
+  // Largest single-LED reprojection error [px] of a pose.
+  double worst_residual(const std::vector<cv::Point2d>& img, const cv::Mat& rv, const cv::Mat& tv) const;
+  // One solution of labelling h refined (Levenberg-Marquardt) and kept if physical.
+  void refine_solution(detail::Hypothesis& h, const std::vector<cv::Point2d>& img, const std::vector<double>& sig,
+                       const cv::Mat& rv0, const cv::Mat& tv0) const;
+  // The labelling's solutions, best first (may throw cv::Exception).
+  void solve_labelling(detail::Hypothesis& h, const std::vector<cv::Point2d>& pts,
+                       const std::vector<double>& sig) const;
+  // Labellings sorted by reprojection rms; Ok when the best stands out.
+  PoseStatus choose_labelling(std::vector<detail::Hypothesis>& hyps, const std::vector<double>& sig,
+                              LedPoseMeasurement& m) const;
+  bool pose_covariance(const Eigen::Vector3d& r, const Eigen::Quaterniond& q, const PoseWeights& weights, Mat6& C,
+                       Mat6& info) const;
+  // The planar mirror solution folded into R; false when it is too likely.
+  bool fold_mirror_solution(const detail::Hypothesis& best, const PoseWeights& weights, const Mat6& info,
+                            LedPoseMeasurement& m, Mat6& R) const;
+  // The robust gate's consensus over the five leave-one-out fits of a
+  // labelling: the most LEDs within ransac_threshold_px of one pose.
+  int consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const;
+
+  // Merged identifier (merged_identifier.cpp). The pose when the identifier
+  // is merged into its corner's blob (four blobs, AmbiguousIdentity), with
+  // identifier_split set; AmbiguousIdentity (identifier_split false) when no
+  // labelling's two-spot fit stands out (merged_id_* settings).
   LedPoseMeasurement pose_with_merged_identifier(const cv::Mat& gray, const std::vector<Blob>& blobs,
                                                  double t_capture_s, const Eigen::Quaterniond& q_h_host) const;
-  // Where the homography of four image corners (in label order) puts the
-  // identifier; false when degenerate.
+  // The two labellings (towards either neighbour) of corner k of the four
+  // blobs (around: convex order) merged with the identifier, into top
+  // (best, second) when they improve on it.
+  void merged_candidates_at(const cv::Mat& gray, const std::array<cv::Point2d, 4>& around, int k, double width0,
+                            std::array<detail::MergedCandidate, 2>& top) const;
+  // The two-spot fit with the identifier where corners' homography puts it;
+  // false when it fails or the two fluxes are too unequal.
+  bool fit_merged_pair(const detail::MergedFit& fit, std::array<cv::Point2d, 4> corners, SpotFit& pair) const;
+
+  // Geometry (geometry.cpp). Where the homography of four image corners (in
+  // label order) puts the identifier; false when degenerate.
   bool identifier_in_image(const std::array<cv::Point2f, 4>& quad, cv::Point2d& id_px) const;
   // The identifier's image fraction along edge 0 -> 1 under that
   // homography; NaN when degenerate.
   double identifier_fraction(const std::array<cv::Point2d, 4>& corners) const;
-  // The robust gate's consensus over the five leave-one-out fits of a
-  // labelling: the most LEDs within ransac_threshold_px of one pose.
-  int consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const;
 
   LedPoseConfig cfg_;
   cv::Mat K_;
