@@ -1,6 +1,6 @@
-// Seconds per range image of the modal estimator over the seed's Table I grid
+// Seconds per range image of the modal estimator over the Table I grid of Lichter and Dubowsky
 // (10..50 modes, 100..100,000 points): decomposition of the image (eqs. 2-4,
-// equal variance, eq. 4b, as in the seed) plus one filter step (predict and
+// equal variance, eq. 4b, as in that paper) plus one filter step (predict and
 // update), for the bank of decoupled filters and for the joint filter; and
 // the decomposition alone, for the fit t = c1 m n + c2 m^3.
 //

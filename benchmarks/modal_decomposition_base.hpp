@@ -1,7 +1,10 @@
-// Frozen copy of fsw/include/fsw/modal/modal_decomposition.hpp at commit a1a6d60
-// (namespace fsw_base), the reference for bench_modal: per-value scalar
-// finiteness checks before the gather. Benchmark use only.
-// Modal decomposition of one range image (seed 000 section III, eqs. 2-4).
+// The modal decomposition of fsw/include/fsw/modal/modal_decomposition.hpp
+// written with per-value scalar finiteness checks before the gather
+// (namespace fsw_base): the reference bench_modal compares the vectorised
+// gather against. Benchmark use only.
+// Modal decomposition of one range image (section III, eqs. 2-4, of
+// "Shape, Motion, and Parameter Estimation of Large Flexible Space
+// Structures using Range Images" (Lichter and Dubowsky)).
 //
 // The deflection of the structure is z(x, t) = A(t)^T Phi(x) (eq. 1) with M
 // known mode shapes Phi. One range image gives n points y_k with measured

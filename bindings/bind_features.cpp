@@ -1,5 +1,5 @@
 // Bindings of the feature filters (fsw/feature_filter.hpp): configuration,
-// the EKF and UKF for the seed's feature budget (4 points, 4 lines, 2
+// the EKF and UKF for the feature paper's budget (4 points, 4 lines, 2
 // circles; double) and their step record. Arrays are checked here (shape,
 // finiteness, unit quaternion) and raise ValueError naming the argument. The
 // image coordinates z are passed through as given: a NaN in a measured slot
@@ -183,7 +183,7 @@ void bind_features(py::module_& m) {
       });
 
   bind_filter<Ekf>(m, "FeatureEkf",
-                   "Tightly coupled EKF over image features (seed 001): 4 points, 4 lines, 2 circles at most.");
+                   "Tightly coupled EKF over image features (the dual-quaternion feature paper): 4 points, 4 lines, 2 circles at most.");
   bind_filter<Ukf>(m, "FeatureUkf",
-                   "Tightly coupled UKF over image features (seed 001's future work), same interface as FeatureEkf.");
+                   "Tightly coupled UKF over image features (the feature paper's stated future work), same interface as FeatureEkf.");
 }

@@ -1,4 +1,4 @@
-// Modal estimator (seed 000): decomposition of a range image, the bank of
+// Modal estimator (Lichter and Dubowsky, range images): decomposition of a range image, the bank of
 // decoupled per-mode UKFs, the joint UKF, shape reconstruction, and the
 // frequency acquisition (256-image history). Bound in
 // double for the mode counts the bench uses: 3 (pendulum), 10 and 50

@@ -67,7 +67,7 @@ void bind_nav(py::module_& m) {
                              "(6,) [r_meas - r_pred (Hill, m), q_meas [-] q_pred (rad, body)]; zeros for predict.")
       .def_property_readonly("innovation_cov", [](const Rec& r) { return to_numpy(r.innovation_cov); }, "(6, 6)")
       .def_readonly("nis", &Rec::nis, "Normalised innovation squared y^T S^-1 y.")
-      .def_readonly("log_likelihood", &Rec::log_likelihood, "log p_z (seed 002 Table 1 step 14).")
+      .def_readonly("log_likelihood", &Rec::log_likelihood, "log p_z (Rogers-Marcovitz, Table 1 step 14).")
       .def("__repr__", [](const Rec& r) {
         return std::string("NavStepRecord(status='") + fsw::to_string(r.status) + "', detail='" +
                fsw::to_string(r.detail) + "', fused=" + (r.fused ? "True" : "False") + ", nis=" + std::to_string(r.nis) +

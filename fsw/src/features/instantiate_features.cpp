@@ -1,5 +1,5 @@
 // Explicit instantiations of the dual quaternion helpers and the feature
-// filters (the seed's 4 points, 4 lines, 2 circles), float and double, so a
+// filters (the feature paper's 4 points, 4 lines, 2 circles), float and double, so a
 // compile error in either scalar build cannot hide.
 #include "fsw/math/dual_quaternion.hpp"
 #include "fsw/features/feature_filter.hpp"

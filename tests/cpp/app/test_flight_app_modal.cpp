@@ -1,4 +1,4 @@
-// The flight app's modal estimator: range images of the seed's plate arrive
+// The flight app's modal estimator: range images of the range-image paper's plate arrive
 // as segments over the link and come back as tm_modal, one filter step per
 // image; lost segments, short images, stale images and bad settings.
 #include <gtest/gtest.h>

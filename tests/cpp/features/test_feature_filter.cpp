@@ -1,6 +1,6 @@
 // Feature filters (EKF and UKF): the relative dynamics against the CW closed
 // form and its Jacobian against central differences, convergence on the
-// seed's scenario from its first initial guess, off-nominal inputs leaving
+// feature paper's scenario from its first initial guess, off-nominal inputs leaving
 // the filter untouched, covariance growth without measurements.
 #include <gtest/gtest.h>
 
@@ -216,7 +216,7 @@ TEST(FeatureFilterTest, CovarianceGrowsWithoutMeasurements) {
   }
 }
 
-// Float tracks from the seed's 20 m, 0.2 rad prior with both filters at
+// Float tracks from the feature paper's 20 m, 0.2 rad prior with both filters at
 // their default settings: the innovation covariance (condition about 1e8
 // against 10 um image noise, beyond float's 1 / eps) is factored from the
 // rows of its square root, never formed (cholesky_from_rows).

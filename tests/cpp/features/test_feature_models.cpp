@@ -1,6 +1,6 @@
 // Feature observation models: each against an independent rotation-matrix
 // projection written here, analytic Jacobians against central finite
-// differences (double), the float build against the double one, the seed's
+// differences (double), the float build against the double one, the feature paper's
 // line-point sign, and the camera-offset coupling.
 #include <gtest/gtest.h>
 
@@ -99,7 +99,7 @@ TEST(FeatureModelsTest, LinePointIsFootOfPerpendicularOfProjectedLine) {
 }
 
 TEST(FeatureModelsTest, SeedEq9SignGivesTheMirrorOfTheFoot) {
-  // Seed eq. 9 (+f m_z m_x / rho, ...) is not on the image line unless the
+  // The paper's eq. 9 (+f m_z m_x / rho, ...) is not on the image line unless the
   // foot is the image origin; eq. 6's plane equation has the same sign slip.
   const auto cam = mount();
   const Case c = sample_poses(3)[0];
@@ -110,7 +110,7 @@ TEST(FeatureModelsTest, SeedEq9SignGivesTheMirrorOfTheFoot) {
   const double rho = mc.x() * mc.x() + mc.y() * mc.y();
   const Eigen::Vector2d seed(cam.focal_m * mc.x() * mc.z() / rho, cam.focal_m * mc.y() * mc.z() / rho);
   EXPECT_LE((seed + z).norm(), 1e-15);
-  // The correct point satisfies m . [x, y, f] = 0; the seed's does not.
+  // The correct point satisfies m . [x, y, f] = 0; the feature paper's does not.
   EXPECT_NEAR(mc.x() * z.x() + mc.y() * z.y() + mc.z() * cam.focal_m, 0.0, 1e-14);
   EXPECT_GT(std::abs(mc.x() * seed.x() + mc.y() * seed.y() + mc.z() * cam.focal_m), 1e-6);
 }

@@ -1,5 +1,5 @@
-// The streaming deframer: one named test per malformed case of STYLE.md
-// ("The serial link"), plus sequence, time and segmentation behaviour.
+// The streaming deframer: one named test per malformed case of the
+// decoding order (docs/LINK.md, deframer.hpp), plus sequence, time and segmentation behaviour.
 #include <gtest/gtest.h>
 
 #include <cmath>

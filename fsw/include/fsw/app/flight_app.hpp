@@ -1,6 +1,6 @@
 // The flight application: bytes from the link in, telemetry frames out.
 //
-// One class used two ways (DESIGN.md): inside the flight executable behind a
+// One class used two ways: inside the flight executable behind a
 // serial port (fsw/platform/), and in-process through the bindings. Both feed
 // the same bytes to on_bytes() and read the same frames from take_tx(), so
 // the two paths give identical estimates by construction.

@@ -1,5 +1,5 @@
-// Clohessy-Wiltshire relative dynamics in the Hill frame (DESIGN.md):
-// x radial (away from Earth), y along-track, z orbit normal.
+// Clohessy-Wiltshire relative dynamics in the Hill frame
+// (docs/CONVENTIONS.md): x radial (away from Earth), y along-track, z orbit normal.
 //
 //   xdd =  3 n^2 x + 2 n yd + ax
 //   ydd = -2 n xd          + ay
@@ -7,7 +7,8 @@
 //
 // State [x y z xd yd zd]. Over a step t with acceleration a held constant:
 //   s(t) = Phi(t) s(0) + Gamma(t) a,   Gamma(t) = int_0^t Phi(t - tau) B dtau.
-// Phi is the closed form of seed 002 eq. 6 with its two wrong entries
+// Phi is the closed form of eq. 6 of "Online Dynamic Modeling and Localization for Small-Spacecraft
+// Proximity Operations" (Rogers-Marcovitz), with its two wrong entries
 // corrected (xd row: 2 sin(nt) on yd0; yd row: 4 cos(nt) - 3 on yd0).
 //
 // Every coefficient is written through the cancellation-free functions
@@ -84,10 +85,10 @@ inline Mat6<S> cw_stm(S n, S t) {
   // velocity rows
   P(3, 0) = S(3) * n * s;                         // 3 n S
   P(3, 3) = c;
-  P(3, 4) = S(2) * s;                             // 2 S (seed erratum)
+  P(3, 4) = S(2) * s;                             // 2 S (erratum of eq. 6)
   P(4, 0) = -S(6) * n * omc;                      // -6 n (1-C)
   P(4, 3) = -S(2) * s;
-  P(4, 4) = S(1) - S(4) * omc;                    // 4C - 3 (seed erratum)
+  P(4, 4) = S(1) - S(4) * omc;                    // 4C - 3 (erratum of eq. 6)
   P(5, 2) = -n * s;
   P(5, 5) = c;
   return P;

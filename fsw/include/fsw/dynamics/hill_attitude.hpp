@@ -4,8 +4,9 @@
 // The Hill frame turns at the orbit rate n about its own z axis, so
 //   q_HB(t + dt) = Exp(-n z_H dt) * q_HB(t) * Exp(omega_BI_B dt),
 // which is exact when omega_BI_B is constant over the step (the two
-// rotations act on opposite sides and commute). This replaces the seed's
-// eq. 7, which applies a 3x3 skew matrix to a quaternion (DESIGN.md).
+// rotations act on opposite sides and commute). It replaces eq. 7 of
+// "Online Dynamic Modeling and Localization for Small-Spacecraft Proximity Operations" (Rogers-Marcovitz),
+// which applies a 3x3 skew matrix to a 4-component quaternion.
 #pragma once
 
 #include "fsw/math/so3.hpp"

@@ -1,28 +1,29 @@
 // Six-degree-of-freedom relative motion of a follower with respect to a
-// leader on an eccentric orbit (seed 001, section 2), as the feature filters
+// leader on an eccentric orbit (section 2 of the dual-quaternion paper on kinematically
+// coupled relative dynamics and feature-based pose estimation), as the feature filters
 // propagate it.
 //
 // The leader's body frame is held aligned with its orbit frame L (x radial,
-// y along-track, z orbit normal; the Hill frame of DESIGN.md), which turns
+// y along-track, z orbit normal; the Hill frame of docs/CONVENTIONS.md), which turns
 // at the true-anomaly rate:
 //   omega_l = [0, 0, nu_dot],  omega_l_dot = [0, 0, nu_ddot],
 //   nu_dot = sqrt(mu / p^3) (1 + e cos nu)^2,  p = a (1 - e^2),
 //   nu_ddot = -2 e sin(nu) nu_dot^2 / (1 + e cos nu),  r_L = p / (1 + e cos nu).
 // State (follower centre of mass; the camera and feature points are placed
-// by their offsets in feature_models.hpp, which is where the seed's
+// by their offsets in feature_models.hpp, which is where the paper's
 // kinematic rotation-translation coupling enters):
 //   q_lf   follower body -> L (Hamilton),       q_dot = 1/2 q (x) w
-//   w      omega_FL in the body frame [rad/s], the seed's relative rate
+//   w      omega_FL in the body frame [rad/s], the paper's relative rate
 //          w_dot = omega_f_dot - R^T omega_l_dot + w x (R^T omega_l)
 //          omega_f = w + R^T omega_l,  omega_f_dot = J^-1 (-omega_f x J omega_f)
-//          (torque free: the seed's dual force holds gravity only)
+//          (torque free: the paper's dual force holds gravity only)
 //   r, v   follower centre of mass in L and its rate in L [m, m/s]: the
 //          nonlinear equations of relative motion on an eccentric orbit,
 //          gravity of both bodies (two-body), no linearisation:
 //     x'' = 2 nu' y' + nu'' y + nu'^2 x - mu (r_L + x) / g^3 + mu / r_L^2
 //     y'' = -2 nu' x' - nu'' x + nu'^2 y - mu y / g^3
 //     z'' = -mu z / g^3,           g = |(r_L + x, y, z)|
-// This is the seed's dual-number dynamics (eq. 3 onwards) written at the
+// This is the paper's dual-number dynamics (eq. 3 onwards) written at the
 // centres of mass: the dual velocity of a point frame is the centre-of-mass
 // motion transported to the point, so the two carry the same physics.
 // The differential gravity is evaluated without cancellation (float build).
@@ -42,8 +43,8 @@ namespace fsw {
 
 template <typename S>
 struct LeaderOrbit {
-  S a_m = S(7.2e6);      // semi-major axis [m] (seed: 7,200 km)
-  S e = S(0.02);         // eccentricity (seed: 0.02)
+  S a_m = S(7.2e6);      // semi-major axis [m] (the paper's: 7,200 km)
+  S e = S(0.02);         // eccentricity (the paper's: 0.02)
   S mu_m3ps2 = S(kMuEarth);
   S p_m() const { return a_m * (S(1) - e * e); }
   S radius_m(S nu) const { return p_m() / (S(1) + e * std::cos(nu)); }

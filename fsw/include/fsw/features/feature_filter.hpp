@@ -1,22 +1,23 @@
-// Tightly coupled relative navigation from image features (seed 001,
+// Tightly coupled relative navigation from image features (the dual-quaternion paper on kinematically coupled relative
+// dynamics and feature-based pose estimation,
 // section 4): the image coordinates of points, line points and circle points
-// are fused directly, by an EKF (as in the seed) or a UKF (the seed's stated
+// are fused directly, by an EKF (as in the paper) or a UKF (the paper's stated
 // future work). Both share the model below; only the update rule differs.
 //
 // State (nominal, FeatureNavState):
 //   q_lf, w_fl_f, r_l, v_l   relative_dynamics.hpp (follower w.r.t. the leader)
 //   phi (3 per circle)       the angles of the three imaged points of each
-//                            circle about its twist (the seed's Phi), constant
+//                            circle about its twist (the paper's Phi), constant
 // Error state (covariance), layout FeatureLayout:
 //   [dtheta (3, body), dw (3), dr (3, L), dv (3, L), dphi (3 C)]
-// The seed carries an 8-component dual quaternion in the covariance; its
+// The paper carries an 8-component dual quaternion in the covariance; its
 // unit and orthogonality constraints make that covariance singular, so here
 // the same pose is carried as q_lf (x) Exp(dtheta) and r + dr: six degrees of
 // freedom, and the dual quaternion of the pose is formed for the models
 // (feature_models.hpp) at every evaluation.
 //
 // Predict(t): RK4 over `substeps` sub-steps of the nonlinear dynamics; the
-// EKF propagates P with F = prod (I + A h + (A h)^2 / 2) (the seed uses
+// EKF propagates P with F = prod (I + A h + (A h)^2 / 2) (the paper uses
 // I + A T over the whole step), the UKF propagates its sigma points.
 // Process noise Q = diag(q_att, q_rate, q_pos, q_vel, q_phi) dt.
 //
@@ -104,7 +105,7 @@ struct FeatureSet {
 template <typename S>
 struct FeatureFilterConfig {
   LeaderOrbit<S> leader;
-  Vec3<S> inertia_f_kgm2 = Vec3<S>(S(522), S(420), S(600));  // follower principal inertia (seed) [kg m^2]
+  Vec3<S> inertia_f_kgm2 = Vec3<S>(S(522), S(420), S(600));  // follower principal inertia (the paper's) [kg m^2]
   CameraMount<S> camera;
   S image_sigma_m = S(1e-5);   // image-plane noise, 1-sigma per coordinate [m]
   int substeps = 10;           // RK4 sub-steps per predict
@@ -573,7 +574,7 @@ inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::commit_upd
 }
 
 // ---------------------------------------------------------------------------
-// EKF (the seed's filter, with the error-state covariance).
+// EKF (the paper's filter, with the error-state covariance).
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
 class FeatureEkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles> {
   using Base = FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>;

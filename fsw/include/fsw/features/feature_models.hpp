@@ -1,10 +1,11 @@
-// Image-feature observation models of seed 001 (section 3): points (eq. 4),
+// Image-feature observation models of the dual-quaternion
+// feature paper (section 3): points (eq. 4),
 // lines through the line point (eqs. 5-9), circles through the twist
 // (eqs. 10-11), on a pinhole camera of focal length f.
 //
 // Frames (docs/FEATURES.md):
 //   leader frame L  : the host's orbit (Hill) frame at its centre of mass;
-//                     the leader body is held aligned with it (seed).
+//                     the leader body is held aligned with it (as in the paper).
 //   lP              : the leader's feature frame, axes parallel to L, origin
 //                     at p_l (leader frame) from the leader's centre of mass.
 //                     Points, lines and circles are given in lP.
@@ -19,7 +20,7 @@
 //   Q_cl = (Q_lf (x) Q(p_f))^-1 (x) Q(p_l),
 // so a camera away from the centre of mass couples rotation into
 // translation: turning the follower about its centre of mass moves the
-// camera by R dtheta x p_f (the seed's kinematic coupling).
+// camera by R dtheta x p_f (the paper's kinematic coupling).
 //
 // Models (d = point in the camera frame):
 //   point  : d = Q_cl (1 + eps D) Q_cl_eps^*,   z = f [d_x / d_z, d_y / d_z]
@@ -27,7 +28,7 @@
 //            Q_cl (l + eps m) Q_cl^*; its image is the line m . [x, y, f] = 0
 //            and the line point (foot of the perpendicular from the image
 //            origin) is  z = -f m_z [m_x, m_y] / (m_x^2 + m_y^2).
-//            The seed's eqs. 6 and 9 have +f m_z: that is the mirror image of
+//            The paper's eqs. 6 and 9 have +f m_z: that is the mirror image of
 //            the foot through the origin (errata in docs/FEATURES.md).
 //   circle : S_phi = q_phi (1 + eps S0) q_phi_eps^* with the zero-pitch screw
 //            q_phi about the twist line (l_t, m_t), then the point model.
@@ -53,7 +54,7 @@ template <typename S> using Mat26 = Eigen::Matrix<S, 2, 6>;
 
 template <typename S>
 struct CameraMount {
-  S focal_m = S(0.5);                              // focal length f [m] (seed: 0.5 m)
+  S focal_m = S(0.5);                              // focal length f [m] (the paper's: 0.5 m)
   Vec3<S> camera_offset_f_m = Vec3<S>::Zero();     // p_f: lens centre from follower c.m., body frame [m]
   Vec3<S> feature_origin_l_m = Vec3<S>::Zero();    // p_l: lP origin from leader c.m., leader frame [m]
   S min_depth_m = S(1e-3);                         // a feature nearer the lens plane is not imageable [m]
@@ -136,13 +137,13 @@ inline bool line_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, co
 }
 
 // Point of a circle: S0 turned by phi about the twist line (l_t unit, m_t = p x l_t),
-// all in lP (seed eq. 10).
+// all in lP (the paper's eq. 10).
 template <typename S>
 inline Vec3<S> circle_point(const Vec3<S>& l_t, const Vec3<S>& m_t, const Vec3<S>& S0, S phi) {
   return transform_point(DualQuat<S>::from_screw_zero_pitch(l_t, m_t, phi), S0);
 }
 
-// Circle feature point at angle phi -> image coordinates (seed eq. 11).
+// Circle feature point at angle phi -> image coordinates (the paper's eq. 11).
 // H: dz/de (2 x 6), h_phi: dz/dphi.
 template <typename S>
 inline bool circle_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, const Vec3<S>& l_t,

@@ -1,6 +1,6 @@
 // Streaming deframer for the serial link: bytes in (any chunking), and for
 // each frame either a packet or a rejection with its reason. Decoding order
-// (docs/LINK.md, STYLE.md "The serial link"):
+// (docs/LINK.md):
 //
 //   1 split on 0x00            EmptyFrame
 //   2 bound the frame length   FrameTooLong (runaway: reported once, resync at next 0x00)

@@ -1,4 +1,6 @@
-// Unit dual quaternions for rigid motions (seed 001, section 2).
+// Unit dual quaternions for rigid motions (section 2 of the
+// dual-quaternion paper on kinematically coupled relative dynamics and
+// feature-based pose estimation).
 //
 //   Q = r + eps d,   d = 1/2 t (x) r,
 //
@@ -13,10 +15,10 @@
 //                                       lines:  Q (l + eps m) conjugate(Q)
 //   dual_conjugate(Q) = r* - eps d*     with conjugate(): transforms points
 //                                       Q (1 + eps x) conjugate(dual_conjugate(Q))
-//                                       (seed eq. 4's q_eps^*).
+//                                       (the paper's eq. 4 q_eps^*).
 // Lines are Pluecker pairs (l unit direction, m = p x l for any point p on
 // the line); a zero-pitch screw about such a line by an angle phi is
-//   cos(phi/2) + sin(phi/2) (l + eps m)          (seed eq. 10)
+//   cos(phi/2) + sin(phi/2) (l + eps m)          (the paper's eq. 10)
 // in this convention (d = sin(phi/2) m is 1/2 (p - R p) r written out).
 // exp / log map twists xi = [omega; v] (rad, m; parent frame, the motion
 // exp(xi) = pure rotation by omega about the origin after its screw motion)

@@ -1,6 +1,6 @@
 // SO(3) on unit quaternions: exp, log, boxplus, boxminus, rotation matrices.
 //
-// Convention (DESIGN.md): Hamilton product; q rotates body vectors into the
+// Convention (docs/CONVENTIONS.md): Hamilton product; q rotates body vectors into the
 // Hill frame (v_H = q * v_B * q^-1). Scalar-first [w, x, y, z] at every
 // boundary; Eigen's coeffs() order [x, y, z, w] never leaves this header
 // (to_wxyz / from_wxyz are the only conversions).

@@ -1,4 +1,6 @@
-// Modal decomposition of one range image (seed 000 section III, eqs. 2-4).
+// Modal decomposition of one range image (section III, eqs. 2-4, of
+// "Shape, Motion, and Parameter Estimation of Large Flexible Space
+// Structures using Range Images" (Lichter and Dubowsky)).
 //
 // The deflection of the structure is z(x, t) = A(t)^T Phi(x) (eq. 1) with M
 // known mode shapes Phi. One range image gives n points y_k with measured

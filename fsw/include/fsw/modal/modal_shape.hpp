@@ -1,4 +1,6 @@
-// Shape reconstruction with its uncertainty (seed 000 section V, eqs. 8-9).
+// Shape reconstruction with its uncertainty (section V, eqs. 8-9,
+// of "Shape, Motion, and Parameter Estimation of Large Flexible Space
+// Structures using Range Images" (Lichter and Dubowsky)).
 //
 //   z^(x)   = A^T Phi^(x)                 estimated deflection [m]   (eq. 8)
 //   var(x)  = Phi^(x)^T P_AA Phi^(x)      its variance [m^2]         (eq. 9)

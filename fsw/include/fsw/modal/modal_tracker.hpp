@@ -1,5 +1,7 @@
 // The flight app's modal estimator: range-image segments in, one modal
-// filter step per image out (seed 000 as run on board).
+// filter step per image out (the estimator of
+// "Shape, Motion, and Parameter Estimation of Large Flexible Space
+// Structures using Range Images" (Lichter and Dubowsky), as run on board).
 //
 // An image arrives as segments (ModalSegment; the flight app adapts the
 // link's range-image segments of up to 24 points, docs/LINK.md); each
@@ -68,7 +70,7 @@ struct ModalSegment {
 struct ModalTrackerConfig {
   PlateModelConfig plate;
   // 1-sigma of the a priori frequencies as a fraction of the model's (eq. 7;
-  // the seed bounds the a priori error at about 20 %).
+  // the paper bounds the a priori error at about 20 %).
   double prior_omega_frac = 0.1;
   // 1-sigma of the initial amplitude rate as a fraction of the mode's
   // frequency (a unit amplitude's peak rate).
@@ -77,7 +79,7 @@ struct ModalTrackerConfig {
   // the lowest mode (0: none).
   double acquire_after_periods = 2.0;
   // Half-width of the search's frequency interval, a fraction of the
-  // model's frequencies: the seed bounds the a priori error at about 20 %.
+  // model's frequencies: the paper bounds the a priori error at about 20 %.
   double acquire_span_frac = 0.2;
   // 1-sigma of the replayed filter's a priori frequencies, as a fraction
   // of the acquired ones (five of the search's grid steps, 0.2 % each at

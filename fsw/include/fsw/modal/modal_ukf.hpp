@@ -1,5 +1,7 @@
 // Unscented Kalman filters over the modal state of a vibrating structure
-// (seed 000 section IV, eqs. 5-7).
+// (section IV, eqs. 5-7, of
+// "Shape, Motion, and Parameter Estimation of Large Flexible Space
+// Structures using Range Images" (Lichter and Dubowsky)).
 //
 // State per mode i: [A_i, V_i, omega_i, alpha_i] (amplitude [-], its rate
 // [1/s], natural frequency [rad/s], damping rate [1/s]). Process model eq. 5,

@@ -1,9 +1,11 @@
 // Inspector navigation: multiplicative (error-state) quaternion UKF over
-// Clohessy-Wiltshire relative dynamics (seed 002, section 2).
+// Clohessy-Wiltshire relative dynamics (section 2 of
+// "Online Dynamic Modeling and Localization for Small-Spacecraft
+// Proximity Operations" (Rogers-Marcovitz)).
 //
 // State and covariance layout: nav_state.hpp. Attitude error is body-frame
 // (local): q_true = q_est * Exp(dtheta). Sigma points are formed in the
-// tangent space (x [+] gamma * column of chol(P), seed eqs. 3-4 with the
+// tangent space (x [+] gamma * column of chol(P), the paper's eqs. 3-4 with the
 // local perturbation) and averaged there: the attitude mean is a single
 // tangent-space step around the central (propagated) sigma point, and the
 // deviations used for the covariance are exact boxminus against that mean.
@@ -19,7 +21,7 @@
 //          omega dt), so the sigma points carry the attitude-acceleration
 //          coupling.
 //   q    : propagate_attitude (Hill frame turning at n about z).
-// IMU noise (documented equivalent of the seed's augmented state): each
+// IMU noise (documented equivalent of the paper's augmented state): each
 // sample's white noise (1-sigma per axis) is held over its step, so its
 // exact effect is additive process noise
 //   Q_rv = sigma_a^2 Gamma Gamma^T   (isotropic, so the rotation drops out)
@@ -28,7 +30,7 @@
 //
 // Update (pose, nominally 1 Hz): z = [r_hill_m, q_hb], innovation
 // [r_meas - r_pred, q_meas [-] q_pred], R over [position m^2, attitude rad^2].
-// Steps 7-14 of the seed's Table 1 with the tangent-space mean, chi-square
+// Steps 7-14 of the paper's Table 1 with the tangent-space mean, chi-square
 // gating on NIS, log p_z = -(NIS + log det(2 pi S)) / 2.
 //
 // Delayed measurements: a fixed ring buffer holds, per IMU tick, the state,

@@ -1,6 +1,7 @@
 // Bayes linear regression over a sliding window, in information form, with
-// several outputs sharing one information matrix (seed 002 section 3.2,
-// eqs. 19-23; eqs. 17-18 of the seed carry sign and typo errors and are not
+// several outputs sharing one information matrix (section 3.2 of
+// "Online Dynamic Modeling and Localization for Small-Spacecraft
+// Proximity Operations" (Rogers-Marcovitz), eqs. 19-23; eqs. 17-18 of the paper carry sign and typo errors and are not
 // used).
 //
 // Model, per output k = 0..K-1:  y_k = theta_k^T x + e_k,  e_k ~ N(0, s_k^2),
@@ -71,7 +72,7 @@ struct BlrConfig {
 };
 
 // Inputs from the eight valve states: [v0 .. v7, 1] and, with kPairs, the 28
-// pairwise products v_i v_j (i < j) after them (seed 002 section 3.4).
+// pairwise products v_i v_j (i < j) after them (Rogers-Marcovitz, section 3.4).
 // Bit i of the mask is valve i (1 = open).
 template <typename S, bool kPairs = false>
 struct ValveFeatures {
@@ -417,7 +418,7 @@ inline bool BayesLinReg<S, D, K, W>::remove_oldest_impl() {
   return false;
 }
 
-// The thruster learner of seed 002: eight valves plus bias in, change in body
+// The thruster learner of Rogers-Marcovitz: eight valves plus bias in, change in body
 // linear velocity [m/s] (3) and angular velocity [rad/s] (3) per firing out.
 template <typename S, int W = 30>
 using ThrusterBlr = BayesLinReg<S, ValveFeatures<S, false>::kDim, 6, W>;

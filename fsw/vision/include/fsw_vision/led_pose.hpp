@@ -16,7 +16,7 @@
 // to the navigation filter's measurement coordinates.
 //
 // Frames: host body (pattern coordinates, origin at the host's centre of
-// mass), Hill (DESIGN.md), inspector body b, camera c (OpenCV: x right,
+// mass), Hill (docs/CONVENTIONS.md), inspector body b, camera c (OpenCV: x right,
 // y down, z along the optical axis). Quaternions rotate body vectors into the
 // frame named first: q_hb takes inspector body to Hill, q_h_host takes host
 // body to Hill. Boundary arrays are scalar-first [w, x, y, z].
