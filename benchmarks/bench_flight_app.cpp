@@ -123,7 +123,8 @@ void BM_LibraryRangeImage(benchmark::State& st) {
     }
     dec.reset();
     const auto& ph = phi[std::size_t(k)];
-    for (std::size_t j = 0; j < z[std::size_t(k)].size(); ++j) dec.add_point(ph.data() + j * kM, z[std::size_t(k)][j], var);
+    for (std::size_t j = 0; j < z[std::size_t(k)].size(); ++j)
+      dec.add_point(ph.data() + j * kM, z[std::size_t(k)][j], var);
     dec.solve(drec);
     filt->step(60.0, drec, srec);
     benchmark::DoNotOptimize(srec.nis);

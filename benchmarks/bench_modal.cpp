@@ -198,9 +198,7 @@ void grid(benchmark::internal::Benchmark* b) {
   b->Unit(benchmark::kMicrosecond);
 }
 
-void targets(benchmark::internal::Benchmark* b) {
-  b->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond);
-}
+void targets(benchmark::internal::Benchmark* b) { b->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond); }
 
 }  // namespace
 

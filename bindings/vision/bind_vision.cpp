@@ -63,10 +63,9 @@ py::array_t<double> blobs_to_numpy(const std::vector<fsw_vision::Blob>& blobs) {
 
 // The camera: intrinsics, distortion and its mount on the inspector.
 void bind_camera(py::class_<LedPoseConfig>& cls) {
-  cls
-      .def_property(
-          "width", [](const LedPoseConfig& c) { return c.camera.width; },
-          [](LedPoseConfig& c, int v) { c.camera.width = int(positive(v, "width")); }, "Image width [px].")
+  cls.def_property(
+         "width", [](const LedPoseConfig& c) { return c.camera.width; },
+         [](LedPoseConfig& c, int v) { c.camera.width = int(positive(v, "width")); }, "Image width [px].")
       .def_property(
           "height", [](const LedPoseConfig& c) { return c.camera.height; },
           [](LedPoseConfig& c, int v) { c.camera.height = int(positive(v, "height")); }, "Image height [px].")
@@ -107,15 +106,14 @@ void bind_camera(py::class_<LedPoseConfig>& cls) {
 
 // The LED pattern on the host.
 void bind_pattern(py::class_<LedPoseConfig>& cls) {
-  cls
-      .def_property_readonly(
-          "pattern_host_m",
-          [](const LedPoseConfig& c) {
-            Eigen::Matrix<double, fsw_vision::kNumLeds, 3> P;
-            for (int i = 0; i < fsw_vision::kNumLeds; ++i) P.row(i) = c.pattern.p_host_m[i].transpose();
-            return to_numpy(P);
-          },
-          "LED positions in the host body frame [m], rows: corners 0..3, identifier.")
+  cls.def_property_readonly(
+         "pattern_host_m",
+         [](const LedPoseConfig& c) {
+           Eigen::Matrix<double, fsw_vision::kNumLeds, 3> P;
+           for (int i = 0; i < fsw_vision::kNumLeds; ++i) P.row(i) = c.pattern.p_host_m[i].transpose();
+           return to_numpy(P);
+         },
+         "LED positions in the host body frame [m], rows: corners 0..3, identifier.")
       .def_property_readonly(
           "pattern_normal_host", [](const LedPoseConfig& c) { return to_numpy(c.pattern.normal_host); },
           "Outward normal of the LED face, host body frame.")
@@ -131,8 +129,7 @@ void bind_pattern(py::class_<LedPoseConfig>& cls) {
 
 // Detection, identification, centroid and pose thresholds.
 void bind_thresholds(py::class_<LedPoseConfig>& cls) {
-  cls
-      .def_readwrite("background_kernel_px", &LedPoseConfig::background_kernel_px)
+  cls.def_readwrite("background_kernel_px", &LedPoseConfig::background_kernel_px)
       .def_readwrite("threshold_counts", &LedPoseConfig::threshold_counts,
                      "Detection threshold above the local background [counts].")
       .def_readwrite("faint_sigma_px", &LedPoseConfig::faint_sigma_px,
@@ -179,9 +176,10 @@ void bind_measurement(py::module_& m) {
   py::class_<LedPoseMeasurement>(m, "LedPoseMeasurement",
                                  "Pose measurement for NavUkf.update_pose: r_hill_m (inspector relative to host, "
                                  "Hill, m), q_hb [w,x,y,z], R (6x6: position m^2, body attitude error rad^2).")
-      .def_property_readonly("status", [](const LedPoseMeasurement& r) { return std::string(to_string(r.status)); },
-                             "'Ok' | 'TooFewLeds' | 'AmbiguousIdentity' | 'TargetBehindCamera' | "
-                             "'DegenerateGeometry' | 'SolverFailed' | 'BadInput'")
+      .def_property_readonly(
+          "status", [](const LedPoseMeasurement& r) { return std::string(to_string(r.status)); },
+          "'Ok' | 'TooFewLeds' | 'AmbiguousIdentity' | 'TargetBehindCamera' | "
+          "'DegenerateGeometry' | 'SolverFailed' | 'BadInput'")
       .def_property_readonly("ok", [](const LedPoseMeasurement& r) { return r.status == fsw_vision::PoseStatus::Ok; })
       .def_readonly("t_capture_s", &LedPoseMeasurement::t_capture_s)
       .def_property_readonly("r_hill_m", [](const LedPoseMeasurement& r) { return to_numpy(r.r_hill_m); })
@@ -195,10 +193,9 @@ void bind_measurement(py::module_& m) {
       .def_readonly("range_m", &LedPoseMeasurement::range_m, "Camera to pattern centre [m].")
       .def_readonly("identifier_split", &LedPoseMeasurement::identifier_split,
                     "True when the identifier came from a two-spot fit of a blob merged with its corner.")
-      .def_property_readonly("blob_of_led",
-                             [](const LedPoseMeasurement& r) {
-                               return std::vector<int>(r.blob_of_led.begin(), r.blob_of_led.end());
-                             })
+      .def_property_readonly(
+          "blob_of_led",
+          [](const LedPoseMeasurement& r) { return std::vector<int>(r.blob_of_led.begin(), r.blob_of_led.end()); })
       .def("__repr__", [](const LedPoseMeasurement& r) {
         return "LedPoseMeasurement(status=" + std::string(to_string(r.status)) +
                ", t_capture_s=" + std::to_string(r.t_capture_s) + ", range_m=" + std::to_string(r.range_m) + ")";
@@ -234,7 +231,8 @@ void bind_estimator(py::module_& m) {
       .def(
           "detect",
           [](const LedPoseEstimator& e, const Img& image) { return blobs_to_numpy(e.detect(wrap_image(image))); },
-          py::arg("image"), "Blobs, brightest first: rows [u_px, v_px, flux, area_px, sigma_px, n_saturated, sigma_noise_px, width_px] "
+          py::arg("image"),
+          "Blobs, brightest first: rows [u_px, v_px, flux, area_px, sigma_px, n_saturated, sigma_noise_px, width_px] "
           "(sigma_noise_px: the propagated pixel noise before the calibration's scale and terms; width_px: "
           "the spot's width from its moments).")
       .def(
@@ -262,8 +260,8 @@ void bind_estimator(py::module_& m) {
 
 void bind_vision(py::module_& m) {
   py::class_<LedPoseConfig> config(m, "LedPoseConfig",
-                            "LED pose pipeline configuration: camera (intrinsics, distortion, mount on the "
-                            "inspector), LED pattern (host body frame) and detection / pose thresholds.");
+                                   "LED pose pipeline configuration: camera (intrinsics, distortion, mount on the "
+                                   "inspector), LED pattern (host body frame) and detection / pose thresholds.");
   config.def(py::init<>());
   bind_camera(config);
   bind_pattern(config);

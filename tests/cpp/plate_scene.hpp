@@ -7,8 +7,8 @@
 #include <random>
 #include <vector>
 
-#include "fsw/modal/plate_modes.hpp"
 #include "fsw/math/so3.hpp"
+#include "fsw/modal/plate_modes.hpp"
 
 namespace plate_scene {
 

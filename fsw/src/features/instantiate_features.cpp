@@ -1,10 +1,10 @@
 // Explicit instantiations of the dual quaternion helpers and the feature
 // filters (the feature paper's 4 points, 4 lines, 2 circles), float and double, so a
 // compile error in either scalar build cannot hide.
-#include "fsw/math/dual_quaternion.hpp"
+#include "fsw/dynamics/relative_dynamics.hpp"
 #include "fsw/features/feature_filter.hpp"
 #include "fsw/features/feature_models.hpp"
-#include "fsw/dynamics/relative_dynamics.hpp"
+#include "fsw/math/dual_quaternion.hpp"
 
 namespace fsw {
 template struct DualQuat<double>;

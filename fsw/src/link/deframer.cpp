@@ -97,8 +97,7 @@ std::size_t Deframer::feed(const std::uint8_t* data, std::size_t n, DeframeResul
   const std::uint32_t room = UINT32_MAX - counters_.bytes_received;  // saturate rather than wrap
   counters_.bytes_received += used < room ? static_cast<std::uint32_t>(used) : room;
   switch (ev) {
-    case CobsAccumulator<kMaxFrameLen>::Event::None:
-      break;
+    case CobsAccumulator<kMaxFrameLen>::Event::None: break;
     case CobsAccumulator<kMaxFrameLen>::Event::EmptyFrame:
       bump(counters_.frames_total);
       out = reject(RejectReason::EmptyFrame);
@@ -107,9 +106,7 @@ std::size_t Deframer::feed(const std::uint8_t* data, std::size_t n, DeframeResul
       bump(counters_.frames_total);
       out = reject(RejectReason::FrameTooLong);
       break;
-    case CobsAccumulator<kMaxFrameLen>::Event::Frame:
-      out = process_frame(acc_.frame(), acc_.size());
-      break;
+    case CobsAccumulator<kMaxFrameLen>::Event::Frame: out = process_frame(acc_.frame(), acc_.size()); break;
   }
   return used;
 }

@@ -18,8 +18,8 @@ template ShapeRecord reconstruct_shape<double, 3>(const Eigen::Matrix<double, 3,
 template ShapeRecord reconstruct_shape<float, 3>(const Eigen::Matrix<float, 3, 1>&, const Eigen::Matrix<float, 3, 3>&,
                                                  const float*, int, float*, float*);
 template ShapeRecord reconstruct_shape<double, 50>(const Eigen::Matrix<double, 50, 1>&,
-                                                   const Eigen::Matrix<double, 50, 50>&, const double*, int,
-                                                   double*, double*);
+                                                   const Eigen::Matrix<double, 50, 50>&, const double*, int, double*,
+                                                   double*);
 template ShapeRecord reconstruct_shape<float, 50>(const Eigen::Matrix<float, 50, 1>&,
                                                   const Eigen::Matrix<float, 50, 50>&, const float*, int, float*,
                                                   float*);

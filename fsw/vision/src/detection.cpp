@@ -117,9 +117,9 @@ bool measure_blob(const DetectionImage& im, int l, int first_faint, const LedPos
   Blob refined;
   refined.width_px = width;
   bool drifted = false;
-  if (cfg.refine_centroid && refine_centroid(CentroidImage{im.gray, im.labels, im.cents},
-                                             CentroidSeed{l, first_faint, mu, mv, width, sigma_w}, cfg, refined,
-                                             drifted)) {
+  if (cfg.refine_centroid &&
+      refine_centroid(CentroidImage{im.gray, im.labels, im.cents}, CentroidSeed{l, first_faint, mu, mv, width, sigma_w},
+                      cfg, refined, drifted)) {
     refined.area_px = area;
     blob = refined;
     return true;

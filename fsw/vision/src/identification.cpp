@@ -114,8 +114,10 @@ double convex_quad_area2(const cv::Point2d* q[4]) {
     const cv::Point2d e1 = *q[(i + 2) % 4] - *q[(i + 1) % 4];
     const double c = cross2(e0, e1);
     if (c == 0.0) return 0.0;
-    if (sgn == 0.0) sgn = c;
-    else if ((c > 0.0) != (sgn > 0.0)) return 0.0;
+    if (sgn == 0.0)
+      sgn = c;
+    else if ((c > 0.0) != (sgn > 0.0))
+      return 0.0;
   }
   double a2 = 0.0;
   for (int i = 0; i < 4; ++i) a2 += cross2(*q[i], *q[(i + 1) % 4]);

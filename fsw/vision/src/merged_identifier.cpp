@@ -47,7 +47,8 @@ AroundCentre around_centre(const std::vector<Blob>& blobs) {
 
 }  // namespace
 
-bool LedPoseEstimator::fit_merged_pair(const detail::MergedFit& fit, std::array<cv::Point2d, 4> corners, SpotFit& pair) const {
+bool LedPoseEstimator::fit_merged_pair(const detail::MergedFit& fit, std::array<cv::Point2d, 4> corners,
+                                       SpotFit& pair) const {
   const Eigen::Vector2d far(corners[1].x, corners[1].y);
   Eigen::Vector2d u0 = fit.one.u0;
   bool ok = true;
@@ -67,8 +68,7 @@ bool LedPoseEstimator::fit_merged_pair(const detail::MergedFit& fit, std::array<
 }
 
 void LedPoseEstimator::merged_candidates_at(const cv::Mat& gray, const std::array<cv::Point2d, 4>& around, int k,
-                                            double width0,
-                                            std::array<detail::MergedCandidate, 2>& top) const {
+                                            double width0, std::array<detail::MergedCandidate, 2>& top) const {
   auto pt = [&](int i) { return around[static_cast<size_t>((i + 4) % 4)]; };
   const cv::Point2d c = pt(k);
   const double e_max = std::max(cv::norm(pt(k + 1) - c), cv::norm(pt(k - 1) - c));

@@ -130,8 +130,7 @@ void LedPoseEstimator::solve_labelling(Hypothesis& h, const std::vector<cv::Poin
     }
   }
   for (size_t s = 0; s < rvecs.size(); ++s) refine_solution(h, img, sig, rvecs[s], tvecs[s]);
-  std::sort(h.solutions.begin(), h.solutions.end(),
-            [](const Solution& a, const Solution& b) { return a.ssr < b.ssr; });
+  std::sort(h.solutions.begin(), h.solutions.end(), [](const Solution& a, const Solution& b) { return a.ssr < b.ssr; });
 }
 
 PoseStatus LedPoseEstimator::choose_labelling(std::vector<Hypothesis>& hyps, const std::vector<double>& sig,
@@ -207,7 +206,8 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
                                                           const std::vector<double>& sigma_px) const {
   LedPoseMeasurement m;
   m.t_capture_s = t_capture_s;
-  if (!std::isfinite(t_capture_s) || !(std::abs(q_h_host.norm() - 1.0) < 1e-3)) return with_status(m, PoseStatus::BadInput);
+  if (!std::isfinite(t_capture_s) || !(std::abs(q_h_host.norm() - 1.0) < 1e-3))
+    return with_status(m, PoseStatus::BadInput);
   std::vector<cv::Point2d> pts;
   std::vector<double> sig;  // centroid sigma per point [px]
   const bool enough = usable_points(pts_in, sigma_px, pts, sig);

@@ -10,10 +10,10 @@
 #include <vector>
 
 #include "flight_app_util.hpp"
-#include "plate_scene.hpp"
 #include "fsw/modal/modal_decomposition.hpp"
 #include "fsw/modal/modal_ukf.hpp"
 #include "fsw/modal/plate_modes.hpp"
+#include "plate_scene.hpp"
 
 using namespace fsw;
 using namespace flight_app_test;
@@ -216,7 +216,7 @@ TEST(FlightAppModalTest, SettingsApplyAtTheModalResetAndBadOnesAreRefused) {
   up.config(0.0, ConfigParam::ModalAcquireAfterPeriods, 3.0);
   feed(app, up, tm);
   EXPECT_EQ(app.counters().configs_rejected, 4u);
-  EXPECT_EQ(app.modal().config().acquire_after_periods, 2.0);  // not yet
+  EXPECT_EQ(app.modal().config().acquire_after_periods, 2.0);                                  // not yet
   EXPECT_NEAR(2 * 3.14159265358979323846 / app.modal().model().omega_radps(0), 2400.0, 1e-9);  // not yet
   modal_reset(up, 0.0);
   feed(app, up, tm);

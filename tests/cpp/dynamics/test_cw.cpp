@@ -43,9 +43,7 @@ MatL integrate_cw(long double n, long double t_end, int steps) {
   return y;
 }
 
-double rel_err(const Eigen::MatrixXd& a, const Eigen::MatrixXd& ref) {
-  return (a - ref).norm() / ref.norm();
-}
+double rel_err(const Eigen::MatrixXd& a, const Eigen::MatrixXd& ref) { return (a - ref).norm() / ref.norm(); }
 }  // namespace
 
 TEST(CwTest, OrbitRateFromRadius) {

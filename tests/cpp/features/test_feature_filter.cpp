@@ -65,7 +65,8 @@ TEST(FeatureFilterTest, DiscreteTransitionMatchesCentralDifferencesOfThePropagat
     f.prop(xm, num, 1.0, nullptr);
     Ffd.col(j) = EkfProbe::boxminus(xp, xm) / (2 * h);
   }
-  EXPECT_LE((F - Ffd).norm(), 1e-5 * F.norm()) << "F\n" << F.topLeftCorner<12, 12>() << "\nFD\n"
+  EXPECT_LE((F - Ffd).norm(), 1e-5 * F.norm()) << "F\n"
+                                               << F.topLeftCorner<12, 12>() << "\nFD\n"
                                                << Ffd.topLeftCorner<12, 12>();
 }
 

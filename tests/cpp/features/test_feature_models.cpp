@@ -54,7 +54,9 @@ Eigen::Vector3d camera_point(const Case& c, const CameraMount<double>& cam, cons
   return R.transpose() * (cam.feature_origin_l_m + D - cam_pos_l);
 }
 
-Eigen::Vector2d pinhole(const Eigen::Vector3d& d, double f) { return f * Eigen::Vector2d(d.x() / d.z(), d.y() / d.z()); }
+Eigen::Vector2d pinhole(const Eigen::Vector3d& d, double f) {
+  return f * Eigen::Vector2d(d.x() / d.z(), d.y() / d.z());
+}
 
 // Perturbed pose: q (x) Exp(dtheta), r + dr.
 DualQuat<double> perturbed(const Case& c, const Eigen::Matrix<double, 6, 1>& e) {

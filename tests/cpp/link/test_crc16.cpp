@@ -16,7 +16,8 @@ std::uint16_t crc_bitwise(const std::uint8_t* d, std::size_t n) {
   std::uint16_t crc = 0xFFFF;
   for (std::size_t i = 0; i < n; ++i) {
     crc ^= static_cast<std::uint16_t>(d[i] << 8);
-    for (int b = 0; b < 8; ++b) crc = (crc & 0x8000) ? static_cast<std::uint16_t>((crc << 1) ^ 0x1021) : static_cast<std::uint16_t>(crc << 1);
+    for (int b = 0; b < 8; ++b)
+      crc = (crc & 0x8000) ? static_cast<std::uint16_t>((crc << 1) ^ 0x1021) : static_cast<std::uint16_t>(crc << 1);
   }
   return crc;
 }

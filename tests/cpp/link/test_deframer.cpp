@@ -100,9 +100,7 @@ TEST(Deframer, DeliveredViewCarriesHeaderTimeAndPayload) {
   EXPECT_DOUBLE_EQ(m.q_hb.w(), 0.5);
 }
 
-TEST(Deframer, EmptyFrame) {
-  expect_single_rejection(Bytes{0x00}, RejectReason::EmptyFrame);
-}
+TEST(Deframer, EmptyFrame) { expect_single_rejection(Bytes{0x00}, RejectReason::EmptyFrame); }
 
 TEST(Deframer, GarbageBeforeFirstZero) {
   // Opening the port mid-frame: the tail of a frame, its 0x00, then frames.
@@ -120,16 +118,13 @@ TEST(Deframer, GarbageBeforeFirstZero) {
 TEST(Deframer, GarbageWithoutZeroCostsOnlyTheFirstFrame) {
   Deframer d;
   const Bytes garbage = {0x13, 0x37, 0xAB};
-  const Outcome o = run(d, cat({garbage, valid_frame(Apid::ImuSample, 0, 1.0),
-                                valid_frame(Apid::ImuSample, 1, 1.1)}));
+  const Outcome o = run(d, cat({garbage, valid_frame(Apid::ImuSample, 0, 1.0), valid_frame(Apid::ImuSample, 1, 1.1)}));
   EXPECT_EQ(o.rejections.size(), 1u);
   ASSERT_EQ(o.packets.size(), 1u);
   EXPECT_EQ(unpack_primary_header(o.packets[0].data()).seq_count, 1);
 }
 
-TEST(Deframer, CobsCodePastEnd) {
-  expect_single_rejection(Bytes{0x05, 0x11, 0x22, 0x00}, RejectReason::CobsError);
-}
+TEST(Deframer, CobsCodePastEnd) { expect_single_rejection(Bytes{0x05, 0x11, 0x22, 0x00}, RejectReason::CobsError); }
 
 TEST(Deframer, RunawayFrameWithoutZero) {
   Deframer d;
@@ -158,8 +153,8 @@ TEST(Deframer, ProcessFrameRefusesOversizedFrame) {
 }
 
 TEST(Deframer, FrameSplitOverManyReads) {
-  const Bytes stream = cat({valid_frame(Apid::RangeImageSegment, 0, 1.0),
-                            valid_frame(Apid::ImuSample, 0, 1.0), valid_frame(Apid::LedPose, 0, 1.0)});
+  const Bytes stream = cat({valid_frame(Apid::RangeImageSegment, 0, 1.0), valid_frame(Apid::ImuSample, 0, 1.0),
+                            valid_frame(Apid::LedPose, 0, 1.0)});
   for (std::size_t chunk : {1u, 2u, 3u, 7u, 64u, 255u}) {
     Deframer d;
     const Outcome o = run(d, stream, chunk);
@@ -202,29 +197,25 @@ TEST(Deframer, BadCrc) {
 TEST(Deframer, LengthFieldTooLong) {
   PrimaryHeader h = header_for(Apid::ImuSample, 0);
   h.data_length = static_cast<std::uint16_t>(8 + 48 - 1 + 1);
-  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)),
-                          RejectReason::LengthFieldTooLong);
+  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)), RejectReason::LengthFieldTooLong);
 }
 
 TEST(Deframer, LengthFieldTooShort) {
   PrimaryHeader h = header_for(Apid::ImuSample, 0);
   h.data_length = static_cast<std::uint16_t>(8 + 48 - 1 - 1);
-  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)),
-                          RejectReason::LengthFieldTooShort);
+  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)), RejectReason::LengthFieldTooShort);
 }
 
 TEST(Deframer, LengthFieldFFFF) {
   PrimaryHeader h = header_for(Apid::ImuSample, 0);
   h.data_length = 0xFFFF;
-  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)),
-                          RejectReason::LengthFieldTooLong);
+  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)), RejectReason::LengthFieldTooLong);
 }
 
 TEST(Deframer, LengthFieldZero) {
   PrimaryHeader h = header_for(Apid::ImuSample, 0);
   h.data_length = 0;
-  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)),
-                          RejectReason::LengthFieldTooShort);
+  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload(), false)), RejectReason::LengthFieldTooShort);
 }
 
 TEST(Deframer, WrongVersion) {
@@ -242,8 +233,7 @@ TEST(Deframer, WrongType) {
 TEST(Deframer, WrongSecondaryHeaderFlag) {
   PrimaryHeader h = header_for(Apid::ImuSample, 0);
   h.sec_header = false;
-  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload())),
-                          RejectReason::WrongSecondaryHeaderFlag);
+  expect_single_rejection(frame_of(raw_packet(h, 1.0, imu_payload())), RejectReason::WrongSecondaryHeaderFlag);
 }
 
 TEST(Deframer, WrongSequenceFlags) {
@@ -269,8 +259,7 @@ TEST(Deframer, TelemetryApidSentToFlightIsUnknown) {
   // Right type bit for the flight side, but an APID that only flows the other way.
   PrimaryHeader h = header_for(Apid::TmEstimate, 0);
   h.type = PacketType::Telecommand;
-  expect_single_rejection(frame_of(raw_packet(h, 1.0, valid_payload(*apid_info(0x040)))),
-                          RejectReason::UnknownApid);
+  expect_single_rejection(frame_of(raw_packet(h, 1.0, valid_payload(*apid_info(0x040)))), RejectReason::UnknownApid);
 }
 
 TEST(Deframer, WrongPayloadLength) {
@@ -293,8 +282,8 @@ TEST(Deframer, EverySingleBitFlipRejected) {
     for (std::size_t bit = 0; bit < frame.size() * 8; ++bit) {
       Bytes bad = frame;
       bad[bit / 8] ^= static_cast<std::uint8_t>(1u << (bit % 8));
-      const Bytes good_pkt = raw_packet(header_for(apid, seq), 1.0 + seq,
-                                        valid_payload(*apid_info(static_cast<std::uint16_t>(apid))));
+      const Bytes good_pkt =
+          raw_packet(header_for(apid, seq), 1.0 + seq, valid_payload(*apid_info(static_cast<std::uint16_t>(apid))));
       ++seq;
       const Outcome o = run(d, cat({bad, frame_of(good_pkt)}));
       for (const auto& p : o.packets) {
@@ -314,8 +303,7 @@ TEST(Deframer, EverySingleBitFlipRejected) {
 TEST(Deframer, NanPayload) {
   Bytes p = imu_payload();
   put_f64le(p.data() + 16, std::numeric_limits<double>::quiet_NaN());
-  expect_single_rejection(frame_of(raw_packet(header_for(Apid::ImuSample, 0), 1.0, p)),
-                          RejectReason::NonFinitePayload);
+  expect_single_rejection(frame_of(raw_packet(header_for(Apid::ImuSample, 0), 1.0, p)), RejectReason::NonFinitePayload);
 }
 
 TEST(Deframer, InfPayload) {
@@ -337,15 +325,13 @@ TEST(Deframer, NanInLastRangePointRejected) {
 TEST(Deframer, NonUnitQuaternion) {
   Bytes p = valid_payload(*apid_info(0x011));
   put_f64le(p.data() + 24, 0.5 * 1.001);
-  expect_single_rejection(frame_of(raw_packet(header_for(Apid::LedPose, 0), 1.0, p)),
-                          RejectReason::NonUnitQuaternion);
+  expect_single_rejection(frame_of(raw_packet(header_for(Apid::LedPose, 0), 1.0, p)), RejectReason::NonUnitQuaternion);
 }
 
 TEST(Deframer, ZeroQuaternionRejected) {
   Bytes p = valid_payload(*apid_info(0x020));
   for (int i = 0; i < 4; ++i) put_f64le(p.data() + 56 + 8 * i, 0.0);
-  expect_single_rejection(frame_of(raw_packet(header_for(Apid::CmdReset, 0), 1.0, p)),
-                          RejectReason::NonUnitQuaternion);
+  expect_single_rejection(frame_of(raw_packet(header_for(Apid::CmdReset, 0), 1.0, p)), RejectReason::NonUnitQuaternion);
 }
 
 TEST(Deframer, QuaternionWithinToleranceAccepted) {
@@ -366,16 +352,15 @@ TEST(Deframer, InvalidSegmentFields) {
 TEST(Deframer, NegativeSigmaIsInvalidField) {
   Bytes p = valid_payload(*apid_info(0x011));
   put_f64le(p.data() + 56, -0.1);
-  expect_single_rejection(frame_of(raw_packet(header_for(Apid::LedPose, 0), 1.0, p)),
-                          RejectReason::InvalidField);
+  expect_single_rejection(frame_of(raw_packet(header_for(Apid::LedPose, 0), 1.0, p)), RejectReason::InvalidField);
 }
 
 // ---------------------------------------------------------------- sequence and time
 
 TEST(Deframer, BadTimeTag) {
-  expect_single_rejection(frame_of(raw_packet(header_for(Apid::ImuSample, 0),
-                                              std::numeric_limits<double>::quiet_NaN(), imu_payload())),
-                          RejectReason::BadTimeTag);
+  expect_single_rejection(
+      frame_of(raw_packet(header_for(Apid::ImuSample, 0), std::numeric_limits<double>::quiet_NaN(), imu_payload())),
+      RejectReason::BadTimeTag);
 }
 
 TEST(Deframer, TimeGoingBackwards) {
@@ -436,8 +421,8 @@ TEST(Deframer, DuplicateSequenceRejectedAndCounted) {
 
 TEST(Deframer, ReorderedSegmentsWithEqualTimeAreStale) {
   Deframer d;
-  const Outcome o = run(d, cat({valid_frame(Apid::RangeImageSegment, 1, 5.0),
-                                valid_frame(Apid::RangeImageSegment, 0, 5.0)}));
+  const Outcome o =
+      run(d, cat({valid_frame(Apid::RangeImageSegment, 1, 5.0), valid_frame(Apid::RangeImageSegment, 0, 5.0)}));
   EXPECT_EQ(o.packets.size(), 1u);
   ASSERT_EQ(o.rejections.size(), 1u);
   EXPECT_EQ(o.rejections[0], RejectReason::StaleSequence);
@@ -480,9 +465,9 @@ TEST(Deframer, RefusedPayloadDoesNotCountAResync) {
   Deframer d;
   Bytes p = imu_payload();
   put_f64le(p.data(), std::numeric_limits<double>::infinity());
-  const Outcome o = run(d, cat({valid_frame(Apid::ImuSample, 100, 1.0),
-                                frame_of(raw_packet(header_for(Apid::ImuSample, 5), 2.0, p)),
-                                valid_frame(Apid::ImuSample, 101, 1.1)}));
+  const Outcome o =
+      run(d, cat({valid_frame(Apid::ImuSample, 100, 1.0), frame_of(raw_packet(header_for(Apid::ImuSample, 5), 2.0, p)),
+                  valid_frame(Apid::ImuSample, 101, 1.1)}));
   EXPECT_EQ(o.packets.size(), 2u);
   const auto& st = d.counters().per_apid[static_cast<std::size_t>(apid_index(0x010))];
   EXPECT_EQ(st.resyncs, 0u);
@@ -516,7 +501,8 @@ TEST(Deframer, SegmentedRangeImageAccepted) {
     put_u16le(p.data() + 4, 50);
     put_u16le(p.data() + 6, firsts[s]);
     put_u16le(p.data() + 8, counts[s]);
-    const Bytes f = frame_of(raw_packet(header_for(Apid::RangeImageSegment, static_cast<std::uint16_t>(s), flags[s]), 60.0, p));
+    const Bytes f =
+        frame_of(raw_packet(header_for(Apid::RangeImageSegment, static_cast<std::uint16_t>(s), flags[s]), 60.0, p));
     stream.insert(stream.end(), f.begin(), f.end());
   }
   const Outcome o = run(d, stream);

@@ -44,7 +44,8 @@ TEST(NoHeapLink, FrameAndDeframeEveryApidBothDirections) {
       fill_valid(info, payload.data());
       Framer& fr = info.direction == Direction::ToFlight ? to_flight : from_flight;
       Deframer& d = info.direction == Direction::ToFlight ? flight_side : bench_side;
-      const std::size_t n = fr.frame(info.apid, 1.0 + round, payload.data(), info.payload_len, frame.data(), frame.size());
+      const std::size_t n =
+          fr.frame(info.apid, 1.0 + round, payload.data(), info.payload_len, frame.data(), frame.size());
       ASSERT_GT(n, 0u);
       // Corrupt every third frame so that the rejection paths run too.
       if (round % 3 == 1) frame[n / 2] ^= 0x10;
@@ -73,7 +74,8 @@ TEST(NoHeapLink, RunawayAndGarbage) {
   EXPECT_EQ(d.counters().packets_accepted, 0u);
 }
 
-template <typename S> class NoHeapLinkCodec : public ::testing::Test {};
+template <typename S>
+class NoHeapLinkCodec : public ::testing::Test {};
 using Scalars = ::testing::Types<float, double>;
 TYPED_TEST_SUITE(NoHeapLinkCodec, Scalars);
 
@@ -94,18 +96,30 @@ TYPED_TEST(NoHeapLinkCodec, EncodeDecodeEveryMessage) {
   static TmHousekeepingMsg<S> hk;
   NoHeapGuard guard;
   bool ok = true;
-  encode(imu, p.data()); ok &= decode(p.data(), 1.0, imu);
-  encode(pose, p.data()); ok &= decode(p.data(), 1.0, pose);
-  encode(valves, p.data()); ok &= decode(p.data(), 1.0, valves);
-  encode(seg, p.data()); ok &= decode(p.data(), 1.0, SeqFlags::Unsegmented, seg);
-  encode(reset, p.data()); ok &= decode(p.data(), 1.0, reset);
-  encode(config, p.data()); ok &= decode(p.data(), 1.0, config);
-  encode(est, p.data()); ok &= decode(p.data(), 1.0, est);
-  encode(cov, p.data()); ok &= decode(p.data(), 1.0, cov);
-  encode(inn, p.data()); ok &= decode(p.data(), 1.0, inn);
-  encode(learn, p.data()); ok &= decode(p.data(), 1.0, learn);
-  encode(link, p.data()); ok &= decode(p.data(), 1.0, link);
-  encode(hk, p.data()); ok &= decode(p.data(), 1.0, hk);
+  encode(imu, p.data());
+  ok &= decode(p.data(), 1.0, imu);
+  encode(pose, p.data());
+  ok &= decode(p.data(), 1.0, pose);
+  encode(valves, p.data());
+  ok &= decode(p.data(), 1.0, valves);
+  encode(seg, p.data());
+  ok &= decode(p.data(), 1.0, SeqFlags::Unsegmented, seg);
+  encode(reset, p.data());
+  ok &= decode(p.data(), 1.0, reset);
+  encode(config, p.data());
+  ok &= decode(p.data(), 1.0, config);
+  encode(est, p.data());
+  ok &= decode(p.data(), 1.0, est);
+  encode(cov, p.data());
+  ok &= decode(p.data(), 1.0, cov);
+  encode(inn, p.data());
+  ok &= decode(p.data(), 1.0, inn);
+  encode(learn, p.data());
+  ok &= decode(p.data(), 1.0, learn);
+  encode(link, p.data());
+  ok &= decode(p.data(), 1.0, link);
+  encode(hk, p.data());
+  ok &= decode(p.data(), 1.0, hk);
   EXPECT_EQ(guard.allocations(), 0);
   EXPECT_TRUE(ok);
 }

@@ -76,9 +76,7 @@ TEST(SpacePacket, DataLengthIsBytesAfterPrimaryHeaderMinusOne) {
   EXPECT_FALSE(data_length_for(6 + 65537, f));
 }
 
-TEST(SpacePacket, LengthField0xFFFFDoesNotWrap) {
-  EXPECT_EQ(packet_length_from_field(0xFFFF), 65542u);
-}
+TEST(SpacePacket, LengthField0xFFFFDoesNotWrap) { EXPECT_EQ(packet_length_from_field(0xFFFF), 65542u); }
 
 TEST(SpacePacket, TimeTagIsLittleEndianDouble) {
   std::array<std::uint8_t, 8> b{};
@@ -126,7 +124,8 @@ TEST(ApidTable, PayloadLengthsAsDocumented) {
 
 // Typed codecs in float and double: encode then decode gives the values back
 // (exactly for double; to float rounding for float).
-template <typename S> class PayloadCodec : public ::testing::Test {};
+template <typename S>
+class PayloadCodec : public ::testing::Test {};
 using Scalars = ::testing::Types<float, double>;
 TYPED_TEST_SUITE(PayloadCodec, Scalars);
 

@@ -4,11 +4,10 @@
 // indefinite or non-finite one. Each case in float and double.
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
 #include <cmath>
 #include <limits>
 #include <type_traits>
-
-#include <Eigen/LU>
 
 #include "fsw/math/covariance.hpp"
 
@@ -61,8 +60,8 @@ TYPED_TEST(CovarianceTest, RoundingShortOfPositiveDefiniteIsRepairedByARelativeJ
     EXPECT_GE(B(i, i), A(i, i) * (S(1) - S(8) * std::numeric_limits<S>::epsilon())) << i;
     EXPECT_LE(B(i, i), A(i, i) * (S(1) + S(1.01) * rel)) << i;
     for (int j = 0; j < i; ++j) {
-      EXPECT_NEAR(double(B(i, j)), double(A(i, j)), 64.0 * double(std::numeric_limits<S>::epsilon()) *
-                                                         std::sqrt(double(A(i, i)) * double(A(j, j))))
+      EXPECT_NEAR(double(B(i, j)), double(A(i, j)),
+                  64.0 * double(std::numeric_limits<S>::epsilon()) * std::sqrt(double(A(i, i)) * double(A(j, j))))
           << i << "," << j;
     }
   }

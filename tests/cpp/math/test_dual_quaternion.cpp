@@ -15,7 +15,10 @@ using Scalars = ::testing::Types<double, float>;
 TYPED_TEST_SUITE(DualQuatTest, Scalars);
 
 namespace {
-template <typename S> S tol() { return std::is_same<S, float>::value ? S(2e-5) : S(1e-12); }
+template <typename S>
+S tol() {
+  return std::is_same<S, float>::value ? S(2e-5) : S(1e-12);
+}
 
 struct Motion {
   Eigen::Quaterniond q;

@@ -105,7 +105,8 @@ TEST(ModalAcquisitionTest, NoiselessDataOnTheGridGivesExactFrequenciesAndAmplitu
   for (int i = 0; i < kM; ++i) prior(i) = kOmega(i) / (1.0 - 10 * 0.003);
   auto acq = std::make_unique<Acq>(config<double>(prior));
   const Mat3 cov = 1e-4 * Mat3::Identity() + 1e-5 * Mat3::Ones();
-  for (int k = 0; k < 120; ++k) ASSERT_EQ(acq->add(60.0 * k, record<double>(truth_at(60.0 * k), cov)), AcquisitionStatus::Ok);
+  for (int k = 0; k < 120; ++k)
+    ASSERT_EQ(acq->add(60.0 * k, record<double>(truth_at(60.0 * k), cov)), AcquisitionStatus::Ok);
   ASSERT_EQ(acq->search(), AcquisitionStatus::Ok);
   for (int i = 0; i < kM; ++i) {
     EXPECT_NEAR(acq->omega(i), kOmega(i), 1e-12 * kOmega(i));

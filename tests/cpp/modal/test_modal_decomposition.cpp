@@ -49,9 +49,16 @@ Case<S> make_case(int n, unsigned seed) {
   return c;
 }
 
-template <typename S> struct DecompTol;
-template <> struct DecompTol<double> { static constexpr double rel = 1e-10; };
-template <> struct DecompTol<float> { static constexpr double rel = 2e-4; };
+template <typename S>
+struct DecompTol;
+template <>
+struct DecompTol<double> {
+  static constexpr double rel = 1e-10;
+};
+template <>
+struct DecompTol<float> {
+  static constexpr double rel = 2e-4;
+};
 }  // namespace
 
 template <typename S>

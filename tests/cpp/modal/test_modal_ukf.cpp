@@ -19,9 +19,16 @@ using Scalars = ::testing::Types<double, float>;
 TYPED_TEST_SUITE(ModalUkfTest, Scalars);
 
 namespace {
-template <typename S> struct UkfTol;
-template <> struct UkfTol<double> { static constexpr double prop = 1e-10; };
-template <> struct UkfTol<float> { static constexpr double prop = 2e-4; };
+template <typename S>
+struct UkfTol;
+template <>
+struct UkfTol<double> {
+  static constexpr double prop = 1e-10;
+};
+template <>
+struct UkfTol<float> {
+  static constexpr double prop = 2e-4;
+};
 
 // Two modes with the pendulum's frequencies and damping.
 constexpr double kW[2] = {4.31, 8.68};
@@ -158,8 +165,10 @@ TYPED_TEST(ModalUkfTest, JointWithOneModeEqualsBank) {
   }
   const double tol = std::is_same<S, float>::value ? 1e-3 : 1e-9;
   for (int r = 0; r < 4; ++r) {
-    EXPECT_NEAR(double(bank.mode_state(0)(r)), double(joint.mode_state(0)(r)), tol * (1 + std::abs(double(bank.mode_state(0)(r)))));
-    EXPECT_NEAR(double(bank.mode_cov(0)(r, r)), double(joint.mode_cov(0)(r, r)), tol * double(bank.mode_cov(0)(r, r)) + 1e-12);
+    EXPECT_NEAR(double(bank.mode_state(0)(r)), double(joint.mode_state(0)(r)),
+                tol * (1 + std::abs(double(bank.mode_state(0)(r)))));
+    EXPECT_NEAR(double(bank.mode_cov(0)(r, r)), double(joint.mode_cov(0)(r, r)),
+                tol * double(bank.mode_cov(0)(r, r)) + 1e-12);
   }
 }
 

@@ -3,12 +3,11 @@
 // the closed-form CW step and the exact attitude step, in double.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
-
-#include <Eigen/Eigenvalues>
 
 #include "fsw/math/covariance.hpp"
 #include "fsw/nav/nav_ukf.hpp"
@@ -351,8 +350,7 @@ TYPED_TEST(NavUkfTest, DelayedPoseEqualsOnTimePoseAndReplay) {
     ASSERT_TRUE(on_time.predict(0.1 * k, u[k - 1].first, u[k - 1].second).ok());
     ASSERT_TRUE(delayed.predict(0.1 * k, u[k - 1].first, u[k - 1].second).ok());
   }
-  EXPECT_LT((delayed.state().stored() - on_time.state().stored()).template cast<double>().cwiseAbs().maxCoeff(),
-            tol);
+  EXPECT_LT((delayed.state().stored() - on_time.state().stored()).template cast<double>().cwiseAbs().maxCoeff(), tol);
 }
 
 TYPED_TEST(NavUkfTest, PoseOlderThanMaxDelayIsRejectedUntouched) {

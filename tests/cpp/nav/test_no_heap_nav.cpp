@@ -38,9 +38,9 @@ void run_without_heap() {
     bad(1) = std::numeric_limits<S>::quiet_NaN();
     rejected += f->predict(1.6, bad, w).status == StepStatus::BadInput;
     rejected += f->update_pose(0.1, f->state().r_hill_m, f->state().q_hb, R).status == StepStatus::BadInput;
-    ok += f->predict(1.9, a, w).ok();  // 1.6 to 1.8 lost: three ticks bridged
+    ok += f->predict(1.9, a, w).ok();                                         // 1.6 to 1.8 lost: three ticks bridged
     ok += f->update_pose(1.7, f->state().r_hill_m, f->state().q_hb, R).ok();  // captured at a bridged tick
-    ok += f->predict(21.9, a, w).ok();  // a 20 s outage coasted through
+    ok += f->predict(21.9, a, w).ok();                                        // a 20 s outage coasted through
     EXPECT_EQ(guard.allocations(), 0);
   }
   EXPECT_EQ(ok, 1 + 10 + 1 + 5 + 1 + 3);

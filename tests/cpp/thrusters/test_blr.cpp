@@ -75,10 +75,10 @@ double theta_rel_err(Blr& blr) {
 // i over one firing interval dt; row 8 (bias) = 0.
 Eigen::Matrix<double, 9, 6> thruster_truth(double dt_s) {
   const double s2 = 1.0 / std::sqrt(2.0);
-  const double pos[8][3] = {{1, 1, 1}, {1, 1, -1}, {1, -1, 1}, {1, -1, -1},
+  const double pos[8][3] = {{1, 1, 1},    {1, 1, -1},  {1, -1, 1},  {1, -1, -1},
                             {-1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}, {-1, 1, 1}};
   const double dir[8][3] = {{0, 1, -1}, {1, -1, 0}, {0, -1, -1}, {1, 1, 0},
-                            {0, -1, 1}, {-1, 1, 0}, {0, 1, 1}, {-1, -1, 0}};
+                            {0, -1, 1}, {-1, 1, 0}, {0, 1, 1},   {-1, -1, 0}};
   const Eigen::Vector3d jdiag(0.021, 0.019, 0.020);
   Eigen::Matrix<double, 9, 6> th = Eigen::Matrix<double, 9, 6>::Zero();
   for (int i = 0; i < 8; ++i) {
@@ -284,8 +284,7 @@ TYPED_TEST(BlrTyped, ZeroPriorWithRankDeficientWindowIsNotPosDef) {
   cfg.prior_precision = S(0);
   Blr9<S> blr(cfg);
   // Valve 0 only: inputs span two of nine directions.
-  for (int k = 0; k < 10; ++k)
-    blr.add(ValveFeatures<S>::from_mask(k % 2), Eigen::Matrix<S, 6, 1>::Constant(S(k % 2)));
+  for (int k = 0; k < 10; ++k) blr.add(ValveFeatures<S>::from_mask(k % 2), Eigen::Matrix<S, 6, 1>::Constant(S(k % 2)));
   const auto p = blr.predict(ValveFeatures<S>::from_mask(1));
   EXPECT_EQ(p.status, BlrStatus::NotPosDef);
   EXPECT_TRUE(std::isinf(double(p.variance(0))));

@@ -63,36 +63,36 @@
 
 #include "fsw/app/range_segment.hpp"
 #include "fsw/link/apid.hpp"
-#include "fsw/thrusters/blr.hpp"
 #include "fsw/link/deframer.hpp"
 #include "fsw/link/framer.hpp"
 #include "fsw/modal/modal_tracker.hpp"
 #include "fsw/nav/nav_ukf.hpp"
+#include "fsw/thrusters/blr.hpp"
 
 namespace fsw {
 
 // Parameter ids of cmd_config.
 enum class ConfigParam : std::uint32_t {
-  PosePosFraction = 1,   // pose position 1-sigma as a fraction of range (used when r_sigma_m = 0)
-  PoseAttSigmaRad = 2,   // pose attitude 1-sigma [rad] (used when att_sigma_rad = 0)
-  HousekeepingEvery = 3, // imu samples between link-counter / housekeeping telemetry
+  PosePosFraction = 1,    // pose position 1-sigma as a fraction of range (used when r_sigma_m = 0)
+  PoseAttSigmaRad = 2,    // pose attitude 1-sigma [rad] (used when att_sigma_rad = 0)
+  HousekeepingEvery = 3,  // imu samples between link-counter / housekeeping telemetry
   // Navigation filter settings (NavConfig), applied at the next cmd_reset:
-  NavAccelSigma = 4,     // accel_sigma_mps2
-  NavGyroSigma = 5,      // gyro_sigma_rps
-  NavGateChi2 = 6,       // gate_chi2 (<= 0 disables gating)
-  NavMaxDelay = 7,       // max_delay_s
-  NavOrbitRate = 8,      // n_radps
-  NavDtImu = 9,          // dt_imu_s
+  NavAccelSigma = 4,  // accel_sigma_mps2
+  NavGyroSigma = 5,   // gyro_sigma_rps
+  NavGateChi2 = 6,    // gate_chi2 (<= 0 disables gating)
+  NavMaxDelay = 7,    // max_delay_s
+  NavOrbitRate = 8,   // n_radps
+  NavDtImu = 9,       // dt_imu_s
   // Re-acquisition (0 disables each rule):
   ReacquireAfterPoses = 10,    // consecutive agreeing rejected poses that re-initialise (integer)
   ReacquireLostPosSigma = 11,  // position 1-sigma above which the filter is lost [m]
   ReacquireLostAttSigma = 12,  // attitude 1-sigma above which the filter is lost [rad]
   // Modal estimator (ModalTrackerConfig), applied at the next cmd_reset with bit 2:
-  ModalPlateLx = 13,           // plate side along x [m]
-  ModalPlateLy = 14,           // plate side along y [m]
-  ModalPeriod1 = 15,           // period of the lowest mode [s]
-  ModalPeak1 = 16,             // peak deflection of the lowest mode at coefficient 1 [m]
-  ModalPriorOmegaFrac = 17,    // 1-sigma of the a priori frequencies, fraction of the model's
+  ModalPlateLx = 13,              // plate side along x [m]
+  ModalPlateLy = 14,              // plate side along y [m]
+  ModalPeriod1 = 15,              // period of the lowest mode [s]
+  ModalPeak1 = 16,                // peak deflection of the lowest mode at coefficient 1 [m]
+  ModalPriorOmegaFrac = 17,       // 1-sigma of the a priori frequencies, fraction of the model's
   ModalAcquireAfterPeriods = 18,  // frequency acquisition after this many lowest-mode periods (0: none)
 };
 
@@ -122,9 +122,9 @@ class FlightApp {
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
     std::uint32_t learner_samples = 0;  // firing intervals entered into the learner
-    std::uint32_t unhandled = 0;  // accepted packets this build does not consume
+    std::uint32_t unhandled = 0;        // accepted packets this build does not consume
     std::uint32_t tx_packets = 0;
-    std::uint32_t tx_dropped = 0;  // telemetry lost to a full transmit buffer
+    std::uint32_t tx_dropped = 0;         // telemetry lost to a full transmit buffer
     std::uint32_t tm_values_clamped = 0;  // non-finite telemetry doubles sent as +-max (see send())
   };
 
@@ -218,8 +218,8 @@ class FlightApp {
     }
     encode(msg, tm_payload_.data());
     clamp_non_finite(*info);
-    const std::size_t n = framer_.frame(apid, t_s, tm_payload_.data(), info->payload_len, tx_.data() + tx_len_,
-                                        kTxCapacity - tx_len_);
+    const std::size_t n =
+        framer_.frame(apid, t_s, tm_payload_.data(), info->payload_len, tx_.data() + tx_len_, kTxCapacity - tx_len_);
     if (n == 0) {
       ++counters_.tx_dropped;
       return;
@@ -520,13 +520,22 @@ inline void FlightApp<S>::on_config(const PacketView& p) {
   decode(p.payload, p.t_s, m);
   switch (static_cast<ConfigParam>(m.param_id)) {
     case ConfigParam::PosePosFraction:
-      if (m.value > S(0)) { pose_pos_fraction_ = m.value; return; }
+      if (m.value > S(0)) {
+        pose_pos_fraction_ = m.value;
+        return;
+      }
       break;
     case ConfigParam::PoseAttSigmaRad:
-      if (m.value > S(0)) { pose_att_sigma_ = m.value; return; }
+      if (m.value > S(0)) {
+        pose_att_sigma_ = m.value;
+        return;
+      }
       break;
     case ConfigParam::HousekeepingEvery:
-      if (m.value >= S(0) && m.value <= S(100000)) { hk_every_ = static_cast<std::uint32_t>(m.value); return; }
+      if (m.value >= S(0) && m.value <= S(100000)) {
+        hk_every_ = static_cast<std::uint32_t>(m.value);
+        return;
+      }
       break;
     case ConfigParam::NavAccelSigma: return set_nav(nav_cfg_.accel_sigma_mps2, m.value);
     case ConfigParam::NavGyroSigma: return set_nav(nav_cfg_.gyro_sigma_rps, m.value);
@@ -535,13 +544,22 @@ inline void FlightApp<S>::on_config(const PacketView& p) {
     case ConfigParam::NavOrbitRate: return set_nav(nav_cfg_.n_radps, m.value);
     case ConfigParam::NavDtImu: return set_nav(nav_cfg_.dt_imu_s, m.value);
     case ConfigParam::ReacquireAfterPoses:
-      if (m.value >= S(0) && m.value <= S(1000)) { reacquire_after_ = static_cast<std::uint32_t>(m.value); return; }
+      if (m.value >= S(0) && m.value <= S(1000)) {
+        reacquire_after_ = static_cast<std::uint32_t>(m.value);
+        return;
+      }
       break;
     case ConfigParam::ReacquireLostPosSigma:
-      if (m.value >= S(0)) { lost_pos_sigma_ = m.value; return; }
+      if (m.value >= S(0)) {
+        lost_pos_sigma_ = m.value;
+        return;
+      }
       break;
     case ConfigParam::ReacquireLostAttSigma:
-      if (m.value >= S(0)) { lost_att_sigma_ = m.value; return; }
+      if (m.value >= S(0)) {
+        lost_att_sigma_ = m.value;
+        return;
+      }
       break;
     case ConfigParam::ModalPlateLx: return set_modal(modal_cfg_.plate.lx_m, m.value);
     case ConfigParam::ModalPlateLy: return set_modal(modal_cfg_.plate.ly_m, m.value);
@@ -581,8 +599,7 @@ inline void FlightApp<S>::report_modal(const typename Modal::Report& r) {
   tm.decomposition = static_cast<std::uint8_t>(r.decomposition.status);
   tm.fused = r.step.fused ? 1 : 0;
   tm.n_used = static_cast<std::uint32_t>(r.decomposition.n_used);
-  tm.n_skipped = static_cast<std::uint32_t>(r.decomposition.n_nonfinite + r.decomposition.n_bad_variance +
-                                            r.n_outside);
+  tm.n_skipped = static_cast<std::uint32_t>(r.decomposition.n_nonfinite + r.decomposition.n_bad_variance + r.n_outside);
   const S emax = r.decomposition.eig_max, emin = r.decomposition.eig_min;
   tm.rcond = emax > S(0) && emin > S(0) && std::isfinite(emax) ? emin / emax : S(0);
   tm.nis = r.step.nis;
@@ -613,8 +630,7 @@ inline void FlightApp<S>::report(StepKind kind, const typename Nav::Record& rec,
   // log-likelihood = -inf, or NaN from inf - inf: NaN is sent as the
   // overflow it is (NIS +max, log-likelihood -max; see send()).
   inn.nis = std::isnan(rec.nis) ? std::numeric_limits<S>::infinity() : rec.nis;
-  inn.log_likelihood =
-      std::isnan(rec.log_likelihood) ? -std::numeric_limits<S>::infinity() : rec.log_likelihood;
+  inn.log_likelihood = std::isnan(rec.log_likelihood) ? -std::numeric_limits<S>::infinity() : rec.log_likelihood;
   send(Apid::TmInnovation, inn, t_s);
   if (!nav_.initialized()) return;
   TmEstimateMsg<S> est;

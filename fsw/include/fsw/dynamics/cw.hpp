@@ -23,9 +23,12 @@
 
 namespace fsw {
 
-template <typename S> using Vec6 = Eigen::Matrix<S, 6, 1>;
-template <typename S> using Mat6 = Eigen::Matrix<S, 6, 6>;
-template <typename S> using Mat63 = Eigen::Matrix<S, 6, 3>;
+template <typename S>
+using Vec6 = Eigen::Matrix<S, 6, 1>;
+template <typename S>
+using Mat6 = Eigen::Matrix<S, 6, 6>;
+template <typename S>
+using Mat63 = Eigen::Matrix<S, 6, 3>;
 
 // Earth's gravitational parameter [m^3/s^2] (EGM96 / WGS-84).
 constexpr double kMuEarth = 3.986004418e14;
@@ -40,22 +43,24 @@ inline S orbit_rate(S radius_m, S mu = S(kMuEarth)) {
 
 namespace cw_detail {
 // sin(x)/x
-template <typename S> inline S sinc(S x) {
+template <typename S>
+inline S sinc(S x) {
   const S x2 = x * x;
   if (std::abs(x) < S(1e-2)) return S(1) - x2 / S(6) + x2 * x2 / S(120) - x2 * x2 * x2 / S(5040);
   return std::sin(x) / x;
 }
 // (1 - cos x) / x^2 = (sin(x/2) / (x/2))^2 / 2
-template <typename S> inline S one_minus_cos_x2(S x) {
+template <typename S>
+inline S one_minus_cos_x2(S x) {
   const S h = sinc(x / S(2));
   return h * h / S(2);
 }
 // (x - sin x) / x^3
-template <typename S> inline S x_minus_sin_x3(S x) {
+template <typename S>
+inline S x_minus_sin_x3(S x) {
   const S x2 = x * x;
   if (std::abs(x) < S(0.1)) {
-    return S(1) / S(6) - x2 / S(120) + x2 * x2 / S(5040) - x2 * x2 * x2 / S(362880) +
-           x2 * x2 * x2 * x2 / S(39916800);
+    return S(1) / S(6) - x2 / S(120) + x2 * x2 / S(5040) - x2 * x2 * x2 / S(362880) + x2 * x2 * x2 * x2 / S(39916800);
   }
   return (x - std::sin(x)) / (x2 * x);
 }
@@ -68,27 +73,27 @@ inline Mat6<S> cw_stm(S n, S t) {
   const S x = n * t;
   const S c = std::cos(x);
   const S s = std::sin(x);
-  const S omc = x * x * one_minus_cos_x2(x);  // 1 - cos(nt)
-  const S s_over_n = t * sinc(x);             // sin(nt)/n
+  const S omc = x * x * one_minus_cos_x2(x);             // 1 - cos(nt)
+  const S s_over_n = t * sinc(x);                        // sin(nt)/n
   const S omc_over_n = n * t * t * one_minus_cos_x2(x);  // (1 - cos(nt))/n
   Mat6<S> P = Mat6<S>::Zero();
   // position rows
-  P(0, 0) = S(1) + S(3) * omc;                    // 4 - 3C
-  P(0, 3) = s_over_n;                             // S/n
-  P(0, 4) = S(2) * omc_over_n;                    // 2(1-C)/n
+  P(0, 0) = S(1) + S(3) * omc;                      // 4 - 3C
+  P(0, 3) = s_over_n;                               // S/n
+  P(0, 4) = S(2) * omc_over_n;                      // 2(1-C)/n
   P(1, 0) = -S(6) * x * x * x * x_minus_sin_x3(x);  // 6(S - nt)
   P(1, 1) = S(1);
-  P(1, 3) = -S(2) * omc_over_n;                   // -2(1-C)/n
-  P(1, 4) = S(4) * s_over_n - S(3) * t;           // 4S/n - 3t
+  P(1, 3) = -S(2) * omc_over_n;          // -2(1-C)/n
+  P(1, 4) = S(4) * s_over_n - S(3) * t;  // 4S/n - 3t
   P(2, 2) = c;
   P(2, 5) = s_over_n;
   // velocity rows
-  P(3, 0) = S(3) * n * s;                         // 3 n S
+  P(3, 0) = S(3) * n * s;  // 3 n S
   P(3, 3) = c;
-  P(3, 4) = S(2) * s;                             // 2 S (erratum of eq. 6)
-  P(4, 0) = -S(6) * n * omc;                      // -6 n (1-C)
+  P(3, 4) = S(2) * s;         // 2 S (erratum of eq. 6)
+  P(4, 0) = -S(6) * n * omc;  // -6 n (1-C)
   P(4, 3) = -S(2) * s;
-  P(4, 4) = S(1) - S(4) * omc;                    // 4C - 3 (erratum of eq. 6)
+  P(4, 4) = S(1) - S(4) * omc;  // 4C - 3 (erratum of eq. 6)
   P(5, 2) = -n * s;
   P(5, 5) = c;
   return P;
@@ -105,18 +110,18 @@ inline Mat63<S> cw_accel_response(S n, S t) {
   const S f3 = x_minus_sin_x3(x);    // (nt - S)/(nt)^3
   Mat63<S> G = Mat63<S>::Zero();
   // radial acceleration
-  G(0, 0) = t2 * f2;                    // (1-C)/n^2
-  G(1, 0) = -S(2) * n * t2 * t * f3;    // -2 (nt - S)/n^2
-  G(3, 0) = t * sinc(x);                // S/n
-  G(4, 0) = -S(2) * n * t2 * f2;        // -2 (1-C)/n
+  G(0, 0) = t2 * f2;                  // (1-C)/n^2
+  G(1, 0) = -S(2) * n * t2 * t * f3;  // -2 (nt - S)/n^2
+  G(3, 0) = t * sinc(x);              // S/n
+  G(4, 0) = -S(2) * n * t2 * f2;      // -2 (1-C)/n
   // along-track acceleration
-  G(0, 1) = S(2) * n * t2 * t * f3;     // 2 (nt - S)/n^2
-  G(1, 1) = S(4) * t2 * f2 - S(1.5) * t2;  // 4(1-C)/n^2 - 3t^2/2
-  G(3, 1) = S(2) * n * t2 * f2;         // 2 (1-C)/n
+  G(0, 1) = S(2) * n * t2 * t * f3;         // 2 (nt - S)/n^2
+  G(1, 1) = S(4) * t2 * f2 - S(1.5) * t2;   // 4(1-C)/n^2 - 3t^2/2
+  G(3, 1) = S(2) * n * t2 * f2;             // 2 (1-C)/n
   G(4, 1) = S(4) * t * sinc(x) - S(3) * t;  // 4S/n - 3t
   // cross-track acceleration
-  G(2, 2) = t2 * f2;                    // (1-C)/n^2
-  G(5, 2) = t * sinc(x);                // S/n
+  G(2, 2) = t2 * f2;      // (1-C)/n^2
+  G(5, 2) = t * sinc(x);  // S/n
   return G;
 }
 
@@ -131,9 +136,7 @@ class CwPropagator {
       : n_(n_radps), dt_(dt_s), phi_(cw_stm(n_radps, dt_s)), gamma_(cw_accel_response(n_radps, dt_s)) {}
 
   // State [r_hill_m; v_hill_mps], acceleration a_hill_mps2 held over the step.
-  Vec6<S> step(const Vec6<S>& state, const Vec3Type& a_hill_mps2) const {
-    return phi_ * state + gamma_ * a_hill_mps2;
-  }
+  Vec6<S> step(const Vec6<S>& state, const Vec3Type& a_hill_mps2) const { return phi_ * state + gamma_ * a_hill_mps2; }
   Vec6<S> step(const Vec6<S>& state) const { return phi_ * state; }
 
   const Mat6<S>& stm() const { return phi_; }

@@ -26,8 +26,7 @@ inline Quat<S> propagate_attitude(const Quat<S>& q_hb, const Vec3<S>& omega_bi_b
 }
 
 template <typename S>
-inline Quat<S> propagate_attitude(const Quat<S>& q_hb, const Vec3<S>& omega_bi_b_rps, S n_radps,
-                                  S dt_s) {
+inline Quat<S> propagate_attitude(const Quat<S>& q_hb, const Vec3<S>& omega_bi_b_rps, S n_radps, S dt_s) {
   return propagate_attitude(q_hb, omega_bi_b_rps, dt_s, hill_frame_step(n_radps, dt_s));
 }
 

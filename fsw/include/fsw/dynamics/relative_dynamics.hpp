@@ -43,8 +43,8 @@ namespace fsw {
 
 template <typename S>
 struct LeaderOrbit {
-  S a_m = S(7.2e6);      // semi-major axis [m] (the paper's: 7,200 km)
-  S e = S(0.02);         // eccentricity (the paper's: 0.02)
+  S a_m = S(7.2e6);  // semi-major axis [m] (the paper's: 7,200 km)
+  S e = S(0.02);     // eccentricity (the paper's: 0.02)
   S mu_m3ps2 = S(kMuEarth);
   S p_m() const { return a_m * (S(1) - e * e); }
   S radius_m(S nu) const { return p_m() / (S(1) + e * std::cos(nu)); }
@@ -58,14 +58,16 @@ struct LeaderOrbit {
     return S(-2) * e * std::sin(nu) * nd * nd / (S(1) + e * std::cos(nu));
   }
   bool valid() const {
-    return std::isfinite(a_m) && a_m > S(0) && std::isfinite(e) && e >= S(0) && e < S(1) &&
-           std::isfinite(mu_m3ps2) && mu_m3ps2 > S(0);
+    return std::isfinite(a_m) && a_m > S(0) && std::isfinite(e) && e >= S(0) && e < S(1) && std::isfinite(mu_m3ps2) &&
+           mu_m3ps2 > S(0);
   }
 };
 
 // Packed propagation vector [q_wxyz (4), w (3), r (3), v (3), nu (1)].
-template <typename S> using RelVec = Eigen::Matrix<S, 14, 1>;
-template <typename S> using Mat12 = Eigen::Matrix<S, 12, 12>;
+template <typename S>
+using RelVec = Eigen::Matrix<S, 14, 1>;
+template <typename S>
+using Mat12 = Eigen::Matrix<S, 12, 12>;
 
 // What the derivative and its Jacobian both read off the packed state: the
 // leader frame's rate nd and acceleration ndd (true anomaly rates), and

@@ -47,10 +47,10 @@
 #include <cmath>
 #include <cstdint>
 
+#include "fsw/dynamics/relative_dynamics.hpp"
+#include "fsw/features/feature_models.hpp"
 #include "fsw/math/covariance.hpp"
 #include "fsw/math/dual_quaternion.hpp"
-#include "fsw/features/feature_models.hpp"
-#include "fsw/dynamics/relative_dynamics.hpp"
 #include "fsw/math/so3.hpp"
 #include "fsw/math/step_status.hpp"
 
@@ -76,10 +76,10 @@ struct FeatureLayout {
 
 template <typename S, int kPhi>
 struct FeatureNavState {
-  Quat<S> q_lf = Quat<S>::Identity();                            // follower body -> leader frame
-  Vec3<S> w_fl_f_rps = Vec3<S>::Zero();                           // omega_FL, body frame [rad/s]
-  Vec3<S> r_l_m = Vec3<S>::Zero();                                // follower c.m. in L [m]
-  Vec3<S> v_l_mps = Vec3<S>::Zero();                              // its rate in L [m/s]
+  Quat<S> q_lf = Quat<S>::Identity();                                     // follower body -> leader frame
+  Vec3<S> w_fl_f_rps = Vec3<S>::Zero();                                   // omega_FL, body frame [rad/s]
+  Vec3<S> r_l_m = Vec3<S>::Zero();                                        // follower c.m. in L [m]
+  Vec3<S> v_l_mps = Vec3<S>::Zero();                                      // its rate in L [m/s]
   Eigen::Matrix<S, kPhi, 1> phi_rad = Eigen::Matrix<S, kPhi, 1>::Zero();  // circle-point angles [rad]
   bool all_finite() const {
     return q_lf.coeffs().allFinite() && w_fl_f_rps.allFinite() && r_l_m.allFinite() && v_l_mps.allFinite() &&
@@ -94,10 +94,10 @@ struct FeatureSet {
   int n_points = 0;
   int n_lines = 0;
   int n_circles = 0;
-  std::array<Vec3<S>, kMaxPoints> point_lp_m{};        // D
-  std::array<Vec3<S>, kMaxLines> line_dir_lp{};        // l (unit)
-  std::array<Vec3<S>, kMaxLines> line_moment_lp_m{};   // m = p x l
-  std::array<Vec3<S>, kMaxCircles> circle_axis_lp{};   // l_t (unit)
+  std::array<Vec3<S>, kMaxPoints> point_lp_m{};           // D
+  std::array<Vec3<S>, kMaxLines> line_dir_lp{};           // l (unit)
+  std::array<Vec3<S>, kMaxLines> line_moment_lp_m{};      // m = p x l
+  std::array<Vec3<S>, kMaxCircles> circle_axis_lp{};      // l_t (unit)
   std::array<Vec3<S>, kMaxCircles> circle_moment_lp_m{};  // m_t = p x l_t
   std::array<Vec3<S>, kMaxCircles> circle_start_lp_m{};   // S0
 };
@@ -107,17 +107,17 @@ struct FeatureFilterConfig {
   LeaderOrbit<S> leader;
   Vec3<S> inertia_f_kgm2 = Vec3<S>(S(522), S(420), S(600));  // follower principal inertia (the paper's) [kg m^2]
   CameraMount<S> camera;
-  S image_sigma_m = S(1e-5);   // image-plane noise, 1-sigma per coordinate [m]
-  int substeps = 10;           // RK4 sub-steps per predict
-  double max_dt_s = 10.0;      // longest predict step [s]
-  S q_att = S(1e-8);           // process noise densities: attitude [rad^2/s]
-  S q_rate = S(1e-8);          // relative rate [(rad/s)^2/s]
-  S q_pos = S(1e-4);           // position [m^2/s]
-  S q_vel = S(1e-6);           // velocity [(m/s)^2/s]
-  S q_phi = S(0);              // circle angles [rad^2/s]
-  S gate_chi2 = S(0);          // NIS gate; <= 0 disables
-  S alpha = S(0.5);            // UKF sigma-point spread (gamma = 2.1 for 18 states: attitude sigma
-                               // points stay inside pi for attitude sigmas up to 1.4 rad)
+  S image_sigma_m = S(1e-5);  // image-plane noise, 1-sigma per coordinate [m]
+  int substeps = 10;          // RK4 sub-steps per predict
+  double max_dt_s = 10.0;     // longest predict step [s]
+  S q_att = S(1e-8);          // process noise densities: attitude [rad^2/s]
+  S q_rate = S(1e-8);         // relative rate [(rad/s)^2/s]
+  S q_pos = S(1e-4);          // position [m^2/s]
+  S q_vel = S(1e-6);          // velocity [(m/s)^2/s]
+  S q_phi = S(0);             // circle angles [rad^2/s]
+  S gate_chi2 = S(0);         // NIS gate; <= 0 disables
+  S alpha = S(0.5);           // UKF sigma-point spread (gamma = 2.1 for 18 states: attitude sigma
+                              // points stay inside pi for attitude sigmas up to 1.4 rad)
   S beta = S(2);
   S kappa = S(0);
   int max_alpha_halvings = 6;  // UKF: spread reductions tried when a sigma point is not imageable
@@ -270,8 +270,7 @@ class FeatureFilterBase {
   // Stacked prediction and Jacobian over the slots in `slots` (others zero).
   bool measure(const State& x, MeasVec& z, MeasJac* H, std::uint32_t slots) const;
 
-  static void put(int row, const Vec2<S>& zz, const Mat26<S>* Hp, const Vec2<S>* hphi, int j, MeasVec& z,
-                  MeasJac* H);
+  static void put(int row, const Vec2<S>& zz, const Mat26<S>* Hp, const Vec2<S>* hphi, int j, MeasVec& z, MeasJac* H);
 
   // Measurement checks common to both filters; fills the row mask.
   bool check_update(const MeasVec& z, std::uint32_t mask, Record& rec, std::uint32_t& slots,
@@ -580,6 +579,8 @@ class FeatureEkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
   using Base = FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>;
 
  public:
+  using Base::kMeas;
+  using Base::kN;
   using typename Base::Config;
   using typename Base::Cov;
   using typename Base::ErrVec;
@@ -589,8 +590,6 @@ class FeatureEkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
   using typename Base::MeasVec;
   using typename Base::Record;
   using typename Base::State;
-  using Base::kMeas;
-  using Base::kN;
 
   FeatureEkf(const Config& cfg, const Features& fs) : Base(cfg, fs) {}
 
@@ -659,6 +658,8 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
   using Base = FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>;
 
  public:
+  using Base::kMeas;
+  using Base::kN;
   using typename Base::Config;
   using typename Base::Cov;
   using typename Base::ErrVec;
@@ -668,8 +669,6 @@ class FeatureUkf : public FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircle
   using typename Base::MeasVec;
   using typename Base::Record;
   using typename Base::State;
-  using Base::kMeas;
-  using Base::kN;
   static constexpr int kSigma = 2 * kN + 1;
 
   FeatureUkf(const Config& cfg, const Features& fs) : Base(cfg, fs) {}

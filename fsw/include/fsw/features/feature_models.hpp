@@ -49,15 +49,17 @@
 
 namespace fsw {
 
-template <typename S> using Vec2 = Eigen::Matrix<S, 2, 1>;
-template <typename S> using Mat26 = Eigen::Matrix<S, 2, 6>;
+template <typename S>
+using Vec2 = Eigen::Matrix<S, 2, 1>;
+template <typename S>
+using Mat26 = Eigen::Matrix<S, 2, 6>;
 
 template <typename S>
 struct CameraMount {
-  S focal_m = S(0.5);                              // focal length f [m] (the paper's: 0.5 m)
-  Vec3<S> camera_offset_f_m = Vec3<S>::Zero();     // p_f: lens centre from follower c.m., body frame [m]
-  Vec3<S> feature_origin_l_m = Vec3<S>::Zero();    // p_l: lP origin from leader c.m., leader frame [m]
-  S min_depth_m = S(1e-3);                         // a feature nearer the lens plane is not imageable [m]
+  S focal_m = S(0.5);                            // focal length f [m] (the paper's: 0.5 m)
+  Vec3<S> camera_offset_f_m = Vec3<S>::Zero();   // p_f: lens centre from follower c.m., body frame [m]
+  Vec3<S> feature_origin_l_m = Vec3<S>::Zero();  // p_l: lP origin from leader c.m., leader frame [m]
+  S min_depth_m = S(1e-3);                       // a feature nearer the lens plane is not imageable [m]
 };
 
 // Q_cl: camera frame from the leader feature frame lP.
@@ -116,8 +118,8 @@ inline bool line_point(const Vec3<S>& m, S f, Vec2<S>& z, Eigen::Matrix<S, 2, 3>
 
 // Line feature (l unit direction, m = p x l; lP frame) -> line point z.
 template <typename S>
-inline bool line_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, const Vec3<S>& l_lp,
-                       const Vec3<S>& m_lp, Vec2<S>& z, Mat26<S>* H) {
+inline bool line_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, const Vec3<S>& l_lp, const Vec3<S>& m_lp,
+                       Vec2<S>& z, Mat26<S>* H) {
   const DualQuat<S> Q_cl = camera_from_features(pose_lf, cam);
   Vec3<S> l_c, m_c;
   transform_line(Q_cl, l_lp, m_lp, l_c, m_c);
@@ -146,8 +148,8 @@ inline Vec3<S> circle_point(const Vec3<S>& l_t, const Vec3<S>& m_t, const Vec3<S
 // Circle feature point at angle phi -> image coordinates (the paper's eq. 11).
 // H: dz/de (2 x 6), h_phi: dz/dphi.
 template <typename S>
-inline bool circle_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, const Vec3<S>& l_t,
-                         const Vec3<S>& m_t, const Vec3<S>& S0, S phi, Vec2<S>& z, Mat26<S>* H, Vec2<S>* h_phi) {
+inline bool circle_model(const DualQuat<S>& pose_lf, const CameraMount<S>& cam, const Vec3<S>& l_t, const Vec3<S>& m_t,
+                         const Vec3<S>& S0, S phi, Vec2<S>& z, Mat26<S>* H, Vec2<S>* h_phi) {
   const Vec3<S> Sphi = circle_point(l_t, m_t, S0, phi);
   if (!point_model(pose_lf, cam, Sphi, z, H)) return false;
   if (h_phi != nullptr) {

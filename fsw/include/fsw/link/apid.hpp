@@ -11,8 +11,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "fsw/math/so3.hpp"
 #include "fsw/link/space_packet.hpp"
+#include "fsw/math/so3.hpp"
 
 namespace fsw {
 
@@ -62,15 +62,15 @@ constexpr std::uint16_t kMaxRangePointsPerImage = 4096;
 constexpr std::size_t kCovDiagMax = 15;
 constexpr std::size_t kLinkCounterSlots = 28;
 constexpr std::size_t kModalTmModes = 10;  // modes carried by tm_modal
-constexpr double kQuatNormTol = 1e-6;  // |‖q‖ - 1| allowed on the wire
+constexpr double kQuatNormTol = 1e-6;      // |‖q‖ - 1| allowed on the wire
 
 inline constexpr std::array<ApidInfo, 13> kApidTable{{
     {Apid::ImuSample, "imu_sample", Direction::ToFlight, 48, false, 0, 6, -1},
     {Apid::LedPose, "led_pose", Direction::ToFlight, 72, false, 0, 9, 24},
     {Apid::ThrusterValves, "thruster_valves", Direction::ToFlight, 16, false, 0, 1, -1},
     {Apid::RangeImageSegment, "range_image_segment", Direction::ToFlight,
-     static_cast<std::uint16_t>(kRangeSegmentHeaderBytes + kRangePointsPerSegment * kRangePointBytes),
-     true, 12, static_cast<std::uint16_t>(kRangePointsPerSegment * 4), -1},
+     static_cast<std::uint16_t>(kRangeSegmentHeaderBytes + kRangePointsPerSegment * kRangePointBytes), true, 12,
+     static_cast<std::uint16_t>(kRangePointsPerSegment * 4), -1},
     {Apid::CmdReset, "cmd_reset", Direction::ToFlight, 112, false, 8, 13, 56},
     {Apid::CmdConfig, "cmd_config", Direction::ToFlight, 16, false, 8, 1, -1},
     {Apid::TmEstimate, "tm_estimate", Direction::FromFlight, 80, false, 0, 10, 48},
@@ -109,12 +109,9 @@ namespace apid_detail {
 constexpr bool table_is_consistent() {
   for (std::size_t i = 0; i < kApidTable.size(); ++i) {
     const auto& r = kApidTable[i];
-    if (static_cast<std::uint16_t>(r.apid) > kMaxApid ||
-        static_cast<std::uint16_t>(r.apid) == kIdleApid)
-      return false;
+    if (static_cast<std::uint16_t>(r.apid) > kMaxApid || static_cast<std::uint16_t>(r.apid) == kIdleApid) return false;
     if (r.f64_offset + 8u * r.f64_count > r.payload_len) return false;
-    if (r.quat_offset >= 0 && (r.quat_offset < r.f64_offset ||
-                               r.quat_offset + 32 > r.f64_offset + 8 * r.f64_count))
+    if (r.quat_offset >= 0 && (r.quat_offset < r.f64_offset || r.quat_offset + 32 > r.f64_offset + 8 * r.f64_count))
       return false;
     for (std::size_t j = i + 1; j < kApidTable.size(); ++j)
       if (kApidTable[j].apid == r.apid) return false;
@@ -129,10 +126,8 @@ static_assert(kMaxPacketLen == 794, "largest packet (range image segment) change
 // (deframer step 10, InvalidField). The payload has the table length.
 inline bool payload_fields_valid(Apid apid, SeqFlags flags, const std::uint8_t* p) {
   switch (apid) {
-    case Apid::LedPose:
-      return get_f64le(p + 56) >= 0.0 && get_f64le(p + 64) >= 0.0;
-    case Apid::ThrusterValves:
-      return get_f64le(p) >= 0.0;
+    case Apid::LedPose: return get_f64le(p + 56) >= 0.0 && get_f64le(p + 64) >= 0.0;
+    case Apid::ThrusterValves: return get_f64le(p) >= 0.0;
     case Apid::RangeImageSegment: {
       const std::uint32_t total = get_u16le(p + 4);
       const std::uint32_t first = get_u16le(p + 6);
@@ -143,26 +138,29 @@ inline bool payload_fields_valid(Apid apid, SeqFlags flags, const std::uint8_t* 
       const bool starts = first == 0;
       const bool ends = first + n == total;
       switch (flags) {
-        case SeqFlags::Unsegmented: if (!(starts && ends)) return false; break;
-        case SeqFlags::First: if (!(starts && !ends)) return false; break;
-        case SeqFlags::Continuation: if (starts || ends) return false; break;
-        case SeqFlags::Last: if (starts || !ends) return false; break;
+        case SeqFlags::Unsegmented:
+          if (!(starts && ends)) return false;
+          break;
+        case SeqFlags::First:
+          if (!(starts && !ends)) return false;
+          break;
+        case SeqFlags::Continuation:
+          if (starts || ends) return false;
+          break;
+        case SeqFlags::Last:
+          if (starts || !ends) return false;
+          break;
       }
       for (std::uint32_t i = 0; i < n; ++i) {
         if (!(get_f64le(p + kRangeSegmentHeaderBytes + i * kRangePointBytes + 24) >= 0.0)) return false;
       }
       return true;
     }
-    case Apid::CmdReset:
-      return get_f64le(p + 88) >= 0.0 && get_f64le(p + 96) >= 0.0 && get_f64le(p + 104) >= 0.0;
-    case Apid::TmCovarianceDiag:
-      return get_u32le(p) <= kCovDiagMax;
-    case Apid::TmInnovation:
-      return p[1] <= 3 && p[3] <= 6;
-    case Apid::TmModal:
-      return p[4] <= 3 && p[5] <= 3 && p[7] <= kModalTmModes;
-    default:
-      return true;
+    case Apid::CmdReset: return get_f64le(p + 88) >= 0.0 && get_f64le(p + 96) >= 0.0 && get_f64le(p + 104) >= 0.0;
+    case Apid::TmCovarianceDiag: return get_u32le(p) <= kCovDiagMax;
+    case Apid::TmInnovation: return p[1] <= 3 && p[3] <= 6;
+    case Apid::TmModal: return p[4] <= 3 && p[5] <= 3 && p[7] <= kModalTmModes;
+    default: return true;
   }
 }
 
@@ -170,28 +168,33 @@ inline bool payload_fields_valid(Apid apid, SeqFlags flags, const std::uint8_t* 
 // Typed messages. Field names carry frame and unit; every message has the
 // time tag t_s of its packet.
 
-template <typename S> struct ImuSampleMsg {
+template <typename S>
+struct ImuSampleMsg {
   S t_s{};
   Vec3<S> accel_b_mps2 = Vec3<S>::Zero();
   Vec3<S> omega_bi_b_rps = Vec3<S>::Zero();
 };
-template <typename S> struct LedPoseMsg {
+template <typename S>
+struct LedPoseMsg {
   S t_s{};  // capture time
   Vec3<S> r_hill_m = Vec3<S>::Zero();
   Quat<S> q_hb = Quat<S>::Identity();  // body -> Hill
   S r_sigma_m{};                       // 1-sigma per axis, 0 = use the configured model
   S att_sigma_rad{};                   // 1-sigma per axis, 0 = use the configured model
 };
-template <typename S> struct ThrusterValvesMsg {
-  S t_s{};            // start of the firing interval
-  S interval_s{};     // length of the firing interval
+template <typename S>
+struct ThrusterValvesMsg {
+  S t_s{};                      // start of the firing interval
+  S interval_s{};               // length of the firing interval
   std::uint8_t valve_mask = 0;  // bit i = thruster i open
 };
-template <typename S> struct RangePoint {
+template <typename S>
+struct RangePoint {
   Vec3<S> p_m = Vec3<S>::Zero();  // measured point, structure frame
   S sigma_m{};                    // 1-sigma range noise of this point
 };
-template <typename S> struct RangeImageSegmentMsg {
+template <typename S>
+struct RangeImageSegmentMsg {
   S t_s{};
   SeqFlags seq_flags = SeqFlags::Unsegmented;
   std::uint32_t image_id = 0;
@@ -200,7 +203,8 @@ template <typename S> struct RangeImageSegmentMsg {
   std::uint16_t n_points = 0;      // valid entries of points
   std::array<RangePoint<S>, kRangePointsPerSegment> points{};
 };
-template <typename S> struct CmdResetMsg {
+template <typename S>
+struct CmdResetMsg {
   S t_s{};
   std::uint32_t target_mask = 0;  // bit 0 nav, 1 learner, 2 modal, 3 link counters
   Vec3<S> r_hill_m = Vec3<S>::Zero();
@@ -210,34 +214,39 @@ template <typename S> struct CmdResetMsg {
   S vel_sigma_mps{};
   S att_sigma_rad{};
 };
-template <typename S> struct CmdConfigMsg {
+template <typename S>
+struct CmdConfigMsg {
   S t_s{};
   std::uint32_t param_id = 0;
   S value{};
 };
-template <typename S> struct TmEstimateMsg {
+template <typename S>
+struct TmEstimateMsg {
   S t_s{};
   Vec3<S> r_hill_m = Vec3<S>::Zero();
   Vec3<S> v_hill_mps = Vec3<S>::Zero();
   Quat<S> q_hb = Quat<S>::Identity();
 };
-template <typename S> struct TmCovarianceDiagMsg {
+template <typename S>
+struct TmCovarianceDiagMsg {
   S t_s{};
   std::uint32_t n_valid = 0;
   Eigen::Matrix<S, kCovDiagMax, 1> p_diag = Eigen::Matrix<S, kCovDiagMax, 1>::Zero();
 };
-template <typename S> struct TmInnovationMsg {
+template <typename S>
+struct TmInnovationMsg {
   S t_s{};
   std::uint8_t step_kind = 0;  // 0 predict, 1 pose update
   std::uint8_t status = 0;     // 0 ok, 1 gated, 2 not positive definite, 3 bad input
   std::uint8_t fused = 0;
-  std::uint8_t meas_dim = 0;   // valid entries of innovation
+  std::uint8_t meas_dim = 0;  // valid entries of innovation
   std::uint32_t step_index = 0;
   Eigen::Matrix<S, 6, 1> innovation = Eigen::Matrix<S, 6, 1>::Zero();
   S nis{};
   S log_likelihood{};
 };
-template <typename S> struct TmLearnerMsg {
+template <typename S>
+struct TmLearnerMsg {
   S t_s{};
   std::uint32_t n_samples = 0;
   std::uint32_t status = 0;
@@ -253,7 +262,8 @@ struct TmLinkCountersMsg {
   std::uint32_t duplicates_total = 0;
   std::array<std::uint32_t, kLinkCounterSlots> rejected{};  // index = RejectReason value
 };
-template <typename S> struct TmHousekeepingMsg {
+template <typename S>
+struct TmHousekeepingMsg {
   S t_s{};
   S uptime_s{};
   S last_step_cpu_s{};
@@ -263,17 +273,18 @@ template <typename S> struct TmHousekeepingMsg {
   std::uint32_t tx_packets = 0;
   std::uint32_t tx_dropped = 0;  // telemetry packets lost to a full transmit buffer
 };
-template <typename S> struct TmModalMsg {
-  S t_s{};                        // image time
+template <typename S>
+struct TmModalMsg {
+  S t_s{};  // image time
   std::uint32_t image_id = 0;
-  std::uint8_t status = 0;        // StepStatus of the filter step
-  std::uint8_t decomposition = 0; // ModalStatus of the image's decomposition
+  std::uint8_t status = 0;         // StepStatus of the filter step
+  std::uint8_t decomposition = 0;  // ModalStatus of the image's decomposition
   std::uint8_t fused = 0;
-  std::uint8_t n_modes = 0;       // valid entries of the arrays (<= kModalTmModes)
-  std::uint32_t n_used = 0;       // points in the decomposition
-  std::uint32_t n_skipped = 0;    // points skipped: off the model, not finite, bad sigma
-  S rcond{};                      // 1 / cond(M_Y) (0 when not computed or singular)
-  S nis{};                        // sum of the per-mode NIS
+  std::uint8_t n_modes = 0;     // valid entries of the arrays (<= kModalTmModes)
+  std::uint32_t n_used = 0;     // points in the decomposition
+  std::uint32_t n_skipped = 0;  // points skipped: off the model, not finite, bad sigma
+  S rcond{};                    // 1 / cond(M_Y) (0 when not computed or singular)
+  S nis{};                      // sum of the per-mode NIS
   Eigen::Matrix<S, kModalTmModes, 1> omega_radps = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
   Eigen::Matrix<S, kModalTmModes, 1> alpha_ps = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
   Eigen::Matrix<S, kModalTmModes, 1> amplitude = Eigen::Matrix<S, kModalTmModes, 1>::Zero();
@@ -286,7 +297,8 @@ template <typename S> struct TmModalMsg {
 // write exactly info.payload_len bytes (the payload buffer must hold it).
 
 namespace payload_detail {
-template <typename S> inline bool rd(const std::uint8_t* p, std::size_t off, S& out) {
+template <typename S>
+inline bool rd(const std::uint8_t* p, std::size_t off, S& out) {
   out = static_cast<S>(get_f64le(p + off));
   return std::isfinite(out);
 }
@@ -296,20 +308,23 @@ inline bool rd(const std::uint8_t* p, std::size_t off, Eigen::Matrix<S, N, 1>& v
   for (int i = 0; i < N; ++i) ok = rd(p, off + 8 * static_cast<std::size_t>(i), v(i)) && ok;
   return ok;
 }
-template <typename S> inline bool rdq(const std::uint8_t* p, std::size_t off, Quat<S>& q) {
+template <typename S>
+inline bool rdq(const std::uint8_t* p, std::size_t off, Quat<S>& q) {
   Vec4<S> wxyz;
   const bool ok = rd(p, off, wxyz);
   q = from_wxyz(wxyz);
   return ok;
 }
-template <typename S> inline void wr(std::uint8_t* p, std::size_t off, S x) {
+template <typename S>
+inline void wr(std::uint8_t* p, std::size_t off, S x) {
   put_f64le(p + off, static_cast<double>(x));
 }
 template <typename S, int N>
 inline void wr(std::uint8_t* p, std::size_t off, const Eigen::Matrix<S, N, 1>& v) {
   for (int i = 0; i < N; ++i) wr(p, off + 8 * static_cast<std::size_t>(i), v(i));
 }
-template <typename S> inline void wrq(std::uint8_t* p, std::size_t off, const Quat<S>& q) {
+template <typename S>
+inline void wrq(std::uint8_t* p, std::size_t off, const Quat<S>& q) {
   wr<S, 4>(p, off, to_wxyz(q));
 }
 inline void zero(std::uint8_t* p, std::size_t n) {
@@ -326,7 +341,8 @@ bool decode(const std::uint8_t* p, double t_s, ImuSampleMsg<S>& m) {
   m.t_s = static_cast<S>(t_s);
   return rd(p, 0, m.accel_b_mps2) & rd(p, 24, m.omega_bi_b_rps) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const ImuSampleMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const ImuSampleMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   wr(p, 0, m.accel_b_mps2);
   wr(p, 24, m.omega_bi_b_rps);
@@ -336,10 +352,11 @@ template <typename S>
 bool decode(const std::uint8_t* p, double t_s, LedPoseMsg<S>& m) {
   using namespace payload_detail;
   m.t_s = static_cast<S>(t_s);
-  return rd(p, 0, m.r_hill_m) & rdq(p, 24, m.q_hb) & rd(p, 56, m.r_sigma_m) &
-         rd(p, 64, m.att_sigma_rad) & std::isfinite(m.t_s);
+  return rd(p, 0, m.r_hill_m) & rdq(p, 24, m.q_hb) & rd(p, 56, m.r_sigma_m) & rd(p, 64, m.att_sigma_rad) &
+         std::isfinite(m.t_s);
 }
-template <typename S> void encode(const LedPoseMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const LedPoseMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   wr(p, 0, m.r_hill_m);
   wrq(p, 24, m.q_hb);
@@ -354,7 +371,8 @@ bool decode(const std::uint8_t* p, double t_s, ThrusterValvesMsg<S>& m) {
   m.valve_mask = p[8];
   return rd(p, 0, m.interval_s) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const ThrusterValvesMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const ThrusterValvesMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   zero(p, 16);
   wr(p, 0, m.interval_s);
@@ -377,7 +395,8 @@ bool decode(const std::uint8_t* p, double t_s, SeqFlags flags, RangeImageSegment
   }
   return ok;
 }
-template <typename S> void encode(const RangeImageSegmentMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const RangeImageSegmentMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   zero(p, kRangeSegmentHeaderBytes + kRangePointsPerSegment * kRangePointBytes);
   put_u32le(p, m.image_id);
@@ -396,11 +415,11 @@ bool decode(const std::uint8_t* p, double t_s, CmdResetMsg<S>& m) {
   using namespace payload_detail;
   m.t_s = static_cast<S>(t_s);
   m.target_mask = get_u32le(p);
-  return rd(p, 8, m.r_hill_m) & rd(p, 32, m.v_hill_mps) & rdq(p, 56, m.q_hb) &
-         rd(p, 88, m.pos_sigma_m) & rd(p, 96, m.vel_sigma_mps) & rd(p, 104, m.att_sigma_rad) &
-         std::isfinite(m.t_s);
+  return rd(p, 8, m.r_hill_m) & rd(p, 32, m.v_hill_mps) & rdq(p, 56, m.q_hb) & rd(p, 88, m.pos_sigma_m) &
+         rd(p, 96, m.vel_sigma_mps) & rd(p, 104, m.att_sigma_rad) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const CmdResetMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const CmdResetMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   zero(p, 8);
   put_u32le(p, m.target_mask);
@@ -419,7 +438,8 @@ bool decode(const std::uint8_t* p, double t_s, CmdConfigMsg<S>& m) {
   m.param_id = get_u32le(p);
   return rd(p, 8, m.value) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const CmdConfigMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const CmdConfigMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   zero(p, 8);
   put_u32le(p, m.param_id);
@@ -430,10 +450,10 @@ template <typename S>
 bool decode(const std::uint8_t* p, double t_s, TmEstimateMsg<S>& m) {
   using namespace payload_detail;
   m.t_s = static_cast<S>(t_s);
-  return rd(p, 0, m.r_hill_m) & rd(p, 24, m.v_hill_mps) & rdq(p, 48, m.q_hb) &
-         std::isfinite(m.t_s);
+  return rd(p, 0, m.r_hill_m) & rd(p, 24, m.v_hill_mps) & rdq(p, 48, m.q_hb) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const TmEstimateMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const TmEstimateMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   wr(p, 0, m.r_hill_m);
   wr(p, 24, m.v_hill_mps);
@@ -447,7 +467,8 @@ bool decode(const std::uint8_t* p, double t_s, TmCovarianceDiagMsg<S>& m) {
   m.n_valid = get_u32le(p);
   return rd(p, 8, m.p_diag) & (m.n_valid <= kCovDiagMax) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const TmCovarianceDiagMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const TmCovarianceDiagMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   zero(p, 8);
   put_u32le(p, m.n_valid);
@@ -463,10 +484,10 @@ bool decode(const std::uint8_t* p, double t_s, TmInnovationMsg<S>& m) {
   m.fused = p[2];
   m.meas_dim = p[3];
   m.step_index = get_u32le(p + 4);
-  return rd(p, 8, m.innovation) & rd(p, 56, m.nis) & rd(p, 64, m.log_likelihood) &
-         std::isfinite(m.t_s);
+  return rd(p, 8, m.innovation) & rd(p, 56, m.nis) & rd(p, 64, m.log_likelihood) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const TmInnovationMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const TmInnovationMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   p[0] = m.step_kind;
   p[1] = m.status;
@@ -484,10 +505,10 @@ bool decode(const std::uint8_t* p, double t_s, TmLearnerMsg<S>& m) {
   m.t_s = static_cast<S>(t_s);
   m.n_samples = get_u32le(p);
   m.status = get_u32le(p + 4);
-  return rd(p, 8, m.dv_b_mps) & rd(p, 32, m.dw_b_rps) & rd(p, 56, m.variance) &
-         std::isfinite(m.t_s);
+  return rd(p, 8, m.dv_b_mps) & rd(p, 32, m.dw_b_rps) & rd(p, 56, m.variance) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const TmLearnerMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const TmLearnerMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   put_u32le(p, m.n_samples);
   put_u32le(p + 4, m.status);
@@ -521,10 +542,10 @@ bool decode(const std::uint8_t* p, double t_s, TmHousekeepingMsg<S>& m) {
   m.mode = get_u32le(p + 28);
   m.tx_packets = get_u32le(p + 32);
   m.tx_dropped = get_u32le(p + 36);
-  return rd(p, 0, m.uptime_s) & rd(p, 8, m.last_step_cpu_s) & rd(p, 16, m.max_step_cpu_s) &
-         std::isfinite(m.t_s);
+  return rd(p, 0, m.uptime_s) & rd(p, 8, m.last_step_cpu_s) & rd(p, 16, m.max_step_cpu_s) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const TmHousekeepingMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const TmHousekeepingMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   wr(p, 0, m.uptime_s);
   wr(p, 8, m.last_step_cpu_s);
@@ -549,7 +570,8 @@ bool decode(const std::uint8_t* p, double t_s, TmModalMsg<S>& m) {
   return rd(p, 16, m.rcond) & rd(p, 24, m.nis) & rd(p, 32, m.omega_radps) & rd(p, 112, m.alpha_ps) &
          rd(p, 192, m.amplitude) & rd(p, 272, m.amplitude_sigma) & std::isfinite(m.t_s);
 }
-template <typename S> void encode(const TmModalMsg<S>& m, std::uint8_t* p) {
+template <typename S>
+void encode(const TmModalMsg<S>& m, std::uint8_t* p) {
   using namespace payload_detail;
   put_u32le(p, m.image_id);
   p[4] = m.status;

@@ -17,8 +17,7 @@ constexpr std::size_t cobs_max_encoded_size(std::size_t n) { return n + n / 254 
 
 // Encodes n bytes into out (capacity cap). Returns the encoded length, or 0
 // if cap is too small (a valid encoding is never empty).
-inline std::size_t cobs_encode(const std::uint8_t* in, std::size_t n, std::uint8_t* out,
-                               std::size_t cap) {
+inline std::size_t cobs_encode(const std::uint8_t* in, std::size_t n, std::uint8_t* out, std::size_t cap) {
   if (cap < cobs_max_encoded_size(n)) return 0;
   std::size_t o = 1;
   std::size_t code_idx = 0;
@@ -56,8 +55,8 @@ enum class CobsStatus : std::uint8_t {
 };
 
 // Decodes one frame (without its trailing 0x00). Every loop is bounded by n.
-inline CobsStatus cobs_decode(const std::uint8_t* in, std::size_t n, std::uint8_t* out,
-                              std::size_t cap, std::size_t& out_len) {
+inline CobsStatus cobs_decode(const std::uint8_t* in, std::size_t n, std::uint8_t* out, std::size_t cap,
+                              std::size_t& out_len) {
   out_len = 0;
   std::size_t i = 0;
   std::size_t o = 0;
@@ -88,10 +87,10 @@ template <std::size_t Capacity>
 class CobsAccumulator {
  public:
   enum class Event : std::uint8_t {
-    None = 0,     // byte stored (or dropped while resynchronising)
-    Frame,        // a 0x00 closed a non-empty frame: frame()/size() are valid
-    EmptyFrame,   // a 0x00 closed an empty frame
-    Runaway,      // the frame passed Capacity bytes without a 0x00
+    None = 0,    // byte stored (or dropped while resynchronising)
+    Frame,       // a 0x00 closed a non-empty frame: frame()/size() are valid
+    EmptyFrame,  // a 0x00 closed an empty frame
+    Runaway,     // the frame passed Capacity bytes without a 0x00
   };
 
   Event push(std::uint8_t b) {

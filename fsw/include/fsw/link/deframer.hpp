@@ -82,8 +82,8 @@ struct DeframeResult {
   enum class Kind : std::uint8_t { Nothing = 0, Packet, Rejected };
   Kind kind = Kind::Nothing;
   RejectReason reason = RejectReason::EmptyFrame;  // meaningful when Rejected
-  std::uint16_t apid = 0xFFFF;  // APID when known at the point of rejection, else 0xFFFF
-  PacketView packet;            // meaningful when Packet
+  std::uint16_t apid = 0xFFFF;                     // APID when known at the point of rejection, else 0xFFFF
+  PacketView packet;                               // meaningful when Packet
 };
 
 struct ApidLinkStats {

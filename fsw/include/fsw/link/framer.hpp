@@ -20,12 +20,11 @@ constexpr std::size_t kMaxFrameBytes = kMaxFrameLen + 1;  // with the trailing 0
 // Writes primary header, time tag, payload and CRC into out. Returns the
 // packet length including the CRC, or 0 if it does not fit cap or cannot be
 // described (APID or sequence count out of range, payload too long).
-inline std::size_t build_packet(PacketType type, std::uint16_t apid, SeqFlags flags,
-                                std::uint16_t seq_count, double t_s, const std::uint8_t* payload,
-                                std::size_t payload_len, std::uint8_t* out, std::size_t cap) {
+inline std::size_t build_packet(PacketType type, std::uint16_t apid, SeqFlags flags, std::uint16_t seq_count,
+                                double t_s, const std::uint8_t* payload, std::size_t payload_len, std::uint8_t* out,
+                                std::size_t cap) {
   const std::size_t body = kPacketHeaderSize + payload_len;
-  if (apid > kMaxApid || seq_count >= kSeqCountModulo || payload_len > 65536u - kSecondaryHeaderSize)
-    return 0;
+  if (apid > kMaxApid || seq_count >= kSeqCountModulo || payload_len > 65536u - kSecondaryHeaderSize) return 0;
   if (body + kCrcSize > cap) return 0;
   PrimaryHeader h;
   h.type = type;
@@ -43,8 +42,7 @@ inline std::size_t build_packet(PacketType type, std::uint16_t apid, SeqFlags fl
 }
 
 // COBS-encodes n bytes and appends 0x00. Returns the frame length or 0.
-inline std::size_t frame_bytes(const std::uint8_t* in, std::size_t n, std::uint8_t* out,
-                               std::size_t cap) {
+inline std::size_t frame_bytes(const std::uint8_t* in, std::size_t n, std::uint8_t* out, std::size_t cap) {
   if (cap < cobs_max_encoded_size(n) + 1) return 0;
   const std::size_t k = cobs_encode(in, n, out, cap - 1);
   if (k == 0) return 0;
@@ -60,16 +58,16 @@ class Framer {
   // Frames one packet of a table APID of this direction with an exact-length
   // payload. Returns the frame length (with 0x00), or 0 on misuse (nothing is
   // counted then). Only segmentable APIDs may use flags other than Unsegmented.
-  std::size_t frame(Apid apid, double t_s, const std::uint8_t* payload, std::size_t payload_len,
-                    std::uint8_t* out, std::size_t cap, SeqFlags flags = SeqFlags::Unsegmented) {
+  std::size_t frame(Apid apid, double t_s, const std::uint8_t* payload, std::size_t payload_len, std::uint8_t* out,
+                    std::size_t cap, SeqFlags flags = SeqFlags::Unsegmented) {
     const int row = apid_index(static_cast<std::uint16_t>(apid));
     if (row < 0) return 0;
     const ApidInfo& info = kApidTable[static_cast<std::size_t>(row)];
     if (info.direction != dir_ || payload_len != info.payload_len) return 0;
     if (!info.segmentable && flags != SeqFlags::Unsegmented) return 0;
     std::uint16_t& seq = seq_[static_cast<std::size_t>(row)];
-    const std::size_t n = build_packet(packet_type_of(dir_), static_cast<std::uint16_t>(apid), flags,
-                                       seq, t_s, payload, payload_len, packet_.data(), packet_.size());
+    const std::size_t n = build_packet(packet_type_of(dir_), static_cast<std::uint16_t>(apid), flags, seq, t_s, payload,
+                                       payload_len, packet_.data(), packet_.size());
     if (n == 0) return 0;
     const std::size_t f = frame_bytes(packet_.data(), n, out, cap);
     if (f == 0) return 0;
@@ -79,8 +77,8 @@ class Framer {
 
   // Encodes a typed message (fsw::encode overloads in apid.hpp) and frames it.
   template <typename Msg>
-  std::size_t frame_message(Apid apid, const Msg& msg, double t_s, std::uint8_t* out,
-                            std::size_t cap, SeqFlags flags = SeqFlags::Unsegmented) {
+  std::size_t frame_message(Apid apid, const Msg& msg, double t_s, std::uint8_t* out, std::size_t cap,
+                            SeqFlags flags = SeqFlags::Unsegmented) {
     const ApidInfo* info = apid_info(static_cast<std::uint16_t>(apid));
     if (info == nullptr) return 0;
     encode(msg, payload_.data());

@@ -65,11 +65,11 @@ constexpr std::uint32_t packet_length_from_field(std::uint16_t field) {
 // Writes 6 bytes. Fields wider than their bit width are masked (callers
 // validate first; pack never fails).
 inline void pack_primary_header(const PrimaryHeader& h, std::uint8_t* out) {
-  const std::uint16_t id = static_cast<std::uint16_t>(
-      ((h.version & 0x7u) << 13) | ((static_cast<unsigned>(h.type) & 0x1u) << 12) |
-      ((h.sec_header ? 1u : 0u) << 11) | (h.apid & kMaxApid));
-  const std::uint16_t psc = static_cast<std::uint16_t>(
-      ((static_cast<unsigned>(h.seq_flags) & 0x3u) << 14) | (h.seq_count & (kSeqCountModulo - 1u)));
+  const std::uint16_t id =
+      static_cast<std::uint16_t>(((h.version & 0x7u) << 13) | ((static_cast<unsigned>(h.type) & 0x1u) << 12) |
+                                 ((h.sec_header ? 1u : 0u) << 11) | (h.apid & kMaxApid));
+  const std::uint16_t psc = static_cast<std::uint16_t>(((static_cast<unsigned>(h.seq_flags) & 0x3u) << 14) |
+                                                       (h.seq_count & (kSeqCountModulo - 1u)));
   out[0] = static_cast<std::uint8_t>(id >> 8);
   out[1] = static_cast<std::uint8_t>(id & 0xFF);
   out[2] = static_cast<std::uint8_t>(psc >> 8);
@@ -106,9 +106,7 @@ inline void put_u32le(std::uint8_t* p, std::uint32_t v) {
 inline void put_u64le(std::uint8_t* p, std::uint64_t v) {
   for (int i = 0; i < 8; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
-inline std::uint16_t get_u16le(const std::uint8_t* p) {
-  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
-}
+inline std::uint16_t get_u16le(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
 inline std::uint32_t get_u32le(const std::uint8_t* p) {
   std::uint32_t v = 0;
   for (int i = 3; i >= 0; --i) v = (v << 8) | p[i];

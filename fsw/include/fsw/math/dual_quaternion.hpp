@@ -34,12 +34,13 @@
 
 namespace fsw {
 
-template <typename S> using Vec8 = Eigen::Matrix<S, 8, 1>;
+template <typename S>
+using Vec8 = Eigen::Matrix<S, 8, 1>;
 
 template <typename S>
 struct DualQuat {
-  Quat<S> real = Quat<S>::Identity();               // rotation part r (unit)
-  Quat<S> dual = Quat<S>(S(0), S(0), S(0), S(0));   // d = 1/2 t r
+  Quat<S> real = Quat<S>::Identity();              // rotation part r (unit)
+  Quat<S> dual = Quat<S>(S(0), S(0), S(0), S(0));  // d = 1/2 t r
 
   static DualQuat identity() { return DualQuat(); }
 
@@ -114,8 +115,7 @@ inline Vec3<S> transform_point(const DualQuat<S>& Q, const Vec3<S>& x) {
 // Pluecker line (l, m = p x l) into the parent frame: Q (l + eps m) Q*.
 // Result: l' = R l, m' = R m + t x R l.
 template <typename S>
-inline void transform_line(const DualQuat<S>& Q, const Vec3<S>& l, const Vec3<S>& m, Vec3<S>& l_out,
-                           Vec3<S>& m_out) {
+inline void transform_line(const DualQuat<S>& Q, const Vec3<S>& l, const Vec3<S>& m, Vec3<S>& l_out, Vec3<S>& m_out) {
   DualQuat<S> L;
   L.real = Quat<S>(S(0), l.x(), l.y(), l.z());
   L.dual = Quat<S>(S(0), m.x(), m.y(), m.z());
@@ -148,7 +148,7 @@ inline DualQuat<S> exp(const Eigen::Matrix<S, 6, 1>& xi) {
   const Vec3<S> v = xi.template tail<3>();
   const S th2 = w.squaredNorm();
   const S th = std::sqrt(th2);
-  S a, b;  // (1 - cos th)/th^2, (th - sin th)/th^3
+  S a, b;             // (1 - cos th)/th^2, (th - sin th)/th^3
   if (th < S(0.1)) {  // series: the closed forms cancel badly for small th
     const S th4 = th2 * th2;
     a = S(0.5) - th2 / S(24) + th4 / S(720) - th4 * th2 / S(40320) + th4 * th4 / S(3628800);

@@ -17,15 +17,20 @@
 
 namespace fsw {
 
-template <typename S> using Vec3 = Eigen::Matrix<S, 3, 1>;
-template <typename S> using Vec4 = Eigen::Matrix<S, 4, 1>;
-template <typename S> using Mat3 = Eigen::Matrix<S, 3, 3>;
-template <typename S> using Quat = Eigen::Quaternion<S>;
+template <typename S>
+using Vec3 = Eigen::Matrix<S, 3, 1>;
+template <typename S>
+using Vec4 = Eigen::Matrix<S, 4, 1>;
+template <typename S>
+using Mat3 = Eigen::Matrix<S, 3, 3>;
+template <typename S>
+using Quat = Eigen::Quaternion<S>;
 
 namespace so3_detail {
 // Below this angle (rad) the series branches are used: the truncated terms are
 // below machine epsilon relative to the kept ones.
-template <typename S> constexpr S small_angle() {
+template <typename S>
+constexpr S small_angle() {
   return std::numeric_limits<S>::epsilon() > S(1e-10) ? S(1e-2) : S(1e-4);
 }
 }  // namespace so3_detail

@@ -23,21 +23,21 @@ enum class StepStatus : std::uint8_t {
 // Why a step ended as it did; finer than StepStatus, for counters and logs.
 enum class StepDetail : std::uint8_t {
   None = 0,
-  NonFinite,          // NaN or Inf in an input
-  NotInitialized,     // step before a successful init
-  BadConfig,          // configuration rejected at construction
-  TimeNotIncreasing,  // predict time not after the current time
-  StepTooLong,        // predict step longer than the configured maximum
-  FromFuture,         // measurement capture time after the current time
-  TooOld,             // capture time older than max_delay_s or than the history
-  OffTick,            // capture time not on a stored IMU tick
-  OutOfSequence,      // capture time before the last fused measurement's
-  NonUnitQuaternion,  // quaternion norm too far from 1
-  PriorCholesky,      // Cholesky of the state covariance failed
-  InnovationCholesky, // Cholesky of the innovation covariance failed
-  PosteriorCholesky,  // updated covariance not positive definite
-  FeatureNotImageable, // a predicted image feature is behind the lens or at infinity
-  CovarianceRepaired, // status Ok: the covariance factored only after a relative diagonal jitter (rounding)
+  NonFinite,            // NaN or Inf in an input
+  NotInitialized,       // step before a successful init
+  BadConfig,            // configuration rejected at construction
+  TimeNotIncreasing,    // predict time not after the current time
+  StepTooLong,          // predict step longer than the configured maximum
+  FromFuture,           // measurement capture time after the current time
+  TooOld,               // capture time older than max_delay_s or than the history
+  OffTick,              // capture time not on a stored IMU tick
+  OutOfSequence,        // capture time before the last fused measurement's
+  NonUnitQuaternion,    // quaternion norm too far from 1
+  PriorCholesky,        // Cholesky of the state covariance failed
+  InnovationCholesky,   // Cholesky of the innovation covariance failed
+  PosteriorCholesky,    // updated covariance not positive definite
+  FeatureNotImageable,  // a predicted image feature is behind the lens or at infinity
+  CovarianceRepaired,   // status Ok: the covariance factored only after a relative diagonal jitter (rounding)
 };
 
 constexpr const char* to_string(StepStatus s) {

@@ -100,8 +100,7 @@ inline bool acquisition_config_ok(const ModalAcquisitionConfig<S, M>& c) {
     if (!(std::isfinite(c.omega_prior_radps[i]) && c.omega_prior_radps[i] > S(0))) return false;
     if (!(std::isfinite(c.sigma_omega_radps[i]) && c.sigma_omega_radps[i] > S(0))) return false;
   }
-  return std::isfinite(c.grid_sigmas) && c.grid_sigmas > S(0) && c.cycles >= 1 && c.cycles <= 100 &&
-         c.min_images >= 3;
+  return std::isfinite(c.grid_sigmas) && c.grid_sigmas > S(0) && c.cycles >= 1 && c.cycles <= 100 && c.min_images >= 3;
 }
 
 template <typename S, int M, int H, int G = 201>
@@ -168,8 +167,7 @@ class ModalAcquisition {
     return i >= j ? info_[k * kPacked + i * (i + 1) / 2 + j] : info_[k * kPacked + j * (j + 1) / 2 + i];
   }
   S grid_omega(int i, int g) const {
-    return cfg_.omega_prior_radps[i] +
-           cfg_.sigma_omega_radps[i] * cfg_.grid_sigmas * (S(2 * g) / S(G - 1) - S(1));
+    return cfg_.omega_prior_radps[i] + cfg_.sigma_omega_radps[i] * cfg_.grid_sigmas * (S(2 * g) / S(G - 1) - S(1));
   }
   // Best grid frequency for mode i from its series: information-weighted
   // residual g_[k] and information h_[k] per image.
@@ -189,7 +187,7 @@ class ModalAcquisition {
   // Search state.
   bool done_ = false;
   bool started_ = false;  // start_search() ran on the images stored now
-  int next_ = 0;  // next mode search: cycle = next_ / M, mode = next_ % M
+  int next_ = 0;          // next mode search: cycle = next_ / M, mode = next_ % M
   S w_[M], c_[M], s_[M];
   alignas(64) S cw_[H * M];  // cos(w_j t_k)
   alignas(64) S sw_[H * M];  // sin(w_j t_k)
@@ -221,8 +219,7 @@ template <typename S, int M, int H, int G>
 AcquisitionStatus ModalAcquisition<S, M, H, G>::add(S t_s, const Decomp& meas) {
   if (!meas.ok()) return AcquisitionStatus::NotUsable;
   if (n_ >= H) return AcquisitionStatus::HistoryFull;
-  if (!std::isfinite(t_s) || !meas.a_coarse.allFinite() || !meas.cov_a.allFinite())
-    return AcquisitionStatus::NonFinite;
+  if (!std::isfinite(t_s) || !meas.a_coarse.allFinite() || !meas.cov_a.allFinite()) return AcquisitionStatus::NonFinite;
   if (n_ > 0 && !(t_s > t_[n_ - 1])) return AcquisitionStatus::NotIncreasing;
   llt_.compute(meas.cov_a);
   if (llt_.info() != Eigen::Success) return AcquisitionStatus::NotPosDef;
@@ -422,7 +419,7 @@ AcquisitionStatus ModalAcquisition<S, M, H, G>::coarse(int k, Decomp& out) {
 template <typename S, int M, int H, int G>
 template <typename Filter>
 int ModalAcquisition<S, M, H, G>::replay_into(Filter& filter, const ModalFilterConfig<S, M>& cfg,
-                                             typename Filter::Record& rec) {
+                                              typename Filter::Record& rec) {
   filter.reset(cfg);
   int fused = 0;
   for (int k = 0; k < n_; ++k) {

@@ -37,8 +37,8 @@ inline void shape_at(const Eigen::Matrix<S, M, 1>& a, const Eigen::Matrix<S, M, 
 
 // Eqs. 8-9 at n points. var_m2 may be null (no uncertainty wanted).
 template <typename S, int M>
-inline ShapeRecord reconstruct_shape(const Eigen::Matrix<S, M, 1>& a, const Eigen::Matrix<S, M, M>& cov_a,
-                                     const S* phi, int n, S* z_m, S* var_m2) {
+inline ShapeRecord reconstruct_shape(const Eigen::Matrix<S, M, 1>& a, const Eigen::Matrix<S, M, M>& cov_a, const S* phi,
+                                     int n, S* z_m, S* var_m2) {
   ShapeRecord rec;
   if (phi == nullptr || z_m == nullptr || n < 0 || !a.allFinite() || !cov_a.allFinite()) return rec;
   for (int k = 0; k < n; ++k) {

@@ -105,7 +105,7 @@ template <typename S, int M>
 struct ModalImageReport {
   std::uint32_t image_id = 0;
   double t_s = 0.0;
-  int n_outside = 0;  // points off the plate, skipped
+  int n_outside = 0;      // points off the plate, skipped
   bool acquired = false;  // this image completed the history: search done and the filter replayed
   AcquisitionStatus acquisition = AcquisitionStatus::Ok;  // of the search, when acquired
   ModalDecompositionRecord<S, M> decomposition;
@@ -115,7 +115,7 @@ struct ModalImageReport {
 template <typename S, int M, typename F = ModalUkfJoint<S, M>, int H = 256>
 class ModalTracker {
  public:
-  using Filter = F;  // ModalUkfJoint (default) or ModalUkfBank
+  using Filter = F;                               // ModalUkfJoint (default) or ModalUkfBank
   using Acquisition = ModalAcquisition<S, M, H>;  // H: images it can hold
   using Decomposition = ModalDecomposition<S, M>;
   using Report = ModalImageReport<S, M>;

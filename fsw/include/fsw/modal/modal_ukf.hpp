@@ -46,8 +46,8 @@
 #include <cmath>
 #include <cstdint>
 
-#include "fsw/modal/modal_decomposition.hpp"
 #include "fsw/math/step_status.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
 
 namespace fsw {
 
@@ -98,16 +98,16 @@ constexpr int chunk_width(int n, int cap) {
 // Per-mode a priori knowledge (eq. 7) and process noise (eq. 6).
 template <typename S>
 struct ModalModeConfig {
-  S omega_radps = S(1);      // expected natural frequency omega_exp [rad/s]
-  S alpha_ps = S(0);         // expected damping rate alpha_exp [1/s]
-  S sigma_v0_ps = S(1);      // initial 1-sigma of the amplitude rate V [1/s]
+  S omega_radps = S(1);  // expected natural frequency omega_exp [rad/s]
+  S alpha_ps = S(0);     // expected damping rate alpha_exp [1/s]
+  S sigma_v0_ps = S(1);  // initial 1-sigma of the amplitude rate V [1/s]
   S sigma_omega0_radps = S(0.1);
   S sigma_alpha0_ps = S(0.05);
   // Process noise densities: Q = diag(q_a, q_v, q_omega, q_alpha) * dt.
-  S q_a = S(0);         // [1/s]
-  S q_v = S(0);         // [1/s^3]
-  S q_omega = S(0);     // [rad^2/s^3]
-  S q_alpha = S(0);     // [1/s^3]
+  S q_a = S(0);      // [1/s]
+  S q_v = S(0);      // [1/s^3]
+  S q_omega = S(0);  // [rad^2/s^3]
+  S q_alpha = S(0);  // [1/s^3]
 };
 
 // Scaled unscented transform: lambda = a^2 (N + kappa) - N.
@@ -136,7 +136,7 @@ struct ModalStepRecord {
   bool fused = false;
   Eigen::Matrix<S, M, 1> innovation = Eigen::Matrix<S, M, 1>::Zero();      // A~ - A_pred
   Eigen::Matrix<S, M, 1> innovation_var = Eigen::Matrix<S, M, 1>::Zero();  // diag of its covariance
-  S nis = S(0);   // joint: nu^T S^-1 nu; bank: sum of the per-mode NIS
+  S nis = S(0);     // joint: nu^T S^-1 nu; bank: sum of the per-mode NIS
   int n_gated = 0;  // bank: modes rejected by the gate
   bool ok() const { return status == StepStatus::Ok; }
 };
@@ -583,7 +583,7 @@ void ModalUkfJoint<S, M>::amplitude_cov(MatM& Pa) const {
 #ifndef FSW_IMPLICIT_INSTANTIATION
 extern template class ModeUkf<double>;
 extern template class ModeUkf<float>;
-#define FSW_EXTERN_FILTERS(S, M)           \
+#define FSW_EXTERN_FILTERS(S, M)            \
   extern template class ModalUkfBank<S, M>; \
   extern template class ModalUkfJoint<S, M>;
 FSW_MODAL_INSTANCES(FSW_EXTERN_FILTERS)

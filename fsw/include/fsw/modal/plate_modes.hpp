@@ -19,10 +19,10 @@
 namespace fsw {
 
 struct PlateModelConfig {
-  double lx_m = 2000.0;     // plate side along x [m]
-  double ly_m = 1732.0;     // plate side along y [m]
+  double lx_m = 2000.0;       // plate side along x [m]
+  double ly_m = 1732.0;       // plate side along y [m]
   double period1_s = 2400.0;  // period of the lowest mode [s]
-  double peak1_m = 25.0;    // peak deflection of the lowest mode at coefficient 1 [m]
+  double peak1_m = 25.0;      // peak deflection of the lowest mode at coefficient 1 [m]
 };
 
 // Name of the first invalid field, or nullptr.
@@ -91,9 +91,7 @@ class PlateModes {
   S omega_radps(int m) const { return S(omega_[m]); }
   S scale_m(int m) const { return S(scale_[m]); }
 
-  bool inside(S x, S y) const {
-    return x >= S(0) && x <= S(cfg_.lx_m) && y >= S(0) && y <= S(cfg_.ly_m);
-  }
+  bool inside(S x, S y) const { return x >= S(0) && x <= S(cfg_.lx_m) && y >= S(0) && y <= S(cfg_.ly_m); }
 
   // Mode-shape values at (x, y) into phi[0..M). False (phi untouched) when
   // the point is not finite or off the plate.

@@ -101,8 +101,8 @@ struct NavState {
   }
 
   bool all_finite() const {
-    return r_hill_m.allFinite() && v_hill_mps.allFinite() && q_hb.coeffs().allFinite() &&
-           gyro_bias_rps.allFinite() && accel_bias_mps2.allFinite();
+    return r_hill_m.allFinite() && v_hill_mps.allFinite() && q_hb.coeffs().allFinite() && gyro_bias_rps.allFinite() &&
+           accel_bias_mps2.allFinite();
   }
 };
 

@@ -57,43 +57,43 @@
 #include <cmath>
 #include <limits>
 
-#include "fsw/math/covariance.hpp"
 #include "fsw/dynamics/cw.hpp"
 #include "fsw/dynamics/hill_attitude.hpp"
-#include "fsw/nav/nav_state.hpp"
+#include "fsw/math/covariance.hpp"
 #include "fsw/math/so3.hpp"
 #include "fsw/math/step_status.hpp"
+#include "fsw/nav/nav_state.hpp"
 
 namespace fsw {
 
 template <typename S>
 struct NavConfig {
   S n_radps = orbit_rate<S>(S(kEarthRadius + 500e3));  // orbit rate [rad/s] (500 km circular)
-  double dt_imu_s = 0.1;            // nominal IMU period [s]
-  S accel_sigma_mps2 = S(1.7e-3);   // accelerometer white noise, 1-sigma per axis [m/s^2]
-  S gyro_sigma_rps = S(0.005);      // gyro white noise, 1-sigma per axis [rad/s]
+  double dt_imu_s = 0.1;                               // nominal IMU period [s]
+  S accel_sigma_mps2 = S(1.7e-3);                      // accelerometer white noise, 1-sigma per axis [m/s^2]
+  S gyro_sigma_rps = S(0.005);                         // gyro white noise, 1-sigma per axis [rad/s]
   // A tick whose IMU sample was lost is bridged by holding the next sample;
   // the specific force and rate during it are unknown to this extent
   // (default: two 20 mN thrusters on 3 kg; their torque over one 0.1 s step).
   S gap_accel_sigma_mps2 = S(1.3e-2);
   S gap_gyro_sigma_rps = S(0.01);
-  S gyro_bias_walk = S(1e-5);       // gyro bias random walk [rad/s/sqrt(s)] (15-state only)
-  S accel_bias_walk = S(1e-5);      // accel bias random walk [m/s^2/sqrt(s)] (15-state only)
-  S gate_chi2 = S(22.46);           // NIS gate (chi2 6 dof, p = 0.999); <= 0 disables gating
-  double max_delay_s = 0.5;         // how late a pose may arrive [s]
-  double time_tol_s = 1e-3;         // a capture time within this of a tick is on it [s]
-  double max_dt_s = 1.0;            // longest accepted off-grid predict step [s]
-  double max_gap_s = 60.0;          // longest run of lost IMU ticks coasted through [s]
-  S alpha = S(1);                   // sigma-point spread
-  S beta = S(2);                    // prior-distribution term (2: Gaussian)
-  S kappa = S(0);                   // secondary scaling
-  S var_min = S(1e-12);             // floor of every variance (m^2, m^2/s^2, rad^2, ...)
-  S pos_var_max_m2 = S(1e8);        // ceilings of the variances per block
+  S gyro_bias_walk = S(1e-5);   // gyro bias random walk [rad/s/sqrt(s)] (15-state only)
+  S accel_bias_walk = S(1e-5);  // accel bias random walk [m/s^2/sqrt(s)] (15-state only)
+  S gate_chi2 = S(22.46);       // NIS gate (chi2 6 dof, p = 0.999); <= 0 disables gating
+  double max_delay_s = 0.5;     // how late a pose may arrive [s]
+  double time_tol_s = 1e-3;     // a capture time within this of a tick is on it [s]
+  double max_dt_s = 1.0;        // longest accepted off-grid predict step [s]
+  double max_gap_s = 60.0;      // longest run of lost IMU ticks coasted through [s]
+  S alpha = S(1);               // sigma-point spread
+  S beta = S(2);                // prior-distribution term (2: Gaussian)
+  S kappa = S(0);               // secondary scaling
+  S var_min = S(1e-12);         // floor of every variance (m^2, m^2/s^2, rad^2, ...)
+  S pos_var_max_m2 = S(1e8);    // ceilings of the variances per block
   S vel_var_max_m2ps2 = S(1e4);
   S att_var_max_rad2 = S(1.0);
   S gyro_bias_var_max = S(1e-2);
   S accel_bias_var_max = S(1.0);
-  S quat_unit_tol = S(1e-3);        // accepted | |q| - 1 | of a measured quaternion
+  S quat_unit_tol = S(1e-3);  // accepted | |q| - 1 | of a measured quaternion
 };
 
 // Name of the first invalid configuration field, or nullptr when valid.
@@ -206,7 +206,7 @@ class NavUkf {
     double t_s = 0.0;
     State x;
     Cov P = Cov::Identity();
-    Vec3<S> accel_b_mps2 = Vec3<S>::Zero();    // sample that led to this tick
+    Vec3<S> accel_b_mps2 = Vec3<S>::Zero();  // sample that led to this tick
     Vec3<S> omega_bi_b_rps = Vec3<S>::Zero();
     S dt_s = S(0);
     bool bridged = false;  // a lost tick: the sample is the next one, held
@@ -337,8 +337,8 @@ auto NavUkf<S, kWithBias, kHistory>::init_checks(const NavConfig<S>& cfg, bool c
 }
 
 template <typename S, bool kWithBias, int kHistory>
-auto NavUkf<S, kWithBias, kHistory>::check_init(const NavConfig<S>& cfg, double t_s, const State& x0,
-                                                const Cov& P0) -> Record {
+auto NavUkf<S, kWithBias, kHistory>::check_init(const NavConfig<S>& cfg, double t_s, const State& x0, const Cov& P0)
+    -> Record {
   const bool config_ok = nav_config_invalid_field(cfg, kN, kHistory) == nullptr;
   ErrVec var_min = ErrVec::Zero();
   ErrVec var_max = ErrVec::Zero();
@@ -407,8 +407,8 @@ auto NavUkf<S, kWithBias, kHistory>::predict(double t_s, const Vec3<S>& accel_b_
     next.omega_bi_b_rps = omega_bi_b_rps;
     next.dt_s = S(next.t_s - prev->t_s);
     next.bridged = i + 1 < steps;
-    if (!propagate(prev->x, prev->P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.bridged, next.x,
-                   next.P, &repaired))
+    if (!propagate(prev->x, prev->P, next.accel_b_mps2, next.omega_bi_b_rps, next.dt_s, next.bridged, next.x, next.P,
+                   &repaired))
       return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
     prev = &next;
   }
@@ -442,8 +442,7 @@ auto NavUkf<S, kWithBias, kHistory>::update_pose(double t_capture_s, const Vec3<
   }
   if (back < 0) {
     const double t_oldest = hist_[index_back(count_ - 1)].t_s;
-    return reject(rec, StepStatus::BadInput,
-                  t_capture_s < t_oldest ? StepDetail::TooOld : StepDetail::OffTick);
+    return reject(rec, StepStatus::BadInput, t_capture_s < t_oldest ? StepDetail::TooOld : StepDetail::OffTick);
   }
   const Entry& at = hist_[index_back(back)];
   Entry* out = scratch_;
@@ -461,8 +460,8 @@ auto NavUkf<S, kWithBias, kHistory>::update_pose(double t_capture_s, const Vec3<
     out[j].omega_bi_b_rps = src.omega_bi_b_rps;
     out[j].dt_s = src.dt_s;
     out[j].bridged = src.bridged;
-    if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, src.bridged,
-                   out[j].x, out[j].P, &repaired)) {
+    if (!propagate(out[j - 1].x, out[j - 1].P, src.accel_b_mps2, src.omega_bi_b_rps, src.dt_s, src.bridged, out[j].x,
+                   out[j].P, &repaired)) {
       rec.fused = false;
       return reject(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
     }
@@ -652,12 +651,16 @@ inline bool NavUkf<S, kWithBias, kHistory>::pose_input_ok(double t_capture_s, co
                                                           const Quat<S>& q_hb, const MeasCov& R, Record& rec) const {
   StepDetail d = StepDetail::None;
   const double t_now = hist_[head_].t_s;
-  if (!initialized_) d = StepDetail::NotInitialized;
+  if (!initialized_)
+    d = StepDetail::NotInitialized;
   else if (!std::isfinite(t_capture_s) || !r_hill_m.allFinite() || !q_hb.coeffs().allFinite() || !R.allFinite())
     d = StepDetail::NonFinite;
-  else if (!quat_unit(q_hb)) d = StepDetail::NonUnitQuaternion;
-  else if (t_capture_s > t_now + cfg_.time_tol_s) d = StepDetail::FromFuture;
-  else if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s) d = StepDetail::TooOld;
+  else if (!quat_unit(q_hb))
+    d = StepDetail::NonUnitQuaternion;
+  else if (t_capture_s > t_now + cfg_.time_tol_s)
+    d = StepDetail::FromFuture;
+  else if (t_now - t_capture_s > cfg_.max_delay_s + cfg_.time_tol_s)
+    d = StepDetail::TooOld;
   if (d == StepDetail::None) return true;
   set(rec, StepStatus::BadInput, d);
   return false;

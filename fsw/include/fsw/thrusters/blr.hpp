@@ -119,11 +119,11 @@ class BayesLinReg {
   // What predict() returns: the posterior predictive per output.
   struct Prediction {
     BlrStatus status = BlrStatus::Ok;
-    VecY mean = VecY::Zero();      // theta^T x
-    VecY variance = VecY::Zero();  // s_k^2 (1 + x^T A^-1 x)
-    VecY noise_var = VecY::Zero(); // s_k^2 used
-    S leverage = S(0);             // x^T A^-1 x (dimensionless)
-    int count = 0;                 // samples the posterior is built on
+    VecY mean = VecY::Zero();       // theta^T x
+    VecY variance = VecY::Zero();   // s_k^2 (1 + x^T A^-1 x)
+    VecY noise_var = VecY::Zero();  // s_k^2 used
+    S leverage = S(0);              // x^T A^-1 x (dimensionless)
+    int count = 0;                  // samples the posterior is built on
   };
 
   explicit BayesLinReg(const Config& cfg = Config()) : cfg_(cfg) {
@@ -211,19 +211,19 @@ class BayesLinReg {
   bool remove_oldest_impl();
 
   Config cfg_;
-  Sums run_;    // running window sums (adds and subtractions)
-  Sums fresh_;  // additions only, since the start of the epoch
+  Sums run_;                   // running window sums (adds and subtractions)
+  Sums fresh_;                 // additions only, since the start of the epoch
   Eigen::Matrix<S, D, W> xs_;  // ring buffer of inputs
   Eigen::Matrix<S, K, W> ys_;  // ring buffer of outputs
-  int head_ = 0;       // slot of the oldest sample
-  int count_ = 0;      // samples in the window
-  int pre_epoch_ = 0;  // window samples older than the current epoch
+  int head_ = 0;               // slot of the oldest sample
+  int count_ = 0;              // samples in the window
+  int pre_epoch_ = 0;          // window samples older than the current epoch
   std::uint64_t refresh_count_ = 0;
   bool dirty_ = true;
   bool factor_ok_ = false;
   BlrStatus last_status_ = BlrStatus::Ok;
-  MatA l_;         // Cholesky factor of A (last good)
-  VecX inv_diag_;  // 1 / diag(L)
+  MatA l_;                     // Cholesky factor of A (last good)
+  VecX inv_diag_;              // 1 / diag(L)
   Eigen::Matrix<S, K, D> ct_;  // (L^-1 B)^T
   mutable MatB theta_;
   mutable bool theta_stale_ = false;

@@ -51,7 +51,7 @@ enum class PoseStatus : int {
 };
 const char* to_string(PoseStatus s);
 
-constexpr int kNumLeds = 5;     // corners 0..3, identifier 4
+constexpr int kNumLeds = 5;  // corners 0..3, identifier 4
 constexpr int kIdentifier = 4;
 
 // Pinhole camera with OpenCV's radial-tangential distortion and its mount on
@@ -96,8 +96,8 @@ struct LedPoseConfig {
   CameraModel camera;
   LedPattern pattern = default_pattern();
   // Detection.
-  int background_kernel_px = 31;   // box filter for the local background
-  int threshold_counts = 20;       // above local background
+  int background_kernel_px = 31;  // box filter for the local background
+  int threshold_counts = 20;      // above local background
   // Faint spots: the background-subtracted image smoothed by a Gaussian of
   // faint_sigma_px (0: off), split at its local maxima above
   // faint_threshold_counts where it touches no component of the plain
@@ -108,30 +108,30 @@ struct LedPoseConfig {
   double faint_threshold_counts = 3.0;
   int min_area_px = 2;
   int max_area_px = 2500;
-  int max_extent_px = 80;          // bounding-box side
-  double max_elongation = 4.0;     // ratio of second-moment eigenvalues
-  int max_blobs = 16;              // brightest kept for identification
+  int max_extent_px = 80;       // bounding-box side
+  double max_elongation = 4.0;  // ratio of second-moment eigenvalues
+  int max_blobs = 16;           // brightest kept for identification
   // Identification.
-  double line_tol_px = 1.5;        // identifier off the edge: absolute part
-  double line_tol_rel = 0.04;      // ... and relative to the edge length
-  double id_fraction_min = 0.08;   // accepted image fraction along edge 0 -> 1
+  double line_tol_px = 1.5;       // identifier off the edge: absolute part
+  double line_tol_rel = 0.04;     // ... and relative to the edge length
+  double id_fraction_min = 0.08;  // accepted image fraction along edge 0 -> 1
   double id_fraction_max = 0.45;
   double min_quad_area_px2 = 30.0;
-  int max_hypotheses = 8;         // best-scored labellings solved
+  int max_hypotheses = 8;  // best-scored labellings solved
   // Pose.
   double ransac_threshold_px = 4.0;
   double max_reproj_rms_px = 2.0;  // a labelling must reproject within this
   double ambiguity_ratio = 3.0;    // runner-up labelling closer than this in rms -> ambiguous
   double min_depth_m = 0.02;
-  double pixel_sigma_px = 0.25;    // centroid noise for points given without their own sigma
+  double pixel_sigma_px = 0.25;  // centroid noise for points given without their own sigma
   // Centroid (docs/VISION.md, "Centroid error model"): a first estimate over
   // the component's box, refined by a Gaussian-weighted centroid on a ring
   // background plane. sigma^2 = centroid_noise_scale^2 sigma_noise^2
   // + (sat_sigma_px n_sat / max(width / 1 px, 1)^4)^2 (n_sat saturated pixels)
   // + centroid_floor_px^2; the three constants are fitted by
   // `python -m bench.centroid_calibration`.
-  double read_noise_counts = 1.5;  // pixel noise: read noise [counts] (the refined centroid measures its own
-  double shot_gain = 0.05;         //   from the ring) and shot-noise variance per count of signal [counts]
+  double read_noise_counts = 1.5;       // pixel noise: read noise [counts] (the refined centroid measures its own
+  double shot_gain = 0.05;              //   from the ring) and shot-noise variance per count of signal [counts]
   double centroid_floor_px = 0.003;     // calibrated, added in quadrature to each blob's sigma [px]
   bool refine_centroid = true;          // false: the first estimate (component box + 2 px, clipped weights)
   double centroid_weight_min_px = 1.0;  // bounds of the Gaussian weight's width (the spot's, from its moments)
@@ -150,8 +150,8 @@ struct LedPoseConfig {
   double merged_id_margin_dchi2 = 10.0;
   double merged_id_max_flux_ratio = 4.0;
   int merged_id_max_half_window_px = 20;  // fit window half-size bound
-  double max_condition = 1e12;     // of J^T J
-  double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
+  double max_condition = 1e12;            // of J^T J
+  double flip_weight_max = 0.01;          // planar mirror solution more likely than this -> no pose
 };
 
 struct Blob {
@@ -159,7 +159,7 @@ struct Blob {
   double v_px;  // row
   double flux;  // background-subtracted sum [counts]
   int area_px;
-  double sigma_px;  // centroid standard deviation from the calibrated error model
+  double sigma_px;            // centroid standard deviation from the calibrated error model
   int n_saturated = 0;        // pixels at 255 in the centroid window
   double sigma_noise_px = 0;  // pixel-noise part of sigma_px, before the calibration's scale and terms
   double width_px = 0;        // spot width (rms radius per axis) from the component's moments
@@ -176,12 +176,12 @@ struct LedPoseMeasurement {
   Eigen::Quaterniond q_hb = Eigen::Quaterniond::Identity();
   Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
   // Diagnostics.
-  int n_blobs = 0;                            // blobs passing the shape gates
-  int n_hypotheses = 0;                       // labellings tried
+  int n_blobs = 0;       // blobs passing the shape gates
+  int n_hypotheses = 0;  // labellings tried
   double reproj_rms_px = 0.0;
-  double flip_weight = 0.0;                   // weight of the planar mirror solution folded into R
-  double range_m = 0.0;                       // camera to pattern centre
-  bool identifier_split = false;              // the identifier came from a merged blob's two-spot fit
+  double flip_weight = 0.0;       // weight of the planar mirror solution folded into R
+  double range_m = 0.0;           // camera to pattern centre
+  bool identifier_split = false;  // the identifier came from a merged blob's two-spot fit
   std::array<int, kNumLeds> blob_of_led{{-1, -1, -1, -1, -1}};
   Eigen::Matrix3d R_cp = Eigen::Matrix3d::Identity();  // host body -> camera
   Eigen::Vector3d t_cp_m = Eigen::Vector3d::Zero();    // host origin in camera frame
