@@ -15,7 +15,7 @@ VENV       := .venv
 VPY        := $(VENV)/bin/python
 STAMPS     := build/.stamps
 CPP_BUILD  := build/cpp
-APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev libopencv-dev clang libclang-rt-14-dev
+APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev libopencv-dev clang libclang-rt-14-dev clang-format
 SUDO       := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 CMAKE_SRC  := CMakeLists.txt $(wildcard fsw/CMakeLists.txt bindings/CMakeLists.txt cmake/*.cmake cmake/*.in)
 NATIVE_SRC := $(shell find fsw bindings -type f \( -name '*.hpp' -o -name '*.cpp' \) 2>/dev/null) $(CMAKE_SRC) pyproject.toml
