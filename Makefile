@@ -15,9 +15,10 @@ VENV       := .venv
 VPY        := $(VENV)/bin/python
 STAMPS     := build/.stamps
 CPP_BUILD  := build/cpp
-APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev libopencv-dev clang libclang-rt-14-dev
+APT_PKGS   := libeigen3-dev libgtest-dev libbenchmark-dev libopencv-dev clang libclang-rt-14-dev clang-format
 SUDO       := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-NATIVE_SRC := $(shell find fsw bindings -type f \( -name '*.hpp' -o -name '*.cpp' \) 2>/dev/null) CMakeLists.txt pyproject.toml
+CMAKE_SRC  := CMakeLists.txt $(wildcard fsw/CMakeLists.txt bindings/CMakeLists.txt cmake/*.cmake cmake/*.in)
+NATIVE_SRC := $(shell find fsw bindings -type f \( -name '*.hpp' -o -name '*.cpp' \) 2>/dev/null) $(CMAKE_SRC) pyproject.toml
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MPLBACKEND ?= Agg
@@ -86,9 +87,11 @@ $(STAMPS)/install: $(STAMPS)/venv $(STAMPS)/cpp-configure $(NATIVE_SRC)
 # (several minutes of compiling on 2 cores) are built by `make bench`.
 BENCHMARKS ?= $(if $(CI),OFF,ON)
 
-$(STAMPS)/cpp-configure: $(STAMPS)/venv CMakeLists.txt
+# Warnings are errors here (PROXOPS_WERROR), as in CI.
+$(STAMPS)/cpp-configure: $(STAMPS)/venv $(CMAKE_SRC) Makefile
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
-	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=$(BENCHMARKS) -DPROXOPS_BUILD_PYTHON=OFF >/dev/null
+	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=$(BENCHMARKS) -DPROXOPS_BUILD_PYTHON=OFF \
+	  -DPROXOPS_WERROR=ON >/dev/null
 	@touch $@
 
 test-cpp: $(STAMPS)/cpp-configure
@@ -101,7 +104,7 @@ test-py: $(STAMPS)/install $(STAMPS)/cpp-configure $(FW_ELF)
 
 # The Cortex-M7 self-test firmware (CMakePresets.json "firmware"; -j2: the
 # machine is shared).
-$(STAMPS)/fw-configure: $(STAMPS)/apt-firmware $(STAMPS)/venv CMakeLists.txt CMakePresets.json firmware/CMakeLists.txt \
+$(STAMPS)/fw-configure: $(STAMPS)/apt-firmware $(STAMPS)/venv $(CMAKE_SRC) CMakePresets.json firmware/CMakeLists.txt \
     cmake/toolchains/arm-none-eabi-cortex-m7.cmake
 	$(VENV)/bin/cmake --preset firmware -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
 	@touch $@

@@ -133,7 +133,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     new flight joint filter from them (1-sigma acquire_sigma_rel of each) is
     replayed over those images and then runs on, scored at the crb_periods
     times. acquire_with "flight": the flight ModalAcquisition (RELAX on its
-    stored history, fsw/include/fsw/modal_acquisition.hpp) and its replay;
+    stored history, fsw/include/fsw/modal/modal_acquisition.hpp) and its replay;
     "batch-ml": the bench's batch ML fit (bench.modal_batch_ml), the
     reference it is compared with. acquire_grid_sigmas: the flight search's
     frequency grid spans +- that many a priori sigmas (sigma 10 % here).

@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <random>
 
-#include "fsw/blr.hpp"
+#include "fsw/thrusters/blr.hpp"
 
 namespace {
 

@@ -1,9 +1,9 @@
 // CW propagation and quaternion operations, double and float.
 #include <benchmark/benchmark.h>
 
-#include "fsw/cw.hpp"
-#include "fsw/hill_attitude.hpp"
-#include "fsw/so3.hpp"
+#include "fsw/dynamics/cw.hpp"
+#include "fsw/dynamics/hill_attitude.hpp"
+#include "fsw/math/so3.hpp"
 
 using namespace fsw;
 

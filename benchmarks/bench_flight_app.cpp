@@ -10,12 +10,12 @@
 #include <random>
 #include <vector>
 
-#include "fsw/flight_app.hpp"
-#include "fsw/framer.hpp"
-#include "fsw/modal_decomposition.hpp"
-#include "fsw/modal_tracker.hpp"
-#include "fsw/modal_ukf.hpp"
-#include "fsw/plate_modes.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/link/framer.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
+#include "fsw/modal/modal_tracker.hpp"
+#include "fsw/modal/modal_ukf.hpp"
+#include "fsw/modal/plate_modes.hpp"
 
 using namespace fsw;
 
@@ -33,7 +33,7 @@ Image make_image(std::mt19937_64& rng, double t) {
   PlateModes<double, kM> model;
   std::normal_distribution<double> nd(0.0, 1.0);
   Image im;
-  double phi[kM];
+  double phi[kM] = {};
   for (int r = 0; r < kSide; ++r)
     for (int c = 0; c < kSide; ++c) {
       const double x = 2000.0 * (0.25 + 0.5 * (c + 0.5) / kSide), y = 1732.0 * (0.25 + 0.5 * (r + 0.5) / kSide);
@@ -123,7 +123,8 @@ void BM_LibraryRangeImage(benchmark::State& st) {
     }
     dec.reset();
     const auto& ph = phi[std::size_t(k)];
-    for (std::size_t j = 0; j < z[std::size_t(k)].size(); ++j) dec.add_point(ph.data() + j * kM, z[std::size_t(k)][j], var);
+    for (std::size_t j = 0; j < z[std::size_t(k)].size(); ++j)
+      dec.add_point(ph.data() + j * kM, z[std::size_t(k)][j], var);
     dec.solve(drec);
     filt->step(60.0, drec, srec);
     benchmark::DoNotOptimize(srec.nis);

@@ -6,10 +6,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "fsw/cobs.hpp"
-#include "fsw/crc16.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/framer.hpp"
+#include "fsw/link/cobs.hpp"
+#include "fsw/link/crc16.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/link/framer.hpp"
 
 using namespace fsw;
 

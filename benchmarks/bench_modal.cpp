@@ -1,6 +1,6 @@
-// Seconds per range image of the modal estimator over the seed's Table I grid
+// Seconds per range image of the modal estimator over the Table I grid of Lichter and Dubowsky
 // (10..50 modes, 100..100,000 points): decomposition of the image (eqs. 2-4,
-// equal variance, eq. 4b, as in the seed) plus one filter step (predict and
+// equal variance, eq. 4b, as in that paper) plus one filter step (predict and
 // update), for the bank of decoupled filters and for the joint filter; and
 // the decomposition alone, for the fit t = c1 m n + c2 m^3.
 //
@@ -13,8 +13,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "fsw/modal_decomposition.hpp"
-#include "fsw/modal_ukf.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
+#include "fsw/modal/modal_ukf.hpp"
 #include "modal_decomposition_base.hpp"  // the decomposition before the vectorised gather
 
 using namespace fsw;
@@ -198,9 +198,7 @@ void grid(benchmark::internal::Benchmark* b) {
   b->Unit(benchmark::kMicrosecond);
 }
 
-void targets(benchmark::internal::Benchmark* b) {
-  b->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond);
-}
+void targets(benchmark::internal::Benchmark* b) { b->Arg(1000)->Arg(10000)->Unit(benchmark::kMicrosecond); }
 
 }  // namespace
 

@@ -12,7 +12,7 @@
 #include <memory>
 #include <random>
 
-#include "fsw/modal_acquisition.hpp"
+#include "fsw/modal/modal_acquisition.hpp"
 
 using namespace fsw;
 

@@ -5,7 +5,7 @@
 
 #include <memory>
 
-#include "fsw/nav_ukf.hpp"
+#include "fsw/nav/nav_ukf.hpp"
 
 using namespace fsw;
 

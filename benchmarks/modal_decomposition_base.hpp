@@ -1,7 +1,10 @@
-// Frozen copy of fsw/include/fsw/modal_decomposition.hpp at commit a1a6d60
-// (namespace fsw_base), the reference for bench_modal: per-value scalar
-// finiteness checks before the gather. Benchmark use only.
-// Modal decomposition of one range image (seed 000 section III, eqs. 2-4).
+// The modal decomposition of fsw/include/fsw/modal/modal_decomposition.hpp
+// written with per-value scalar finiteness checks before the gather
+// (namespace fsw_base): the reference bench_modal compares the vectorised
+// gather against. Benchmark use only.
+// Modal decomposition of one range image (section III, eqs. 2-4, of
+// "Shape, Motion, and Parameter Estimation of Large Flexible Space
+// Structures using Range Images" (Lichter and Dubowsky)).
 //
 // The deflection of the structure is z(x, t) = A(t)^T Phi(x) (eq. 1) with M
 // known mode shapes Phi. One range image gives n points y_k with measured
@@ -84,10 +87,10 @@ struct ModalDecompositionRecord {
   S condition_number = std::numeric_limits<S>::infinity();           // cond(M_Y)
   S eig_min = S(0);                                                  // extreme eigenvalues of M_Y
   S eig_max = S(0);
-  S sigma2_residual_m2 = S(0);   // RSS / (n - M) [m^2], 0 when n <= M
-  int n_used = 0;                // points entered into M_Y
-  int n_nonfinite = 0;           // points skipped: NaN / Inf deflection or mode value
-  int n_bad_variance = 0;        // points skipped: variance given but not finite and > 0
+  S sigma2_residual_m2 = S(0);      // RSS / (n - M) [m^2], 0 when n <= M
+  int n_used = 0;                   // points entered into M_Y
+  int n_nonfinite = 0;              // points skipped: NaN / Inf deflection or mode value
+  int n_bad_variance = 0;           // points skipped: variance given but not finite and > 0
   bool per_point_variance = false;  // true: eq. 4a, false: eq. 4b
   bool ok() const { return status == ModalStatus::Ok; }
 };
@@ -176,8 +179,7 @@ class ModalDecomposition {
     out.eig_min = out.eig_max = S(0);
     out.sigma2_residual_m2 = S(0);
     const int min_pts = cfg_.min_points > M + 1 ? cfg_.min_points : M + 1;
-    if (!(cfg_.max_condition >= S(1)) || !(cfg_.sigma_e_m >= S(0)) ||
-        (n_with_var_ > 0 && n_with_var_ != n_used_)) {
+    if (!(cfg_.max_condition >= S(1)) || !(cfg_.sigma_e_m >= S(0)) || (n_with_var_ > 0 && n_with_var_ != n_used_)) {
       return out.status = ModalStatus::BadInput;
     }
     if (n_used_ < min_pts) return out.status = ModalStatus::TooFewPoints;
@@ -257,13 +259,13 @@ class ModalDecomposition {
   }
 
   Config cfg_;
-  MatM my_;   // M_Y, lower triangle while accumulating
-  MatM g_;    // sum s_k^2 Phi Phi^T, lower triangle while accumulating
-  VecM b_;    // <Phi, z>_Y
+  MatM my_;  // M_Y, lower triangle while accumulating
+  MatM g_;   // sum s_k^2 Phi Phi^T, lower triangle while accumulating
+  VecM b_;   // <Phi, z>_Y
   S zz_ = S(0);
   Eigen::Matrix<S, M, K> chunk_;  // gathered mode-shape columns
   Eigen::Matrix<S, K, 1> zc_;
-  Eigen::Matrix<S, K, 1> wc_;     // per-point standard deviations
+  Eigen::Matrix<S, K, 1> wc_;  // per-point standard deviations
   int fill_ = 0;
   int n_used_ = 0, n_nonfinite_ = 0, n_bad_var_ = 0, n_with_var_ = 0;
   Eigen::SelfAdjointEigenSolver<MatM> eig_;

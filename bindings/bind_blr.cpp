@@ -6,7 +6,7 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/blr.hpp"
+#include "fsw/thrusters/blr.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
@@ -48,25 +48,24 @@ void bind_one(py::module_& m, const char* name, const char* doc) {
              c.estimate_noise = estimate_noise;
              return Blr(c);
            }),
-           py::arg("prior_precision") = 1e-3, py::arg("noise_var") = py::none(),
-           py::arg("estimate_noise") = true,
+           py::arg("prior_precision") = 1e-3, py::arg("noise_var") = py::none(), py::arg("estimate_noise") = true,
            "prior_precision lambda [1/x^2] (prior theta_k ~ N(0, s_k^2/lambda I)); noise_var s_k^2 (6,) "
            "[(m/s)^2 x3, (rad/s)^2 x3] used when estimate_noise is False or the window holds <= D samples.")
       .def(
-          "add", [rec_dict](Blr& b, const Arr& x, const Arr& y) {
-            return rec_dict(b.add(vec<D>(x, "x"), vec<K>(y, "y")));
-          },
+          "add",
+          [rec_dict](Blr& b, const Arr& x, const Arr& y) { return rec_dict(b.add(vec<D>(x, "x"), vec<K>(y, "y"))); },
           py::arg("x"), py::arg("y"),
           "Enter a sample: x features, y = [dv_b_mps(3), dw_b_rps(3)]. Evicts the oldest when full.")
       .def(
-          "add_mask", [rec_dict, mask_of](Blr& b, int mask, const Arr& y) {
+          "add_mask",
+          [rec_dict, mask_of](Blr& b, int mask, const Arr& y) {
             return rec_dict(b.add(mask_of(mask), vec<K>(y, "y")));
           },
           py::arg("mask"), py::arg("y"), "add() with the features of valve configuration mask (bit i = valve i).")
       .def("remove_oldest", [](Blr& b) { return std::string(fsw::to_string(b.remove_oldest())); })
       .def(
-          "predict", [pred_tuple](Blr& b, const Arr& x) { return pred_tuple(b.predict(vec<D>(x, "x"))); },
-          py::arg("x"), "(mean (6,), predictive variance (6,), status) at features x.")
+          "predict", [pred_tuple](Blr& b, const Arr& x) { return pred_tuple(b.predict(vec<D>(x, "x"))); }, py::arg("x"),
+          "(mean (6,), predictive variance (6,), status) at features x.")
       .def(
           "predict_mask", [pred_tuple, mask_of](Blr& b, int mask) { return pred_tuple(b.predict(mask_of(mask))); },
           py::arg("mask"), "predict() at valve configuration mask.")
@@ -80,18 +79,21 @@ void bind_one(py::module_& m, const char* name, const char* doc) {
           py::arg("mask"),
           "(posterior mean (6,), its variance s_k^2 x^T A^-1 x (6,)) at valve configuration mask: how well the "
           "learner knows this configuration's effect, without the noise of a new measurement.")
-      .def_property_readonly("theta",
+      .def_property_readonly(
+          "theta",
+          [](Blr& b) {
+            b.refresh_posterior();
+            return to_numpy(b.theta());
+          },
+          "Posterior mean weights (D, 6): column k maps features to output k.")
+      .def_property_readonly(
+          "information", [](const Blr& b) { return to_numpy(b.information()); },
+          "Shared unscaled information matrix A = lambda I + sum x x^T (D, D).")
+      .def_property_readonly("noise_var",
                              [](Blr& b) {
                                b.refresh_posterior();
-                               return to_numpy(b.theta());
-                             },
-                             "Posterior mean weights (D, 6): column k maps features to output k.")
-      .def_property_readonly("information", [](const Blr& b) { return to_numpy(b.information()); },
-                             "Shared unscaled information matrix A = lambda I + sum x x^T (D, D).")
-      .def_property_readonly("noise_var", [](Blr& b) {
-        b.refresh_posterior();
-        return to_numpy(b.noise_var());
-      })
+                               return to_numpy(b.noise_var());
+                             })
       .def_property_readonly("count", &Blr::count)
       .def_property_readonly("refresh_count", [](const Blr& b) { return std::uint64_t(b.refresh_count()); })
       .def_property_readonly_static("inputs", [](py::object) { return D; })
@@ -107,8 +109,7 @@ void bind_one(py::module_& m, const char* name, const char* doc) {
 void bind_blr(py::module_& m) {
   bind_one<fsw::ThrusterBlr<double, 30>, false>(
       m, "ThrusterBlr", "Bayes linear regression, 8 valves + bias -> [dv_b_mps(3), dw_b_rps(3)], window 30.");
-  bind_one<fsw::ThrusterBlr<double, 100>, false>(
-      m, "ThrusterBlrW100", "As ThrusterBlr with window 100.");
+  bind_one<fsw::ThrusterBlr<double, 100>, false>(m, "ThrusterBlrW100", "As ThrusterBlr with window 100.");
   bind_one<fsw::ThrusterBlrPairs<double, 30>, true>(
       m, "ThrusterBlrPairs", "As ThrusterBlr with the 28 pairwise valve products added (37 inputs), window 30.");
 }

@@ -1,5 +1,5 @@
 #include "bind.hpp"
-#include "fsw/cw.hpp"
+#include "fsw/dynamics/cw.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
@@ -8,8 +8,8 @@ void bind_cw(py::module_& m) {
   m.attr("MU_EARTH") = fsw::kMuEarth;
   m.attr("EARTH_RADIUS") = fsw::kEarthRadius;
   m.def(
-      "orbit_rate", [](double radius) { return fsw::orbit_rate(positive(radius, "radius_m")); },
-      py::arg("radius_m"), "Circular-orbit rate n = sqrt(mu / a^3) [rad/s]; a is the radius [m].");
+      "orbit_rate", [](double radius) { return fsw::orbit_rate(positive(radius, "radius_m")); }, py::arg("radius_m"),
+      "Circular-orbit rate n = sqrt(mu / a^3) [rad/s]; a is the radius [m].");
   m.def(
       "cw_stm", [](double n, double t) { return to_numpy(fsw::cw_stm(positive(n, "n_radps"), finite(t, "t_s"))); },
       py::arg("n_radps"), py::arg("t_s"), "CW state transition matrix Phi(t), state [r_hill_m, v_hill_mps].");

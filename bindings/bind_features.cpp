@@ -1,5 +1,5 @@
 // Bindings of the feature filters (fsw/feature_filter.hpp): configuration,
-// the EKF and UKF for the seed's feature budget (4 points, 4 lines, 2
+// the EKF and UKF for the feature paper's budget (4 points, 4 lines, 2
 // circles; double) and their step record. Arrays are checked here (shape,
 // finiteness, unit quaternion) and raise ValueError naming the argument. The
 // image coordinates z are passed through as given: a NaN in a measured slot
@@ -9,7 +9,7 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/feature_filter.hpp"
+#include "fsw/features/feature_filter.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
@@ -91,12 +91,14 @@ void bind_filter(py::module_& m, const char* name, const char* doc) {
           py::arg("v_l_mps"), py::arg("phi_rad"), py::arg("P0"),
           "State at t_s [s] with the leader's true anomaly nu0 [rad]; P0 (18, 18) over "
           "[dtheta (body), dw, dr (L), dv (L), dphi (6)].")
-      .def("predict", [](F& f, double t) { return f.predict(t); }, py::arg("t_s"),
-           "Propagates to t_s [s] (NaN or not after the current time: bad_input).")
-      .def("update", [](F& f, const Arr& z, std::uint32_t mask) { return f.update(meas(z), mask); }, py::arg("z"),
-           py::arg("mask") = F::kAllSlots,
-           "Image coordinates z (28,) [m on the image plane]: points 0-7, line points 8-15, circle points "
-           "16-27 (x, y pairs); bit k of mask marks pair k as measured.")
+      .def(
+          "predict", [](F& f, double t) { return f.predict(t); }, py::arg("t_s"),
+          "Propagates to t_s [s] (NaN or not after the current time: bad_input).")
+      .def(
+          "update", [](F& f, const Arr& z, std::uint32_t mask) { return f.update(meas(z), mask); }, py::arg("z"),
+          py::arg("mask") = F::kAllSlots,
+          "Image coordinates z (28,) [m on the image plane]: points 0-7, line points 8-15, circle points "
+          "16-27 (x, y pairs); bit k of mask marks pair k as measured.")
       .def(
           "predicted_measurement",
           [](const F& f) -> py::object {
@@ -108,16 +110,20 @@ void bind_filter(py::module_& m, const char* name, const char* doc) {
       .def_property_readonly("t_s", &F::t_s)
       .def_property_readonly("nu_rad", &F::nu_rad, "Leader true anomaly [rad].")
       .def_property_readonly("initialized", &F::initialized)
-      .def_property_readonly("q_lf", [](const F& f) { return quat_to_numpy(f.state().q_lf); },
-                             "Follower body -> leader frame, [w, x, y, z].")
+      .def_property_readonly(
+          "q_lf", [](const F& f) { return quat_to_numpy(f.state().q_lf); },
+          "Follower body -> leader frame, [w, x, y, z].")
       .def_property_readonly("w_fl_f_rps", [](const F& f) { return to_numpy(f.state().w_fl_f_rps); })
-      .def_property_readonly("r_l_m", [](const F& f) { return to_numpy(f.state().r_l_m); },
-                             "Follower centre of mass in the leader frame [m].")
+      .def_property_readonly(
+          "r_l_m", [](const F& f) { return to_numpy(f.state().r_l_m); },
+          "Follower centre of mass in the leader frame [m].")
       .def_property_readonly("v_l_mps", [](const F& f) { return to_numpy(f.state().v_l_mps); })
       .def_property_readonly("phi_rad", [](const F& f) { return to_numpy(f.state().phi_rad); })
-      .def_property_readonly("pose_dq", [](const F& f) { return to_numpy(fsw::to_wxyz8(f.pose_lf())); },
-                             "(8,) dual quaternion of the follower body in L [rw, rx, ry, rz, dw, dx, dy, dz].")
-      .def_property_readonly("P", [](const F& f) { return to_numpy(f.covariance()); }, "(18, 18)")
+      .def_property_readonly(
+          "pose_dq", [](const F& f) { return to_numpy(fsw::to_wxyz8(f.pose_lf())); },
+          "(8,) dual quaternion of the follower body in L [rw, rx, ry, rz, dw, dx, dy, dz].")
+      .def_property_readonly(
+          "P", [](const F& f) { return to_numpy(f.covariance()); }, "(18, 18)")
       .def_property_readonly("configured_slots", &F::configured_slots)
       .def_property_readonly_static("n_error", [](py::object) { return kN; })
       .def_property_readonly_static("n_meas", [](py::object) { return kM; });
@@ -167,14 +173,18 @@ void bind_features(py::module_& m) {
                      "UKF: spread halvings tried when a sigma point puts a feature behind the lens.");
 
   py::class_<Rec>(m, "FeatureStepRecord", "What one feature filter step did.")
-      .def_property_readonly("status", [](const Rec& r) { return std::string(fsw::to_string(r.status)); },
-                             "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
-      .def_property_readonly("detail", [](const Rec& r) { return std::string(fsw::to_string(r.detail)); },
-                             "Finer reason, e.g. 'non_finite', 'feature_not_imageable'.")
+      .def_property_readonly(
+          "status", [](const Rec& r) { return std::string(fsw::to_string(r.status)); },
+          "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
+      .def_property_readonly(
+          "detail", [](const Rec& r) { return std::string(fsw::to_string(r.detail)); },
+          "Finer reason, e.g. 'non_finite', 'feature_not_imageable'.")
       .def_readonly("fused", &Rec::fused)
       .def_readonly("t_s", &Rec::t_s)
-      .def_property_readonly("innovation", [](const Rec& r) { return to_numpy(r.innovation); }, "(28,) [m]")
-      .def_property_readonly("innovation_cov", [](const Rec& r) { return to_numpy(r.innovation_cov); }, "(28, 28)")
+      .def_property_readonly(
+          "innovation", [](const Rec& r) { return to_numpy(r.innovation); }, "(28,) [m]")
+      .def_property_readonly(
+          "innovation_cov", [](const Rec& r) { return to_numpy(r.innovation_cov); }, "(28, 28)")
       .def_readonly("nis", &Rec::nis, "Normalised innovation squared over the measured rows.")
       .def_readonly("log_likelihood", &Rec::log_likelihood)
       .def("__repr__", [](const Rec& r) {
@@ -183,7 +193,9 @@ void bind_features(py::module_& m) {
       });
 
   bind_filter<Ekf>(m, "FeatureEkf",
-                   "Tightly coupled EKF over image features (seed 001): 4 points, 4 lines, 2 circles at most.");
+                   "Tightly coupled EKF over image features (the dual-quaternion feature paper): 4 points, 4 lines, 2 "
+                   "circles at most.");
   bind_filter<Ukf>(m, "FeatureUkf",
-                   "Tightly coupled UKF over image features (seed 001's future work), same interface as FeatureEkf.");
+                   "Tightly coupled UKF over image features (the feature paper's stated future work), same interface "
+                   "as FeatureEkf.");
 }

@@ -1,7 +1,7 @@
 #include <memory>
 
 #include "bind.hpp"
-#include "fsw/flight_app.hpp"
+#include "fsw/app/flight_app.hpp"
 #include "validate.hpp"
 
 namespace {
@@ -84,5 +84,6 @@ void bind_flight_app(py::module_& m) {
           py::arg("data"), "Feeds link bytes (any chunking); returns the telemetry frames produced.")
       .def("link_counters", &link_counters, "Deframer counters, rejections by reason.")
       .def("counters", &app_counters, "Application counters.")
-      .def("modal_counters", &modal_counters, "Modal estimator counters (range-image segments, images, frequency acquisitions).");
+      .def("modal_counters", &modal_counters,
+           "Modal estimator counters (range-image segments, images, frequency acquisitions).");
 }

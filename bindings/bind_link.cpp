@@ -5,10 +5,10 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/cobs.hpp"
-#include "fsw/crc16.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/framer.hpp"
+#include "fsw/link/cobs.hpp"
+#include "fsw/link/crc16.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/link/framer.hpp"
 #include "validate.hpp"
 
 namespace {
@@ -23,9 +23,7 @@ std::string bytes_of(const py::bytes& b) { return std::string(b); }
 
 const std::uint8_t* u8(const std::string& s) { return reinterpret_cast<const std::uint8_t*>(s.data()); }
 
-py::bytes to_bytes(const std::uint8_t* p, std::size_t n) {
-  return py::bytes(reinterpret_cast<const char*>(p), n);
-}
+py::bytes to_bytes(const std::uint8_t* p, std::size_t n) { return py::bytes(reinterpret_cast<const char*>(p), n); }
 
 py::dict link_counters_dict(const fsw::LinkCounters& c) {
   py::dict rejected;
@@ -80,7 +78,11 @@ py::dict result_dict(const fsw::DeframeResult& r) {
 
 void bind_link(py::module_& m) {
   m.def(
-      "link_crc16", [](const py::bytes& b) { const std::string s = bytes_of(b); return fsw::crc16_ccitt_false(u8(s), s.size()); },
+      "link_crc16",
+      [](const py::bytes& b) {
+        const std::string s = bytes_of(b);
+        return fsw::crc16_ccitt_false(u8(s), s.size());
+      },
       py::arg("data"), "CRC-16/CCITT-FALSE of data (check value 0x29B1 over b'123456789').");
   m.def(
       "link_cobs_encode",
@@ -95,7 +97,8 @@ void bind_link(py::module_& m) {
       "link_reject_reasons",
       []() {
         py::list l;
-        for (std::size_t i = 0; i < fsw::kRejectReasonCount; ++i) l.append(fsw::to_string(static_cast<fsw::RejectReason>(i)));
+        for (std::size_t i = 0; i < fsw::kRejectReasonCount; ++i)
+          l.append(fsw::to_string(static_cast<fsw::RejectReason>(i)));
         return l;
       },
       "Rejection reason names in the order of their numeric codes.");
@@ -127,10 +130,10 @@ void bind_link(py::module_& m) {
         if (packet_type < 0 || packet_type > 1) throw py::value_error("packet_type: 0 (TM) or 1 (TC)");
         const std::string p = bytes_of(payload);
         std::string pkt(fsw::kPacketHeaderSize + p.size() + fsw::kCrcSize, '\0');
-        const std::size_t n = fsw::build_packet(
-            static_cast<fsw::PacketType>(packet_type), static_cast<std::uint16_t>(apid),
-            static_cast<fsw::SeqFlags>(seq_flags), static_cast<std::uint16_t>(seq_count), t_s, u8(p), p.size(),
-            reinterpret_cast<std::uint8_t*>(&pkt[0]), pkt.size());
+        const std::size_t n =
+            fsw::build_packet(static_cast<fsw::PacketType>(packet_type), static_cast<std::uint16_t>(apid),
+                              static_cast<fsw::SeqFlags>(seq_flags), static_cast<std::uint16_t>(seq_count), t_s, u8(p),
+                              p.size(), reinterpret_cast<std::uint8_t*>(&pkt[0]), pkt.size());
         if (n == 0) throw py::value_error("payload: too long for one packet");
         std::string out(fsw::cobs_max_encoded_size(n) + 1, '\0');
         const std::size_t f = fsw::frame_bytes(u8(pkt), n, reinterpret_cast<std::uint8_t*>(&out[0]), out.size());
@@ -149,9 +152,9 @@ void bind_link(py::module_& m) {
             if (seq_flags < 0 || seq_flags > 3) throw py::value_error("seq_flags: must be in [0, 3]");
             const std::string p = bytes_of(payload);
             std::string out(fsw::kMaxFrameBytes, '\0');
-            const std::size_t n = f.frame(static_cast<fsw::Apid>(apid), t_s, u8(p), p.size(),
-                                          reinterpret_cast<std::uint8_t*>(&out[0]), out.size(),
-                                          static_cast<fsw::SeqFlags>(seq_flags));
+            const std::size_t n =
+                f.frame(static_cast<fsw::Apid>(apid), t_s, u8(p), p.size(), reinterpret_cast<std::uint8_t*>(&out[0]),
+                        out.size(), static_cast<fsw::SeqFlags>(seq_flags));
             if (n == 0) throw py::value_error("frame: APID not of this direction, wrong payload length or flags");
             return py::bytes(out.data(), n);
           },

@@ -1,4 +1,4 @@
-// Modal estimator (seed 000): decomposition of a range image, the bank of
+// Modal estimator (Lichter and Dubowsky, range images): decomposition of a range image, the bank of
 // decoupled per-mode UKFs, the joint UKF, shape reconstruction, and the
 // frequency acquisition (256-image history). Bound in
 // double for the mode counts the bench uses: 3 (pendulum), 10 and 50
@@ -10,10 +10,10 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/modal_acquisition.hpp"
-#include "fsw/modal_decomposition.hpp"
-#include "fsw/modal_shape.hpp"
-#include "fsw/modal_ukf.hpp"
+#include "fsw/modal/modal_acquisition.hpp"
+#include "fsw/modal/modal_decomposition.hpp"
+#include "fsw/modal/modal_shape.hpp"
+#include "fsw/modal/modal_ukf.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
@@ -29,8 +29,7 @@ Eigen::Matrix<double, M, 1> mvec(const Arr& a, const char* name) {
 template <int M>
 int check_rows(const Arr& phi, const char* name) {
   if (phi.ndim() != 2 || phi.shape(1) != M) {
-    throw py::value_error(std::string(name) + ": expected shape (n, " + std::to_string(M) + "), got " +
-                          shape_str(phi));
+    throw py::value_error(std::string(name) + ": expected shape (n, " + std::to_string(M) + "), got " + shape_str(phi));
   }
   return static_cast<int>(phi.shape(0));
 }
@@ -38,8 +37,7 @@ int check_rows(const Arr& phi, const char* name) {
 template <int M>
 void check_len(const Arr& a, int n, const char* name) {
   if (a.ndim() != 1 || a.shape(0) != n) {
-    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(n) + ",), got " +
-                          shape_str(a));
+    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(n) + ",), got " + shape_str(a));
   }
 }
 
@@ -89,49 +87,50 @@ void bind_filter(py::module_& m, const std::string& name, const char* doc) {
   using Rec = typename F::Record;
   using D = fsw::ModalDecompositionRecord<double, M>;
   py::class_<F, std::unique_ptr<F>>(m, name.c_str(), doc)
-      .def(py::init([](const Arr& omega, const Arr& alpha, const Arr& sv, const Arr& sw, const Arr& sa,
-                       const Arr& qa, const Arr& qv, const Arr& qw, const Arr& qal, double gate, double ua,
-                       double ub, double uk) {
-             return std::make_unique<F>(
-                 filter_config<M>(omega, alpha, sv, sw, sa, qa, qv, qw, qal, gate, ua, ub, uk));
+      .def(py::init([](const Arr& omega, const Arr& alpha, const Arr& sv, const Arr& sw, const Arr& sa, const Arr& qa,
+                       const Arr& qv, const Arr& qw, const Arr& qal, double gate, double ua, double ub, double uk) {
+             return std::make_unique<F>(filter_config<M>(omega, alpha, sv, sw, sa, qa, qv, qw, qal, gate, ua, ub, uk));
            }),
            py::arg("omega_radps"), py::arg("alpha_ps"), py::arg("sigma_v0_ps"), py::arg("sigma_omega0_radps"),
            py::arg("sigma_alpha0_ps"), py::arg("q_a"), py::arg("q_v"), py::arg("q_omega"), py::arg("q_alpha"),
-           py::arg("gate_nis") = 0.0, py::arg("ut_alpha") = 1.0, py::arg("ut_beta") = 2.0,
-           py::arg("ut_kappa") = 0.0,
+           py::arg("gate_nis") = 0.0, py::arg("ut_alpha") = 1.0, py::arg("ut_beta") = 2.0, py::arg("ut_kappa") = 0.0,
            "Per-mode arrays (M,): expected frequency [rad/s] and damping [1/s] (eq. 7), initial 1-sigma of "
            "rate [1/s], frequency [rad/s], damping [1/s], process-noise densities (Q = diag(q) dt).")
       .def_property_readonly("initialized", &F::initialized)
-      .def("initialize", [](F& f, const D& r) { return std::string(fsw::to_string(f.initialize(r))); },
-           py::arg("record"))
-      .def("predict", [](F& f, double dt) { return std::string(fsw::to_string(f.predict(dt))); }, py::arg("dt_s"))
-      .def("update",
-           [](F& f, const D& r) {
-             Rec rec;
-             f.update(r, rec);
-             return step_dict(rec);
-           },
-           py::arg("record"))
-      .def("step",
-           [](F& f, double dt, const D& r) {
-             Rec rec;
-             f.step(dt, r, rec);
-             return step_dict(rec);
-           },
-           py::arg("dt_s"), py::arg("record"),
-           "Predict over dt_s then fuse the image's decomposition; the first Ok image initialises (eq. 7).")
-      .def_property_readonly("state",
-                             [](const F& f) {
-                               Eigen::Matrix<double, M, 4> s;
-                               for (int i = 0; i < M; ++i) s.row(i) = f.mode_state(i).transpose();
-                               return to_numpy(s);
-                             },
-                             "(M, 4): per mode [A, V [1/s], omega [rad/s], alpha [1/s]].")
+      .def(
+          "initialize", [](F& f, const D& r) { return std::string(fsw::to_string(f.initialize(r))); },
+          py::arg("record"))
+      .def(
+          "predict", [](F& f, double dt) { return std::string(fsw::to_string(f.predict(dt))); }, py::arg("dt_s"))
+      .def(
+          "update",
+          [](F& f, const D& r) {
+            Rec rec;
+            f.update(r, rec);
+            return step_dict(rec);
+          },
+          py::arg("record"))
+      .def(
+          "step",
+          [](F& f, double dt, const D& r) {
+            Rec rec;
+            f.step(dt, r, rec);
+            return step_dict(rec);
+          },
+          py::arg("dt_s"), py::arg("record"),
+          "Predict over dt_s then fuse the image's decomposition; the first Ok image initialises (eq. 7).")
+      .def_property_readonly(
+          "state",
+          [](const F& f) {
+            Eigen::Matrix<double, M, 4> s;
+            for (int i = 0; i < M; ++i) s.row(i) = f.mode_state(i).transpose();
+            return to_numpy(s);
+          },
+          "(M, 4): per mode [A, V [1/s], omega [rad/s], alpha [1/s]].")
       .def_property_readonly("state_std",
                              [](const F& f) {
                                Eigen::Matrix<double, M, 4> s;
-                               for (int i = 0; i < M; ++i)
-                                 s.row(i) = f.mode_cov(i).diagonal().cwiseSqrt().transpose();
+                               for (int i = 0; i < M; ++i) s.row(i) = f.mode_cov(i).diagonal().cwiseSqrt().transpose();
                                return to_numpy(s);
                              })
       .def_property_readonly("amplitudes",
@@ -183,8 +182,9 @@ void bind_acquisition(py::module_& m) {
            py::arg("cycles") = 3, py::arg("min_images") = 3,
            "A priori frequencies and their 1-sigma (M,) [rad/s]; the grid spans +-grid_sigmas sigma in 201 "
            "points; cycles RELAX passes over the modes.")
-      .def("add", [](A& a, double t, const R& r) { return std::string(fsw::to_string(a.add(t, r))); },
-           py::arg("t_s"), py::arg("record"), "Stores one image's decomposition; returns the status.")
+      .def(
+          "add", [](A& a, double t, const R& r) { return std::string(fsw::to_string(a.add(t, r))); }, py::arg("t_s"),
+          py::arg("record"), "Stores one image's decomposition; returns the status.")
       .def("search", [](A& a) { return std::string(fsw::to_string(a.search())); })
       .def("start_search", [](A& a) { return std::string(fsw::to_string(a.start_search())); })
       .def("search_step", [](A& a) { return std::string(fsw::to_string(a.search_step())); })
@@ -193,14 +193,15 @@ void bind_acquisition(py::module_& m) {
       .def_property_readonly("omega", [vec_of](const A& a) { return vec_of(a, &A::omega); })
       .def_property_readonly("cos_amp", [vec_of](const A& a) { return vec_of(a, &A::cos_amp); })
       .def_property_readonly("sin_amp", [vec_of](const A& a) { return vec_of(a, &A::sin_amp); })
-      .def("coarse",
-           [](A& a, int k) {
-             if (k < 0 || k >= a.images()) throw py::index_error("coarse: image index out of range");
-             R r;
-             a.coarse(k, r);
-             return r;
-           },
-           py::arg("k"), "Image k's coarse amplitudes and covariance rebuilt from the stored information.")
+      .def(
+          "coarse",
+          [](A& a, int k) {
+            if (k < 0 || k >= a.images()) throw py::index_error("coarse: image index out of range");
+            R r;
+            a.coarse(k, r);
+            return r;
+          },
+          py::arg("k"), "Image k's coarse amplitudes and covariance rebuilt from the stored information.")
       .def("replay_into", &replay<fsw::ModalUkfJoint<double, M>, M>, py::arg("filter"),
            "Resets the filter to its own configuration and steps it over every stored image; returns the "
            "number fused.")
@@ -240,42 +241,45 @@ void bind_size(py::module_& m) {
            "sigma_e_m: equal deflection noise [m] for eq. 4b (0: residual estimate); max_condition: bound on "
            "cond(M_Y); min_points: minimum usable points (at least M + 1).")
       .def("reset", &D::reset)
-      .def("add_points",
-           [](D& d, const Arr& phi, const Arr& z, const py::object& var) {
-             const int n = check_rows<M>(phi, "phi");
-             check_len<M>(z, n, "z_m");
-             if (var.is_none()) return d.add_points(phi.data(), z.data(), nullptr, n);
-             const Arr v = var.cast<Arr>();
-             check_len<M>(v, n, "var_m2");
-             return d.add_points(phi.data(), z.data(), v.data(), n);
-           },
-           py::arg("phi"), py::arg("z_m"), py::arg("var_m2") = py::none(),
-           "Adds n points: phi (n, M) mode-shape values, z_m (n,) deflections [m], var_m2 (n,) variances "
-           "[m^2] or None (eq. 4b). NaN points are skipped and counted. Returns the number used.")
-      .def("solve",
-           [](D& d) {
-             R r;
-             d.solve(r);
-             return r;
-           },
-           "Eqs. 3-4 for the points added since reset(); returns the record.")
-      .def("decompose",
-           [](D& d, const Arr& phi, const Arr& z, const py::object& var) {
-             const int n = check_rows<M>(phi, "phi");
-             check_len<M>(z, n, "z_m");
-             d.reset();
-             if (var.is_none()) {
-               d.add_points(phi.data(), z.data(), nullptr, n);
-             } else {
-               const Arr v = var.cast<Arr>();
-               check_len<M>(v, n, "var_m2");
-               d.add_points(phi.data(), z.data(), v.data(), n);
-             }
-             R r;
-             d.solve(r);
-             return r;
-           },
-           py::arg("phi"), py::arg("z_m"), py::arg("var_m2") = py::none(), "reset + add_points + solve.");
+      .def(
+          "add_points",
+          [](D& d, const Arr& phi, const Arr& z, const py::object& var) {
+            const int n = check_rows<M>(phi, "phi");
+            check_len<M>(z, n, "z_m");
+            if (var.is_none()) return d.add_points(phi.data(), z.data(), nullptr, n);
+            const Arr v = var.cast<Arr>();
+            check_len<M>(v, n, "var_m2");
+            return d.add_points(phi.data(), z.data(), v.data(), n);
+          },
+          py::arg("phi"), py::arg("z_m"), py::arg("var_m2") = py::none(),
+          "Adds n points: phi (n, M) mode-shape values, z_m (n,) deflections [m], var_m2 (n,) variances "
+          "[m^2] or None (eq. 4b). NaN points are skipped and counted. Returns the number used.")
+      .def(
+          "solve",
+          [](D& d) {
+            R r;
+            d.solve(r);
+            return r;
+          },
+          "Eqs. 3-4 for the points added since reset(); returns the record.")
+      .def(
+          "decompose",
+          [](D& d, const Arr& phi, const Arr& z, const py::object& var) {
+            const int n = check_rows<M>(phi, "phi");
+            check_len<M>(z, n, "z_m");
+            d.reset();
+            if (var.is_none()) {
+              d.add_points(phi.data(), z.data(), nullptr, n);
+            } else {
+              const Arr v = var.cast<Arr>();
+              check_len<M>(v, n, "var_m2");
+              d.add_points(phi.data(), z.data(), v.data(), n);
+            }
+            R r;
+            d.solve(r);
+            return r;
+          },
+          py::arg("phi"), py::arg("z_m"), py::arg("var_m2") = py::none(), "reset + add_points + solve.");
 
   bind_filter<fsw::ModalUkfBank<double, M>, M>(m, "ModalUkfBank" + sfx,
                                                "Bank of decoupled per-mode 4-state UKFs (eqs. 5-7).");

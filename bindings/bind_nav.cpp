@@ -6,7 +6,7 @@
 #include <string>
 
 #include "bind.hpp"
-#include "fsw/nav_ukf.hpp"
+#include "fsw/nav/nav_ukf.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
@@ -18,8 +18,7 @@ using Rec = Ukf::Record;
 }  // namespace
 
 void bind_nav(py::module_& m) {
-  py::class_<Cfg>(m, "NavConfig",
-                  "Navigation filter configuration (plain struct, all fields read/write, SI units).")
+  py::class_<Cfg>(m, "NavConfig", "Navigation filter configuration (plain struct, all fields read/write, SI units).")
       .def(py::init<>())
       .def_readwrite("n_radps", &Cfg::n_radps, "Orbit rate n [rad/s]; default 500 km circular.")
       .def_readwrite("dt_imu_s", &Cfg::dt_imu_s, "Nominal IMU period [s] (0.1).")
@@ -30,7 +29,8 @@ void bind_nav(py::module_& m) {
       .def_readwrite("gyro_bias_walk", &Cfg::gyro_bias_walk, "Gyro bias random walk [rad/s/sqrt(s)] (15-state only).")
       .def_readwrite("accel_bias_walk", &Cfg::accel_bias_walk,
                      "Accelerometer bias random walk [m/s^2/sqrt(s)] (15-state only).")
-      .def_readwrite("gate_chi2", &Cfg::gate_chi2, "NIS gate of the 6-dof pose update (22.46: p = 0.999); <= 0 disables.")
+      .def_readwrite("gate_chi2", &Cfg::gate_chi2,
+                     "NIS gate of the 6-dof pose update (22.46: p = 0.999); <= 0 disables.")
       .def_readwrite("max_delay_s", &Cfg::max_delay_s, "How late a pose may arrive [s] (0.5).")
       .def_readwrite("time_tol_s", &Cfg::time_tol_s, "A capture time within this of an IMU tick is on it [s].")
       .def_readwrite("max_dt_s", &Cfg::max_dt_s, "Longest accepted off-grid predict step [s].")
@@ -57,21 +57,25 @@ void bind_nav(py::module_& m) {
       });
 
   py::class_<Rec>(m, "NavStepRecord", "What one navigation filter step did.")
-      .def_property_readonly("status", [](const Rec& r) { return std::string(fsw::to_string(r.status)); },
-                             "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
-      .def_property_readonly("detail", [](const Rec& r) { return std::string(fsw::to_string(r.detail)); },
-                             "Finer reason, e.g. 'too_old', 'off_tick', 'time_not_increasing'.")
+      .def_property_readonly(
+          "status", [](const Rec& r) { return std::string(fsw::to_string(r.status)); },
+          "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
+      .def_property_readonly(
+          "detail", [](const Rec& r) { return std::string(fsw::to_string(r.detail)); },
+          "Finer reason, e.g. 'too_old', 'off_tick', 'time_not_increasing'.")
       .def_readonly("fused", &Rec::fused)
       .def_readonly("t_s", &Rec::t_s, "Time of the step (capture time for a pose) [s].")
-      .def_property_readonly("innovation", [](const Rec& r) { return to_numpy(r.innovation); },
-                             "(6,) [r_meas - r_pred (Hill, m), q_meas [-] q_pred (rad, body)]; zeros for predict.")
-      .def_property_readonly("innovation_cov", [](const Rec& r) { return to_numpy(r.innovation_cov); }, "(6, 6)")
+      .def_property_readonly(
+          "innovation", [](const Rec& r) { return to_numpy(r.innovation); },
+          "(6,) [r_meas - r_pred (Hill, m), q_meas [-] q_pred (rad, body)]; zeros for predict.")
+      .def_property_readonly(
+          "innovation_cov", [](const Rec& r) { return to_numpy(r.innovation_cov); }, "(6, 6)")
       .def_readonly("nis", &Rec::nis, "Normalised innovation squared y^T S^-1 y.")
-      .def_readonly("log_likelihood", &Rec::log_likelihood, "log p_z (seed 002 Table 1 step 14).")
+      .def_readonly("log_likelihood", &Rec::log_likelihood, "log p_z (Rogers-Marcovitz, Table 1 step 14).")
       .def("__repr__", [](const Rec& r) {
         return std::string("NavStepRecord(status='") + fsw::to_string(r.status) + "', detail='" +
-               fsw::to_string(r.detail) + "', fused=" + (r.fused ? "True" : "False") + ", nis=" + std::to_string(r.nis) +
-               ")";
+               fsw::to_string(r.detail) + "', fused=" + (r.fused ? "True" : "False") +
+               ", nis=" + std::to_string(r.nis) + ")";
       });
 
   py::class_<Ukf>(m, "NavUkf",
@@ -119,10 +123,13 @@ void bind_nav(py::module_& m) {
       .def_property_readonly("t_s", &Ukf::t_s)
       .def_property_readonly("r_hill_m", [](const Ukf& u) { return to_numpy(u.state().r_hill_m); })
       .def_property_readonly("v_hill_mps", [](const Ukf& u) { return to_numpy(u.state().v_hill_mps); })
-      .def_property_readonly("q_hb", [](const Ukf& u) { return quat_to_numpy(u.state().q_hb); }, "[w, x, y, z]")
-      .def_property_readonly("P", [](const Ukf& u) { return to_numpy(u.P()); }, "(9, 9) over [dr, dv, dtheta].")
+      .def_property_readonly(
+          "q_hb", [](const Ukf& u) { return quat_to_numpy(u.state().q_hb); }, "[w, x, y, z]")
+      .def_property_readonly(
+          "P", [](const Ukf& u) { return to_numpy(u.P()); }, "(9, 9) over [dr, dv, dtheta].")
       .def_property_readonly("initialized", &Ukf::initialized)
       .def_property_readonly("history_count", &Ukf::history_count)
       .def_property_readonly_static("history_capacity", [](py::object) { return Ukf::kHistoryCapacity; })
-      .def("state", [](const Ukf& u) { return to_numpy(u.state().stored()); }, "(10,) [r(3), v(3), q_wxyz(4)].");
+      .def(
+          "state", [](const Ukf& u) { return to_numpy(u.state().stored()); }, "(10,) [r(3), v(3), q_wxyz(4)].");
 }

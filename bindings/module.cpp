@@ -4,7 +4,7 @@
 
 PYBIND11_MODULE(fsw_bindings, m) {
   m.doc() =
-      "Flight software core (fsw/) for the bench. Frames and units as in DESIGN.md: Hill frame "
+      "Flight software core (fsw/) for the bench. Frames and units as in docs/CONVENTIONS.md: Hill frame "
       "(x radial, y along-track, z orbit normal), SI units, quaternions scalar-first [w, x, y, z] "
       "rotating body vectors into the Hill frame.";
   bind_so3(m);

@@ -11,7 +11,7 @@
 #include <cmath>
 #include <string>
 
-#include "fsw/so3.hpp"
+#include "fsw/math/so3.hpp"
 
 namespace py = pybind11;
 
@@ -32,15 +32,14 @@ inline std::string shape_str(const Arr& a) {
 template <int N>
 Eigen::Matrix<double, N, 1> vec(const Arr& a, const char* name) {
   if (a.ndim() != 1 || a.shape(0) != N) {
-    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(N) +
-                          ",), got " + shape_str(a));
+    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(N) + ",), got " + shape_str(a));
   }
   Eigen::Matrix<double, N, 1> v;
   for (int i = 0; i < N; ++i) {
     v(i) = a.at(i);
     if (!std::isfinite(v(i))) {
-      throw py::value_error(std::string(name) + ": element " + std::to_string(i) +
-                            " is not finite (" + std::to_string(v(i)) + ")");
+      throw py::value_error(std::string(name) + ": element " + std::to_string(i) + " is not finite (" +
+                            std::to_string(v(i)) + ")");
     }
   }
   return v;
@@ -50,16 +49,16 @@ Eigen::Matrix<double, N, 1> vec(const Arr& a, const char* name) {
 template <int R, int C>
 Eigen::Matrix<double, R, C> mat(const Arr& a, const char* name) {
   if (a.ndim() != 2 || a.shape(0) != R || a.shape(1) != C) {
-    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(R) + ", " +
-                          std::to_string(C) + "), got " + shape_str(a));
+    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(R) + ", " + std::to_string(C) +
+                          "), got " + shape_str(a));
   }
   Eigen::Matrix<double, R, C> m;
   for (int i = 0; i < R; ++i) {
     for (int j = 0; j < C; ++j) {
       m(i, j) = a.at(i, j);
       if (!std::isfinite(m(i, j))) {
-        throw py::value_error(std::string(name) + ": element (" + std::to_string(i) + ", " +
-                              std::to_string(j) + ") is not finite");
+        throw py::value_error(std::string(name) + ": element (" + std::to_string(i) + ", " + std::to_string(j) +
+                              ") is not finite");
       }
     }
   }

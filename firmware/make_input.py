@@ -9,7 +9,7 @@ records every byte sent up), so the recording is what the ground sent to a
 flight side that answered: cmd_config, cmd_reset, imu_sample, led_pose,
 thruster_valves.
 
-Structure: range images of the seed's 10-mode plate (bench/structure.py),
+Structure: range images of the range-image paper's 10-mode plate (bench/structure.py),
 one a minute, each thinned to points spread evenly over its rays, as
 range_image_segment packets; enough images for the tracker's frequency
 acquisition (2 periods of the lowest mode). Their packets are interleaved

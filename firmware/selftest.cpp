@@ -6,12 +6,13 @@
 
 #include <new>
 
-#include "fsw/blr.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/flight_app.hpp"
-#include "fsw/framer.hpp"
-#include "fsw/modal_tracker.hpp"
-#include "fsw/nav_ukf.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/app/range_segment.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/link/framer.hpp"
+#include "fsw/modal/modal_tracker.hpp"
+#include "fsw/nav/nav_ukf.hpp"
+#include "fsw/thrusters/blr.hpp"
 
 namespace fwtest {
 namespace {
@@ -237,20 +238,23 @@ int run_components(const std::uint8_t* input, std::size_t n, Lines& out, Meter& 
       case fsw::Apid::RangeImageSegment: {
         fsw::RangeImageSegmentMsg<S> m;
         fsw::decode(p.payload, p.t_s, p.header.seq_flags, m);
+        fsw::ModalSegmentPoints<S> points;
+        const fsw::ModalSegment<S> segment = fsw::modal_segment_of(m, points);
         Modal::Report rep;
         meter.start();
         const bool other = c->modal.close_other(m.image_id, rep);
-        const bool closed = c->modal.add(m, p.t_s, rep);
+        const bool closed = c->modal.add(segment, p.t_s, rep);
         used = meter.stop();
         if (other) status = 1;  // the recording loses no segment
-        out.str(!closed ? "C modal_segment " : rep.acquired ? "C modal_image_acquisition " : "C modal_image ")
+        out.str(!closed        ? "C modal_segment "
+                : rep.acquired ? "C modal_image_acquisition "
+                               : "C modal_image ")
             .num(used)
             .end();
         if (closed && !rep.step.fused) status = 1;
         break;
       }
-      default:
-        break;
+      default: break;
     }
   }
   // The thruster learner on its own: a window of 30 filled and run over by

@@ -24,7 +24,7 @@ from hil_sim import packets as pk
 from hil_sim.pty_link import PtyLink
 
 STATUS_NAMES = ("ok", "gated", "not_pos_def", "bad_input")
-_KIND_POSE = 1  # StepKind::PoseUpdate (fsw/include/fsw/flight_app.hpp)
+_KIND_POSE = 1  # StepKind::PoseUpdate (fsw/include/fsw/app/flight_app.hpp)
 _IMU = pk.APID_BY_NAME["imu_sample"].apid
 _POSE = pk.APID_BY_NAME["led_pose"].apid
 _RESET = pk.APID_BY_NAME["cmd_reset"].apid
@@ -138,7 +138,7 @@ class LinkNav:
         """cmd_config (no answer expected)."""
         self._send(_CONFIG, t_s, pk.pack_payload(_CONFIG, param_id, 0, value))
 
-    # cmd_config parameter ids (fsw/include/fsw/flight_app.hpp, docs/LINK.md)
+    # cmd_config parameter ids (fsw/include/fsw/app/flight_app.hpp, docs/LINK.md)
     NAV_PARAMS = {"accel_sigma_mps2": 4, "gyro_sigma_rps": 5, "gate_chi2": 6, "max_delay_s": 7,
                   "n_radps": 8, "dt_imu_s": 9}
 

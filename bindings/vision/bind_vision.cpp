@@ -44,16 +44,28 @@ py::array_t<double> points_to_numpy(const std::array<cv::Point2d, fsw_vision::kN
   return out;
 }
 
-}  // namespace
+// Blobs as rows [u_px, v_px, flux, area_px, sigma_px, n_saturated,
+// sigma_noise_px, width_px].
+py::array_t<double> blobs_to_numpy(const std::vector<fsw_vision::Blob>& blobs) {
+  py::array_t<double> out({static_cast<py::ssize_t>(blobs.size()), py::ssize_t(8)});
+  for (size_t i = 0; i < blobs.size(); ++i) {
+    out.mutable_at(i, 0) = blobs[i].u_px;
+    out.mutable_at(i, 1) = blobs[i].v_px;
+    out.mutable_at(i, 2) = blobs[i].flux;
+    out.mutable_at(i, 3) = blobs[i].area_px;
+    out.mutable_at(i, 4) = blobs[i].sigma_px;
+    out.mutable_at(i, 5) = blobs[i].n_saturated;
+    out.mutable_at(i, 6) = blobs[i].sigma_noise_px;
+    out.mutable_at(i, 7) = blobs[i].width_px;
+  }
+  return out;
+}
 
-void bind_vision(py::module_& m) {
-  py::class_<LedPoseConfig>(m, "LedPoseConfig",
-                            "LED pose pipeline configuration: camera (intrinsics, distortion, mount on the "
-                            "inspector), LED pattern (host body frame) and detection / pose thresholds.")
-      .def(py::init<>())
-      .def_property(
-          "width", [](const LedPoseConfig& c) { return c.camera.width; },
-          [](LedPoseConfig& c, int v) { c.camera.width = int(positive(v, "width")); }, "Image width [px].")
+// The camera: intrinsics, distortion and its mount on the inspector.
+void bind_camera(py::class_<LedPoseConfig>& cls) {
+  cls.def_property(
+         "width", [](const LedPoseConfig& c) { return c.camera.width; },
+         [](LedPoseConfig& c, int v) { c.camera.width = int(positive(v, "width")); }, "Image width [px].")
       .def_property(
           "height", [](const LedPoseConfig& c) { return c.camera.height; },
           [](LedPoseConfig& c, int v) { c.camera.height = int(positive(v, "height")); }, "Image height [px].")
@@ -89,15 +101,19 @@ void bind_vision(py::module_& m) {
       .def_property(
           "p_cam_b_m", [](const LedPoseConfig& c) { return to_numpy(c.camera.p_cam_b_m); },
           [](LedPoseConfig& c, const Arr& a) { c.camera.p_cam_b_m = vec<3>(a, "p_cam_b_m"); },
-          "Camera centre relative to the inspector's centre of mass, body frame [m].")
-      .def_property_readonly(
-          "pattern_host_m",
-          [](const LedPoseConfig& c) {
-            Eigen::Matrix<double, fsw_vision::kNumLeds, 3> P;
-            for (int i = 0; i < fsw_vision::kNumLeds; ++i) P.row(i) = c.pattern.p_host_m[i].transpose();
-            return to_numpy(P);
-          },
-          "LED positions in the host body frame [m], rows: corners 0..3, identifier.")
+          "Camera centre relative to the inspector's centre of mass, body frame [m].");
+}
+
+// The LED pattern on the host.
+void bind_pattern(py::class_<LedPoseConfig>& cls) {
+  cls.def_property_readonly(
+         "pattern_host_m",
+         [](const LedPoseConfig& c) {
+           Eigen::Matrix<double, fsw_vision::kNumLeds, 3> P;
+           for (int i = 0; i < fsw_vision::kNumLeds; ++i) P.row(i) = c.pattern.p_host_m[i].transpose();
+           return to_numpy(P);
+         },
+         "LED positions in the host body frame [m], rows: corners 0..3, identifier.")
       .def_property_readonly(
           "pattern_normal_host", [](const LedPoseConfig& c) { return to_numpy(c.pattern.normal_host); },
           "Outward normal of the LED face, host body frame.")
@@ -108,8 +124,12 @@ void bind_vision(py::module_& m) {
                                                     finite(face_offset_m, "face_offset_m"));
           },
           py::arg("half_side_m"), py::arg("face_offset_m"),
-          "Square of side 2*half_side_m on the host face at x = face_offset_m [m].")
-      .def_readwrite("background_kernel_px", &LedPoseConfig::background_kernel_px)
+          "Square of side 2*half_side_m on the host face at x = face_offset_m [m].");
+}
+
+// Detection, identification, centroid and pose thresholds.
+void bind_thresholds(py::class_<LedPoseConfig>& cls) {
+  cls.def_readwrite("background_kernel_px", &LedPoseConfig::background_kernel_px)
       .def_readwrite("threshold_counts", &LedPoseConfig::threshold_counts,
                      "Detection threshold above the local background [counts].")
       .def_readwrite("faint_sigma_px", &LedPoseConfig::faint_sigma_px,
@@ -150,13 +170,16 @@ void bind_vision(py::module_& m) {
                      "Merged identifier: the two-spot fit must beat one spot by this chi^2 (0: off).")
       .def_readwrite("merged_id_margin_dchi2", &LedPoseConfig::merged_id_margin_dchi2,
                      "... and every other labelling's two-spot fit by this chi^2.");
+}
 
+void bind_measurement(py::module_& m) {
   py::class_<LedPoseMeasurement>(m, "LedPoseMeasurement",
                                  "Pose measurement for NavUkf.update_pose: r_hill_m (inspector relative to host, "
                                  "Hill, m), q_hb [w,x,y,z], R (6x6: position m^2, body attitude error rad^2).")
-      .def_property_readonly("status", [](const LedPoseMeasurement& r) { return std::string(to_string(r.status)); },
-                             "'Ok' | 'TooFewLeds' | 'AmbiguousIdentity' | 'TargetBehindCamera' | "
-                             "'DegenerateGeometry' | 'SolverFailed' | 'BadInput'")
+      .def_property_readonly(
+          "status", [](const LedPoseMeasurement& r) { return std::string(to_string(r.status)); },
+          "'Ok' | 'TooFewLeds' | 'AmbiguousIdentity' | 'TargetBehindCamera' | "
+          "'DegenerateGeometry' | 'SolverFailed' | 'BadInput'")
       .def_property_readonly("ok", [](const LedPoseMeasurement& r) { return r.status == fsw_vision::PoseStatus::Ok; })
       .def_readonly("t_capture_s", &LedPoseMeasurement::t_capture_s)
       .def_property_readonly("r_hill_m", [](const LedPoseMeasurement& r) { return to_numpy(r.r_hill_m); })
@@ -170,15 +193,16 @@ void bind_vision(py::module_& m) {
       .def_readonly("range_m", &LedPoseMeasurement::range_m, "Camera to pattern centre [m].")
       .def_readonly("identifier_split", &LedPoseMeasurement::identifier_split,
                     "True when the identifier came from a two-spot fit of a blob merged with its corner.")
-      .def_property_readonly("blob_of_led",
-                             [](const LedPoseMeasurement& r) {
-                               return std::vector<int>(r.blob_of_led.begin(), r.blob_of_led.end());
-                             })
+      .def_property_readonly(
+          "blob_of_led",
+          [](const LedPoseMeasurement& r) { return std::vector<int>(r.blob_of_led.begin(), r.blob_of_led.end()); })
       .def("__repr__", [](const LedPoseMeasurement& r) {
         return "LedPoseMeasurement(status=" + std::string(to_string(r.status)) +
                ", t_capture_s=" + std::to_string(r.t_capture_s) + ", range_m=" + std::to_string(r.range_m) + ")";
       });
+}
 
+void bind_estimator(py::module_& m) {
   py::class_<LedPoseEstimator>(m, "LedPoseEstimator", "Image of the host's LED pattern -> pose measurement.")
       .def(py::init<const LedPoseConfig&>(), py::arg("config") = LedPoseConfig())
       .def_property_readonly("config", &LedPoseEstimator::config)
@@ -206,22 +230,9 @@ void bind_vision(py::module_& m) {
           "Identification and pose from blob centres (N, 2) [u, v] px, optional centroid sigma per point [px].")
       .def(
           "detect",
-          [](const LedPoseEstimator& e, const Img& image) {
-            const auto blobs = e.detect(wrap_image(image));
-            py::array_t<double> out({static_cast<py::ssize_t>(blobs.size()), py::ssize_t(8)});
-            for (size_t i = 0; i < blobs.size(); ++i) {
-              out.mutable_at(i, 0) = blobs[i].u_px;
-              out.mutable_at(i, 1) = blobs[i].v_px;
-              out.mutable_at(i, 2) = blobs[i].flux;
-              out.mutable_at(i, 3) = blobs[i].area_px;
-              out.mutable_at(i, 4) = blobs[i].sigma_px;
-              out.mutable_at(i, 5) = blobs[i].n_saturated;
-              out.mutable_at(i, 6) = blobs[i].sigma_noise_px;
-              out.mutable_at(i, 7) = blobs[i].width_px;
-            }
-            return out;
-          },
-          py::arg("image"), "Blobs, brightest first: rows [u_px, v_px, flux, area_px, sigma_px, n_saturated, sigma_noise_px, width_px] "
+          [](const LedPoseEstimator& e, const Img& image) { return blobs_to_numpy(e.detect(wrap_image(image))); },
+          py::arg("image"),
+          "Blobs, brightest first: rows [u_px, v_px, flux, area_px, sigma_px, n_saturated, sigma_noise_px, width_px] "
           "(sigma_noise_px: the propagated pixel noise before the calibration's scale and terms; width_px: "
           "the spot's width from its moments).")
       .def(
@@ -243,4 +254,18 @@ void bind_vision(py::module_& m) {
           },
           py::arg("r_hill_m"), py::arg("q_hb"), py::arg("q_h_host") = identity_wxyz(),
           "d(pixels)/d[r_hill_m, dtheta_b], (10, 6): rows u0, v0, u1, ...");
+}
+
+}  // namespace
+
+void bind_vision(py::module_& m) {
+  py::class_<LedPoseConfig> config(m, "LedPoseConfig",
+                                   "LED pose pipeline configuration: camera (intrinsics, distortion, mount on the "
+                                   "inspector), LED pattern (host body frame) and detection / pose thresholds.");
+  config.def(py::init<>());
+  bind_camera(config);
+  bind_pattern(config);
+  bind_thresholds(config);
+  bind_measurement(m);
+  bind_estimator(m);
 }

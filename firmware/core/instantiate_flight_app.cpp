@@ -1,6 +1,6 @@
 // The firmware's flight core, float only: the flight application (link in,
 // telemetry out; the components above are linked, not compiled again).
-#include "fsw/flight_app.hpp"
+#include "fsw/app/flight_app.hpp"
 
 namespace fsw {
 template class FlightApp<float>;

@@ -1,7 +1,7 @@
 // The firmware's flight core, float only: the modal estimator at the flight
-// application's mode count. (The host's fsw/src/instantiate_*.cpp compile
+// application's mode count. (The host's fsw/src/*/instantiate_*.cpp compile
 // float and double at every mode count; the firmware needs this one.)
-#include "fsw/modal_tracker.hpp"
+#include "fsw/modal/modal_tracker.hpp"
 
 namespace fsw {
 template class ModalDecomposition<float, 10>;

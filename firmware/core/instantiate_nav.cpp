@@ -1,8 +1,8 @@
 // The firmware's flight core, float only: the navigation UKF (9 states) and
 // the CW propagator it uses.
-#include "fsw/cw.hpp"
-#include "fsw/nav_state.hpp"
-#include "fsw/nav_ukf.hpp"
+#include "fsw/dynamics/cw.hpp"
+#include "fsw/nav/nav_state.hpp"
+#include "fsw/nav/nav_ukf.hpp"
 
 namespace fsw {
 template class CwPropagator<float>;

@@ -23,7 +23,8 @@ asm(".section .rodata.fw_input,\"a\",%progbits\n"
     ".balign 4\n"
     ".type fw_input_begin, %object\n"
     "fw_input_begin:\n"
-    ".incbin \"" FW_INPUT_PATH "\"\n"
+    ".incbin \"" FW_INPUT_PATH
+    "\"\n"
     "fw_input_end:\n"
     ".size fw_input_begin, fw_input_end - fw_input_begin\n"
     ".previous\n");

@@ -1,10 +1,10 @@
 // RAM taken by each flight object, for the size report: one symbol per
 // object whose size is the object's, in a section that is not loaded
 // (.fw_sizes, INFO in the linker script). Nothing here is in the image.
-#include "fsw/blr.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/flight_app.hpp"
-#include "fsw/framer.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/link/framer.hpp"
+#include "fsw/thrusters/blr.hpp"
 
 #define FW_SIZE(name, ...) \
   extern "C" __attribute__((section(".fw_sizes"), used)) const unsigned char fw_size_##name[sizeof(__VA_ARGS__)] = {};

@@ -14,7 +14,7 @@
 #include <cstring>
 #include <memory>
 
-#include "fsw/flight_app.hpp"
+#include "fsw/app/flight_app.hpp"
 #include "serial_port.hpp"
 
 namespace {
@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
   }
   if (device == nullptr) return usage(argv[0]);
 
-  struct sigaction sa{};
+  struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
@@ -135,9 +135,9 @@ int main(int argc, char** argv) {
                  "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u, "
                  "frequency acquisitions %u), resets refused %u, telemetry packets %u (dropped %u, "
                  "non-finite values clamped %u)\n",
-                 l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates,
-                 c.pose_fused, c.poses_deferred, c.learner_samples, m.images, m.images_fused, m.acquisitions,
-                 c.resets_refused, c.tx_packets, c.tx_dropped, c.tm_values_clamped);
+                 l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates, c.pose_fused,
+                 c.poses_deferred, c.learner_samples, m.images, m.images_fused, m.acquisitions, c.resets_refused,
+                 c.tx_packets, c.tx_dropped, c.tm_values_clamped);
   }
   return 0;
 }

@@ -1,6 +1,6 @@
-// The seed-001 scenario shared by the feature-filter tests: leader orbit
+// The feature paper's scenario shared by the feature-filter tests: leader orbit
 // a = 7200 km, e = 0.02; follower J = diag(522, 420, 600) kg m^2; f = 0.5 m;
-// the seed's points D1-D4, lines L1-L4 and circles 1-2; a camera 1 m off the
+// the feature paper's points D1-D4, lines L1-L4 and circles 1-2; a camera 1 m off the
 // follower's centre of mass. Truth is stepped with a finer RK4 than the
 // filters' and the image coordinates come from the models plus seeded noise.
 #pragma once
@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <random>
 
-#include "fsw/feature_filter.hpp"
+#include "fsw/features/feature_filter.hpp"
 
 namespace feature_scenario {
 
@@ -54,7 +54,7 @@ typename Ekf<S>::Features features(int which = 7) {
 }
 
 // True initial state: the leader feature origin seen at [-20, 35, 60] m in
-// the camera, attitude 5.5 deg from the seed's first guess.
+// the camera, attitude 5.5 deg from the feature paper's first guess.
 template <typename S>
 typename Ekf<S>::State truth0() {
   const auto cfg = config<S>();
@@ -69,7 +69,7 @@ typename Ekf<S>::State truth0() {
   return x;
 }
 
-// The seed's first initial guess: identity attitude, leader origin at
+// The feature paper's first initial guess: identity attitude, leader origin at
 // [-30, 45, 50] m in the camera, zero rates; circle angles 0.3 rad off.
 template <typename S>
 typename Ekf<S>::State guess1() {
@@ -82,7 +82,7 @@ typename Ekf<S>::State guess1() {
   return x;
 }
 
-// The seed's second (larger) initial guess.
+// The feature paper's second (larger) initial guess.
 template <typename S>
 typename Ekf<S>::State guess2() {
   const auto cfg = config<S>();

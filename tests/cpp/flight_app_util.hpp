@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <vector>
 
-#include "fsw/apid.hpp"
-#include "fsw/deframer.hpp"
-#include "fsw/flight_app.hpp"
-#include "fsw/framer.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/link/apid.hpp"
+#include "fsw/link/deframer.hpp"
+#include "fsw/link/framer.hpp"
 
 namespace flight_app_test {
 
@@ -115,12 +115,42 @@ struct Telemetry {
       if (r.kind != DeframeResult::Kind::Packet) continue;
       const PacketView& p = r.packet;
       switch (static_cast<Apid>(p.header.apid)) {
-        case Apid::TmEstimate: { TmEstimateMsg<double> m; decode(p.payload, p.t_s, m); estimates.push_back(m); break; }
-        case Apid::TmInnovation: { TmInnovationMsg<double> m; decode(p.payload, p.t_s, m); innovations.push_back(m); break; }
-        case Apid::TmCovarianceDiag: { TmCovarianceDiagMsg<double> m; decode(p.payload, p.t_s, m); covariances.push_back(m); break; }
-        case Apid::TmLearner: { TmLearnerMsg<double> m; decode(p.payload, p.t_s, m); learner.push_back(m); break; }
-        case Apid::TmModal: { TmModalMsg<double> m; decode(p.payload, p.t_s, m); modal.push_back(m); break; }
-        case Apid::TmHousekeeping: { TmHousekeepingMsg<double> m; decode(p.payload, p.t_s, m); housekeeping.push_back(m); break; }
+        case Apid::TmEstimate: {
+          TmEstimateMsg<double> m;
+          decode(p.payload, p.t_s, m);
+          estimates.push_back(m);
+          break;
+        }
+        case Apid::TmInnovation: {
+          TmInnovationMsg<double> m;
+          decode(p.payload, p.t_s, m);
+          innovations.push_back(m);
+          break;
+        }
+        case Apid::TmCovarianceDiag: {
+          TmCovarianceDiagMsg<double> m;
+          decode(p.payload, p.t_s, m);
+          covariances.push_back(m);
+          break;
+        }
+        case Apid::TmLearner: {
+          TmLearnerMsg<double> m;
+          decode(p.payload, p.t_s, m);
+          learner.push_back(m);
+          break;
+        }
+        case Apid::TmModal: {
+          TmModalMsg<double> m;
+          decode(p.payload, p.t_s, m);
+          modal.push_back(m);
+          break;
+        }
+        case Apid::TmHousekeeping: {
+          TmHousekeepingMsg<double> m;
+          decode(p.payload, p.t_s, m);
+          housekeeping.push_back(m);
+          break;
+        }
         case Apid::TmLinkCounters: ++link_counters; break;
         default: break;
       }

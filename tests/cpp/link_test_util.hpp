@@ -6,10 +6,10 @@
 #include <cstring>
 #include <vector>
 
-#include "fsw/apid.hpp"
-#include "fsw/crc16.hpp"
-#include "fsw/framer.hpp"
-#include "fsw/space_packet.hpp"
+#include "fsw/link/apid.hpp"
+#include "fsw/link/crc16.hpp"
+#include "fsw/link/framer.hpp"
+#include "fsw/link/space_packet.hpp"
 
 namespace link_test {
 
@@ -36,8 +36,7 @@ inline Bytes valid_payload(const fsw::ApidInfo& info) {
 
 // Packet bytes (with CRC) from explicit header fields; data_length is
 // computed unless given.
-inline Bytes raw_packet(const fsw::PrimaryHeader& h_in, double t_s, const Bytes& payload,
-                        bool fix_length = true) {
+inline Bytes raw_packet(const fsw::PrimaryHeader& h_in, double t_s, const Bytes& payload, bool fix_length = true) {
   fsw::PrimaryHeader h = h_in;
   Bytes b(fsw::kPacketHeaderSize + payload.size());
   if (fix_length) h.data_length = static_cast<std::uint16_t>(b.size() - fsw::kPrimaryHeaderSize - 1);

@@ -1,4 +1,4 @@
-// The seed's plate vibrating (bench/structure.py's Plate, 10 modes), seen
+// The range-image paper's plate vibrating (bench/structure.py's Plate, 10 modes), seen
 // as range images for the modal tests: random amplitudes in [0, 1] and
 // phases, n x n points over the central quarter, 3 % range noise at 600 m.
 #pragma once
@@ -7,8 +7,8 @@
 #include <random>
 #include <vector>
 
-#include "fsw/plate_modes.hpp"
-#include "fsw/so3.hpp"
+#include "fsw/math/so3.hpp"
+#include "fsw/modal/plate_modes.hpp"
 
 namespace plate_scene {
 
@@ -37,7 +37,7 @@ struct PlateScene {
     p.clear();
     sig.clear();
     const double lx = truth.config().lx_m, ly = truth.config().ly_m;
-    double phi[kM];
+    double phi[kM] = {};
     for (int r = 0; r < n_side; ++r)
       for (int c = 0; c < n_side; ++c) {
         const double x = lx * (0.25 + 0.5 * (c + 0.5) / n_side), y = ly * (0.25 + 0.5 * (r + 0.5) / n_side);

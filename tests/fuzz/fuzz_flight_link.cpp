@@ -20,8 +20,8 @@
 #include <cstdlib>
 #include <new>
 
-#include "fsw/deframer.hpp"
-#include "fsw/flight_app.hpp"
+#include "fsw/app/flight_app.hpp"
+#include "fsw/link/deframer.hpp"
 
 namespace {
 
@@ -68,10 +68,8 @@ App* run(const std::uint8_t* data, std::size_t size, std::size_t chunk, int slot
       const std::size_t k = bench_side.feed(g_tx + off, tx - off, res);
       if (k == 0) fail("bench deframer made no progress on telemetry");
       off += k;
-      if (res.kind == fsw::DeframeResult::Kind::Rejected &&
-          res.reason != fsw::RejectReason::TimeBackwards &&
-          res.reason != fsw::RejectReason::DuplicateSequence &&
-          res.reason != fsw::RejectReason::StaleSequence) {
+      if (res.kind == fsw::DeframeResult::Kind::Rejected && res.reason != fsw::RejectReason::TimeBackwards &&
+          res.reason != fsw::RejectReason::DuplicateSequence && res.reason != fsw::RejectReason::StaleSequence) {
         // Time tags come from the fuzzed input (a reset may rewind them);
         // anything else means the flight side built a bad frame.
         std::fprintf(stderr, "telemetry rejected: %s\n", fsw::to_string(res.reason));

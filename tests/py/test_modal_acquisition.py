@@ -1,4 +1,4 @@
-"""The flight frequency acquisition (fsw/include/fsw/modal_acquisition.hpp)
+"""The flight frequency acquisition (fsw/include/fsw/modal/modal_acquisition.hpp)
 through the bindings: on a simulated plate it picks the same grid
 frequencies as the numpy RELAX of bench/modal_batch_ml.py, and its inputs are
 checked."""

@@ -75,9 +75,7 @@ Eigen::Quaterniond host_attitude() {
   return Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.3, -0.5, 0.8).normalized()));
 }
 
-double angle_between(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
-  return a.angularDistance(b);
-}
+double angle_between(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) { return a.angularDistance(b); }
 
 class LedPoseTest : public ::testing::Test {
  protected:
@@ -491,10 +489,10 @@ TEST_F(LedPoseTest, TwoFaintSpotsAFewPixelsApartAreSplitAndCarryTheCrowdingTerm)
     const auto alone = est.detect(faint_image({a}, 2.15, 300.0, seed));
     ASSERT_EQ(alone.size(), 1u);
     for (const cv::Point2d& p : {a, b}) {
-      const fsw_vision::Blob& k = std::hypot(blobs[0].u_px - p.x, blobs[0].v_px - p.y) <
-                              std::hypot(blobs[1].u_px - p.x, blobs[1].v_px - p.y)
-                          ? blobs[0]
-                          : blobs[1];
+      const fsw_vision::Blob& k =
+          std::hypot(blobs[0].u_px - p.x, blobs[0].v_px - p.y) < std::hypot(blobs[1].u_px - p.x, blobs[1].v_px - p.y)
+              ? blobs[0]
+              : blobs[1];
       EXPECT_LT(std::hypot(k.u_px - p.x, k.v_px - p.y), 4.0 * k.sigma_px) << "seed " << seed;
       EXPECT_GT(k.sigma_px, 1.5 * alone[0].sigma_px);
       ++checked;

@@ -16,7 +16,7 @@
 // to the navigation filter's measurement coordinates.
 //
 // Frames: host body (pattern coordinates, origin at the host's centre of
-// mass), Hill (DESIGN.md), inspector body b, camera c (OpenCV: x right,
+// mass), Hill (docs/CONVENTIONS.md), inspector body b, camera c (OpenCV: x right,
 // y down, z along the optical axis). Quaternions rotate body vectors into the
 // frame named first: q_hb takes inspector body to Hill, q_h_host takes host
 // body to Hill. Boundary arrays are scalar-first [w, x, y, z].
@@ -33,6 +33,13 @@
 
 namespace fsw_vision {
 
+struct SpotFit;
+namespace detail {  // internals of the pipeline (fsw/vision/src/led_pose_detail.hpp)
+struct Hypothesis;
+struct MergedCandidate;
+struct MergedFit;
+}  // namespace detail
+
 enum class PoseStatus : int {
   Ok = 0,
   TooFewLeds,          // fewer than the five pattern LEDs found
@@ -44,7 +51,7 @@ enum class PoseStatus : int {
 };
 const char* to_string(PoseStatus s);
 
-constexpr int kNumLeds = 5;     // corners 0..3, identifier 4
+constexpr int kNumLeds = 5;  // corners 0..3, identifier 4
 constexpr int kIdentifier = 4;
 
 // Pinhole camera with OpenCV's radial-tangential distortion and its mount on
@@ -89,8 +96,8 @@ struct LedPoseConfig {
   CameraModel camera;
   LedPattern pattern = default_pattern();
   // Detection.
-  int background_kernel_px = 31;   // box filter for the local background
-  int threshold_counts = 20;       // above local background
+  int background_kernel_px = 31;  // box filter for the local background
+  int threshold_counts = 20;      // above local background
   // Faint spots: the background-subtracted image smoothed by a Gaussian of
   // faint_sigma_px (0: off), split at its local maxima above
   // faint_threshold_counts where it touches no component of the plain
@@ -101,30 +108,30 @@ struct LedPoseConfig {
   double faint_threshold_counts = 3.0;
   int min_area_px = 2;
   int max_area_px = 2500;
-  int max_extent_px = 80;          // bounding-box side
-  double max_elongation = 4.0;     // ratio of second-moment eigenvalues
-  int max_blobs = 16;              // brightest kept for identification
+  int max_extent_px = 80;       // bounding-box side
+  double max_elongation = 4.0;  // ratio of second-moment eigenvalues
+  int max_blobs = 16;           // brightest kept for identification
   // Identification.
-  double line_tol_px = 1.5;        // identifier off the edge: absolute part
-  double line_tol_rel = 0.04;      // ... and relative to the edge length
-  double id_fraction_min = 0.08;   // accepted image fraction along edge 0 -> 1
+  double line_tol_px = 1.5;       // identifier off the edge: absolute part
+  double line_tol_rel = 0.04;     // ... and relative to the edge length
+  double id_fraction_min = 0.08;  // accepted image fraction along edge 0 -> 1
   double id_fraction_max = 0.45;
   double min_quad_area_px2 = 30.0;
-  int max_hypotheses = 8;         // best-scored labellings solved
+  int max_hypotheses = 8;  // best-scored labellings solved
   // Pose.
   double ransac_threshold_px = 4.0;
   double max_reproj_rms_px = 2.0;  // a labelling must reproject within this
   double ambiguity_ratio = 3.0;    // runner-up labelling closer than this in rms -> ambiguous
   double min_depth_m = 0.02;
-  double pixel_sigma_px = 0.25;    // centroid noise for points given without their own sigma
+  double pixel_sigma_px = 0.25;  // centroid noise for points given without their own sigma
   // Centroid (docs/VISION.md, "Centroid error model"): a first estimate over
   // the component's box, refined by a Gaussian-weighted centroid on a ring
   // background plane. sigma^2 = centroid_noise_scale^2 sigma_noise^2
   // + (sat_sigma_px n_sat / max(width / 1 px, 1)^4)^2 (n_sat saturated pixels)
   // + centroid_floor_px^2; the three constants are fitted by
   // `python -m bench.centroid_calibration`.
-  double read_noise_counts = 1.5;  // pixel noise: read noise [counts] (the refined centroid measures its own
-  double shot_gain = 0.05;         //   from the ring) and shot-noise variance per count of signal [counts]
+  double read_noise_counts = 1.5;       // pixel noise: read noise [counts] (the refined centroid measures its own
+  double shot_gain = 0.05;              //   from the ring) and shot-noise variance per count of signal [counts]
   double centroid_floor_px = 0.003;     // calibrated, added in quadrature to each blob's sigma [px]
   bool refine_centroid = true;          // false: the first estimate (component box + 2 px, clipped weights)
   double centroid_weight_min_px = 1.0;  // bounds of the Gaussian weight's width (the spot's, from its moments)
@@ -143,8 +150,8 @@ struct LedPoseConfig {
   double merged_id_margin_dchi2 = 10.0;
   double merged_id_max_flux_ratio = 4.0;
   int merged_id_max_half_window_px = 20;  // fit window half-size bound
-  double max_condition = 1e12;     // of J^T J
-  double flip_weight_max = 0.01;   // planar mirror solution more likely than this -> no pose
+  double max_condition = 1e12;            // of J^T J
+  double flip_weight_max = 0.01;          // planar mirror solution more likely than this -> no pose
 };
 
 struct Blob {
@@ -152,7 +159,7 @@ struct Blob {
   double v_px;  // row
   double flux;  // background-subtracted sum [counts]
   int area_px;
-  double sigma_px;  // centroid standard deviation from the calibrated error model
+  double sigma_px;            // centroid standard deviation from the calibrated error model
   int n_saturated = 0;        // pixels at 255 in the centroid window
   double sigma_noise_px = 0;  // pixel-noise part of sigma_px, before the calibration's scale and terms
   double width_px = 0;        // spot width (rms radius per axis) from the component's moments
@@ -169,12 +176,12 @@ struct LedPoseMeasurement {
   Eigen::Quaterniond q_hb = Eigen::Quaterniond::Identity();
   Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
   // Diagnostics.
-  int n_blobs = 0;                            // blobs passing the shape gates
-  int n_hypotheses = 0;                       // labellings tried
+  int n_blobs = 0;       // blobs passing the shape gates
+  int n_hypotheses = 0;  // labellings tried
   double reproj_rms_px = 0.0;
-  double flip_weight = 0.0;                   // weight of the planar mirror solution folded into R
-  double range_m = 0.0;                       // camera to pattern centre
-  bool identifier_split = false;              // the identifier came from a merged blob's two-spot fit
+  double flip_weight = 0.0;       // weight of the planar mirror solution folded into R
+  double range_m = 0.0;           // camera to pattern centre
+  bool identifier_split = false;  // the identifier came from a merged blob's two-spot fit
   std::array<int, kNumLeds> blob_of_led{{-1, -1, -1, -1, -1}};
   Eigen::Matrix3d R_cp = Eigen::Matrix3d::Identity();  // host body -> camera
   Eigen::Vector3d t_cp_m = Eigen::Vector3d::Zero();    // host origin in camera frame
@@ -226,27 +233,76 @@ class LedPoseEstimator {
                 Eigen::Matrix<double, 2 * kNumLeds, 6>& J) const;
 
  private:
-  // first_faint: labels from here on are faint-pass spots (distinct maxima,
-  // never absorbed as fragments of another spot).
-  // drifted: set when it failed because the iteration left the first
-  // estimate by 1.5 px or more (the first estimate is then that far off).
-  bool refine_centroid(const cv::Mat& gray, const cv::Mat& labels, const cv::Mat& cents, int label, int first_faint,
-                       double u0, double v0, double width_px, double sigma_w, Blob& out, bool& drifted) const;
-  // The pose when the identifier is merged into its corner's blob (four
-  // blobs, AmbiguousIdentity), with identifier_split set; AmbiguousIdentity
-  // (identifier_split false) when no labelling's two-spot fit stands out
-  // (merged_id_* settings).
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  // What weights the pose covariance: the host attitude and the whitening
+  // 1 / sigma per image coordinate of the chosen labelling's LEDs.
+  struct PoseWeights {
+    Eigen::Quaterniond q_h_host;
+    Eigen::Matrix<double, 2 * kNumLeds, 1> inv_sig;
+  };
+
+  // Identification (identification.cpp). The finite points with positive
+  // sigma, at most max_blobs; true when at least four.
+  bool usable_points(const std::vector<cv::Point2d>& pts_in, const std::vector<double>& sigma_px,
+                     std::vector<cv::Point2d>& pts, std::vector<double>& sig) const;
+  // All points (nearly) on a line or inside a tiny hull.
+  bool spread_degenerate(const std::vector<cv::Point2d>& pts) const;
+  // p within the line tolerance of edge a -> b, at fraction t along it.
+  bool on_edge(const cv::Point2d& a, const cv::Point2d& b, const cv::Point2d& p, double& t) const;
+  // The labellings with identifier ijk[2] on edge ijk[0] -> ijk[1], scored.
+  void corner_labellings(const std::vector<cv::Point2d>& pts, const std::array<int, 3>& ijk, int& candidates,
+                         std::vector<detail::Hypothesis>& hyps) const;
+  // Every labelling, best-scored first, at most max_hypotheses; true when
+  // some three points are collinear with the middle one between the others.
+  bool labellings(const std::vector<cv::Point2d>& pts, std::vector<detail::Hypothesis>& hyps) const;
+  // Why no labelling: a bare square is AmbiguousIdentity, else TooFewLeds.
+  PoseStatus no_labelling_status(const std::vector<cv::Point2d>& pts, bool any_collinear_triple) const;
+
+  // Pose (pose_solution.cpp).
+  Eigen::Vector3d pattern_centre() const;
+  // Every LED in front of the camera and the pattern's face towards it.
+  bool physical(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) const;
+  // Largest single-LED reprojection error [px] of a pose.
+  double worst_residual(const std::vector<cv::Point2d>& img, const cv::Mat& rv, const cv::Mat& tv) const;
+  // One solution of labelling h refined (Levenberg-Marquardt) and kept if physical.
+  void refine_solution(detail::Hypothesis& h, const std::vector<cv::Point2d>& img, const std::vector<double>& sig,
+                       const cv::Mat& rv0, const cv::Mat& tv0) const;
+  // The labelling's solutions, best first (may throw cv::Exception).
+  void solve_labelling(detail::Hypothesis& h, const std::vector<cv::Point2d>& pts,
+                       const std::vector<double>& sig) const;
+  // Labellings sorted by reprojection rms; Ok when the best stands out.
+  PoseStatus choose_labelling(std::vector<detail::Hypothesis>& hyps, const std::vector<double>& sig,
+                              LedPoseMeasurement& m) const;
+  bool pose_covariance(const Eigen::Vector3d& r, const Eigen::Quaterniond& q, const PoseWeights& weights, Mat6& C,
+                       Mat6& info) const;
+  // The planar mirror solution folded into R; false when it is too likely.
+  bool fold_mirror_solution(const detail::Hypothesis& best, const PoseWeights& weights, const Mat6& info,
+                            LedPoseMeasurement& m, Mat6& R) const;
+  // The robust gate's consensus over the five leave-one-out fits of a
+  // labelling: the most LEDs within ransac_threshold_px of one pose.
+  int consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const;
+
+  // Merged identifier (merged_identifier.cpp). The pose when the identifier
+  // is merged into its corner's blob (four blobs, AmbiguousIdentity), with
+  // identifier_split set; AmbiguousIdentity (identifier_split false) when no
+  // labelling's two-spot fit stands out (merged_id_* settings).
   LedPoseMeasurement pose_with_merged_identifier(const cv::Mat& gray, const std::vector<Blob>& blobs,
                                                  double t_capture_s, const Eigen::Quaterniond& q_h_host) const;
-  // Where the homography of four image corners (in label order) puts the
-  // identifier; false when degenerate.
+  // The two labellings (towards either neighbour) of corner k of the four
+  // blobs (around: convex order) merged with the identifier, into top
+  // (best, second) when they improve on it.
+  void merged_candidates_at(const cv::Mat& gray, const std::array<cv::Point2d, 4>& around, int k, double width0,
+                            std::array<detail::MergedCandidate, 2>& top) const;
+  // The two-spot fit with the identifier where corners' homography puts it;
+  // false when it fails or the two fluxes are too unequal.
+  bool fit_merged_pair(const detail::MergedFit& fit, std::array<cv::Point2d, 4> corners, SpotFit& pair) const;
+
+  // Geometry (geometry.cpp). Where the homography of four image corners (in
+  // label order) puts the identifier; false when degenerate.
   bool identifier_in_image(const std::array<cv::Point2f, 4>& quad, cv::Point2d& id_px) const;
   // The identifier's image fraction along edge 0 -> 1 under that
   // homography; NaN when degenerate.
   double identifier_fraction(const std::array<cv::Point2d, 4>& corners) const;
-  // The robust gate's consensus over the five leave-one-out fits of a
-  // labelling: the most LEDs within ransac_threshold_px of one pose.
-  int consensus_without_one(const std::vector<cv::Point2d>& img, cv::Mat& rv, cv::Mat& tv) const;
 
   LedPoseConfig cfg_;
   cv::Mat K_;
