@@ -348,33 +348,33 @@ def runs_to_flight_log(runs, config: dict) -> FlightLog:
                               "e_t", "e_r", "e_v", "e_q", "e_p", "u_t", "u_st", "u_f", "u_in", "u_nis", "u_ll",
                               "t_t", "t_r", "t_v", "t_q", "t_w")}
     for run in runs:
-        t = run["t"] + offset
-        parts["imu_t"].append(run["imu_t"] + offset)
-        parts["acc"].append(run["imu_accel"])
-        parts["gyr"].append(run["imu_gyro"])
-        u = run["updates"]
-        parts["p_tc"].append(u["t_capture"] + offset)
-        parts["p_td"].append(u["t_fused"] + offset)
-        parts["p_r"].append(u["r_meas"])
-        parts["p_q"].append(u["q_meas"])
-        parts["p_rs"].append(u["r_sigma"])
-        parts["p_as"].append(u["att_sigma"])
-        parts["u_t"].append(u["t_fused"] + offset)
-        parts["u_st"].append(np.array([STATUS_CODES[s] for s in u["status"]], dtype=int))
-        parts["u_f"].append(np.asarray(u["fused"], dtype=int))
-        parts["u_in"].append(np.asarray(u["innovation"]).reshape(-1, 6))
-        parts["u_nis"].append(u["nis"])
-        parts["u_ll"].append(u["loglik"])
+        t = run.t + offset
+        parts["imu_t"].append(run.imu_t + offset)
+        parts["acc"].append(run.imu_accel)
+        parts["gyr"].append(run.imu_gyro)
+        u = run.updates
+        parts["p_tc"].append(u.t_capture + offset)
+        parts["p_td"].append(u.t_fused + offset)
+        parts["p_r"].append(u.r_meas)
+        parts["p_q"].append(u.q_meas)
+        parts["p_rs"].append(u.r_sigma)
+        parts["p_as"].append(u.att_sigma)
+        parts["u_t"].append(u.t_fused + offset)
+        parts["u_st"].append(np.array([STATUS_CODES[s] for s in u.status], dtype=int))
+        parts["u_f"].append(np.asarray(u.fused, dtype=int))
+        parts["u_in"].append(np.asarray(u.innovation).reshape(-1, 6))
+        parts["u_nis"].append(u.nis)
+        parts["u_ll"].append(u.loglik)
         parts["e_t"].append(t)
-        parts["e_r"].append(run["est"][:, 0:3])
-        parts["e_v"].append(run["est"][:, 3:6])
-        parts["e_q"].append(run["est"][:, 6:10])
-        parts["e_p"].append(np.array([np.diag(P) for P in run["P"]]))
+        parts["e_r"].append(run.est[:, 0:3])
+        parts["e_v"].append(run.est[:, 3:6])
+        parts["e_q"].append(run.est[:, 6:10])
+        parts["e_p"].append(np.array([np.diag(P) for P in run.P]))
         parts["t_t"].append(t)
-        parts["t_r"].append(run["r_true"])
-        parts["t_v"].append(run["v_true"])
-        parts["t_q"].append(run["q_true"])
-        parts["t_w"].append(run["w_true"])
+        parts["t_r"].append(run.r_true)
+        parts["t_v"].append(run.v_true)
+        parts["t_q"].append(run.q_true)
+        parts["t_w"].append(run.w_true)
         offset = t[-1] + 0.1
     c = {k: np.concatenate(v) if v else np.zeros(0) for k, v in parts.items()}
     imu = {"t_s": c["imu_t"], "accel_b_mps2": c["acc"], "omega_bi_b_rps": c["gyr"]}

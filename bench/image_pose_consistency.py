@@ -29,9 +29,9 @@ def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: i
     nees, npos, natt, rng_m = [], [], [], []
     for seed in seeds:
         run = run_docking(seed, ScenarioConfig(pose_source="images"))
-        t = np.asarray(run["t"])
+        t = np.asarray(run.t)
         for k in np.flatnonzero(np.abs(t - np.round(t)) < 1e-6):
-            r, q = np.asarray(run["r_true"][k]), np.asarray(run["q_true"][k])
+            r, q = np.asarray(run.r_true[k]), np.asarray(run.q_true[k])
             for _ in range(renders):
                 m = sensor.measure(float(t[k]), r, q)
                 if m is None:

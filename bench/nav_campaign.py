@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
-from bench.scenario_docking import NAV_DOF, POSE_DOF, ScenarioConfig, errors_from_first_update, run_docking
+from bench.scenario_docking import (NAV_DOF, POSE_DOF, DockingRun, DockingSummary, ScenarioConfig,
+                                    errors_from_first_update, run_docking)
 
 
 # Every THIN_EVERY-th post-update NEES (10 s apart) is nearly independent of
@@ -69,32 +70,37 @@ class RunMetrics:
     nis_att: np.ndarray  # attitude block (3 dof)
     nees_blocks: np.ndarray  # (n, 3): pos, vel, att blocks, each 3 dof
     statuses: dict = field(default_factory=dict)
-    summary: dict = field(default_factory=dict)
+    summary: DockingSummary | None = None
+
+    @classmethod
+    def from_record(cls, d: dict) -> RunMetrics:
+        """Metrics as a results store gives them back (dataclasses as dicts)."""
+        return cls(**{**d, "summary": DockingSummary(**d["summary"])})
 
 
-def run_metrics(run: dict) -> RunMetrics:
+def run_metrics(run: DockingRun) -> RunMetrics:
     e = errors_from_first_update(run)
-    u = run["updates"]
-    fused = u["fused"].astype(bool) if len(u["fused"]) else np.zeros(0, bool)
+    u = run.updates
+    fused = u.fused.astype(bool) if len(u.fused) else np.zeros(0, bool)
     nis_pos, nis_att = [], []
-    for nu, S in zip(u["innovation"][fused], u["S"][fused]):
+    for nu, S in zip(u.innovation[fused], u.S[fused]):
         nis_pos.append(nu[:3] @ np.linalg.solve(S[:3, :3], nu[:3]))
         nis_att.append(nu[3:] @ np.linalg.solve(S[3:, 3:], nu[3:]))
     # Posterior NEES at the step at which each fused update was applied.
-    idx = np.searchsorted(run["t"], u["t_fused"][fused] - 1e-9)
+    idx = np.searchsorted(run.t, u.t_fused[fused] - 1e-9)
     err = np.hstack([e["pos"], e["vel"], e["att"]])
     sig2 = e["sigma"] ** 2
     blocks = np.stack([np.sum(err[:, 3 * b:3 * b + 3] ** 2 / sig2[:, 3 * b:3 * b + 3], axis=1) for b in range(3)], 1)
     statuses = {}
-    for s in list(run["predict_status"]) + list(u["status"]):
+    for s in list(run.predict_status) + list(u.status):
         statuses[str(s)] = statuses.get(str(s), 0) + 1  # plain str: numpy strings print as np.str_('ok')
-    sm = run["summary"]
+    sm = run.summary
     return RunMetrics(
-        seed=sm["seed"], docked=sm["docked"], t_end_s=sm["t_end_s"],
+        seed=sm.seed, docked=sm.docked, t_end_s=sm.t_end_s,
         max_pos_err_m=float(np.max(np.abs(e["pos"]))), max_vel_err_mps=float(np.max(np.abs(e["vel"]))),
         max_att_err_rad=float(np.max(np.abs(e["att"]))), nees=e["nees"],
-        nees_step=np.rint(e["t"] / 0.1).astype(int), nees_post_1hz=run["nees"][idx],
-        nis=u["nis"][fused], nis_epoch=np.rint(np.asarray(u["t_capture"])[fused]).astype(int), nis_pos=np.array(nis_pos), nis_att=np.array(nis_att), nees_blocks=blocks,
+        nees_step=np.rint(e["t"] / 0.1).astype(int), nees_post_1hz=run.nees[idx],
+        nis=u.nis[fused], nis_epoch=np.rint(np.asarray(u.t_capture)[fused]).astype(int), nis_pos=np.array(nis_pos), nis_att=np.array(nis_att), nees_blocks=blocks,
         statuses=statuses, summary=sm,
     )
 
@@ -147,37 +153,13 @@ def ensemble_consistency(values, keys, dof: int, min_runs: int, p: float = 0.95)
 
 
 def summarise(metrics: list[RunMetrics], cfg: ScenarioConfig, seed: int) -> dict:
-    nees_mean, nees_band_sample, nees_count = _mean_band([m.nees for m in metrics], NAV_DOF)
-    nis_mean, nis_band_sample, nis_count = _mean_band([m.nis for m in metrics], POSE_DOF)
-    nees_band = chi2_mean_band(NAV_DOF, len(metrics))
-    nis_band = chi2_mean_band(POSE_DOF, len(metrics))
-    post_mean, post_band, post_count = _mean_band([m.nees_post_1hz for m in metrics], NAV_DOF)
-    thin_mean, thin_band, thin_count = _mean_band([m.nees_post_1hz[::THIN_EVERY] for m in metrics], NAV_DOF)
-    run_means = np.array([np.mean(m.nees) for m in metrics])
-    # Per-epoch ensemble averages over the runs; 1 Hz epochs for NEES too (the
-    # 10 Hz samples between two poses add no independent information).
-    min_runs = max(2, len(metrics) // 2)
-    nees_1hz = [m.nees[m.nees_step % 10 == 0] for m in metrics]
-    nees_1hz_k = [m.nees_step[m.nees_step % 10 == 0] for m in metrics]
-    nees_mc = ensemble_consistency(nees_1hz, nees_1hz_k, NAV_DOF, min_runs)
-    nis_mc = ensemble_consistency([m.nis for m in metrics], [m.nis_epoch for m in metrics], POSE_DOF, min_runs)
-    blocks = np.vstack([m.nees_blocks for m in metrics])
-    gated = sum(m.statuses.get("gated", 0) for m in metrics)
+    pos = _dist([m.max_pos_err_m for m in metrics])
+    vel = _dist([m.max_vel_err_mps for m in metrics])
+    consistency = _consistency(metrics)
     statuses = {}
     for m in metrics:
         for k, v in m.statuses.items():
             statuses[k] = statuses.get(k, 0) + v
-    pos = _dist([m.max_pos_err_m for m in metrics])
-    vel = _dist([m.max_vel_err_mps for m in metrics])
-    vision = {}
-    if cfg.pose_source == "images":
-        vision["vision_status_counts"] = {}
-        for m in metrics:
-            for k, v in m.summary.get("vision_status_counts", {}).items():
-                vision["vision_status_counts"][k] = vision["vision_status_counts"].get(k, 0) + int(v)
-        vision["vision_frames"] = int(sum(vision["vision_status_counts"].values()))
-        vision["fused_pose_count"] = int(sum(m.nis.size for m in metrics))
-        vision["runs_started_late"] = int(sum((m.summary.get("t_nav_init_s") or 0.0) > 0.0 for m in metrics))
     return {
         "runs": len(metrics),
         "seed": int(seed),
@@ -187,20 +169,54 @@ def summarise(metrics: list[RunMetrics], cfg: ScenarioConfig, seed: int) -> dict
         "pose_R_from": cfg.pose_R_from,
         "accel_source": cfg.accel_source,
         "pose_source": cfg.pose_source,
-        **vision,
-        "blr_steps": int(sum(m.summary.get("blr_steps", 0) for m in metrics)),
-        "firing_steps": int(sum(m.summary.get("firing_steps", 0) for m in metrics)),
+        **(_vision(metrics) if cfg.pose_source == "images" else {}),
+        "blr_steps": int(sum(m.summary.blr_steps for m in metrics)),
+        "firing_steps": int(sum(m.summary.firing_steps for m in metrics)),
         "profile": {k: (list(v) if isinstance(v, tuple) else v) for k, v in cfg.profile.__dict__.items()},
         "max_pos_err_m": pos,
         "max_vel_err_mps": vel,
         "max_att_err_rad": _dist([m.max_att_err_rad for m in metrics]),
+        **consistency,
+        "gated_count": int(sum(m.statuses.get("gated", 0) for m in metrics)),
+        "status_counts": statuses,
+        "docked": int(sum(m.docked for m in metrics)),
+        "t_end_s": [m.t_end_s for m in metrics],
+        "checks": _checks(pos, vel, consistency),
+    }
+
+
+def _vision(metrics: list[RunMetrics]) -> dict:
+    """The vision pipeline's frames by status, over the runs (pose_source "images")."""
+    counts = {}
+    for m in metrics:
+        for k, v in m.summary.vision_status_counts.items():
+            counts[k] = counts.get(k, 0) + int(v)
+    return {"vision_status_counts": counts, "vision_frames": int(sum(counts.values())),
+            "fused_pose_count": int(sum(m.nis.size for m in metrics)),
+            "runs_started_late": int(sum((m.summary.t_nav_init_s or 0.0) > 0.0 for m in metrics))}
+
+
+def _consistency(metrics: list[RunMetrics]) -> dict:
+    """NEES and NIS over the runs against their bands (the module docstring)."""
+    nees_mean, nees_band_sample, nees_count = _mean_band([m.nees for m in metrics], NAV_DOF)
+    nis_mean, nis_band_sample, nis_count = _mean_band([m.nis for m in metrics], POSE_DOF)
+    post_mean, post_band, post_count = _mean_band([m.nees_post_1hz for m in metrics], NAV_DOF)
+    thin_mean, thin_band, thin_count = _mean_band([m.nees_post_1hz[::THIN_EVERY] for m in metrics], NAV_DOF)
+    run_means = np.array([np.mean(m.nees) for m in metrics])
+    # Per-epoch ensemble averages over the runs; 1 Hz epochs for NEES too (the
+    # 10 Hz samples between two poses add no independent information).
+    min_runs = max(2, len(metrics) // 2)
+    nees_1hz = [m.nees[m.nees_step % 10 == 0] for m in metrics]
+    nees_1hz_k = [m.nees_step[m.nees_step % 10 == 0] for m in metrics]
+    blocks = np.vstack([m.nees_blocks for m in metrics])
+    return {
         "nees_mean": nees_mean,
-        "nees_band": nees_band,
+        "nees_band": chi2_mean_band(NAV_DOF, len(metrics)),
         "nees_band_kind": "N-run average: chi2.ppf([0.025, 0.975], 9 N) / N",
         "nees_band_per_sample": nees_band_sample,
         "nees_count": nees_count,
         "nis_mean": nis_mean,
-        "nis_band": nis_band,
+        "nis_band": chi2_mean_band(POSE_DOF, len(metrics)),
         "nis_band_kind": "N-run average: chi2.ppf([0.025, 0.975], 6 N) / N",
         "nis_band_per_sample": nis_band_sample,
         "nis_count": nis_count,
@@ -209,30 +225,34 @@ def summarise(metrics: list[RunMetrics], cfg: ScenarioConfig, seed: int) -> dict
         "nees_thinned_mean": thin_mean,
         "nees_thinned_band": thin_band,
         "nees_thinned_count": thin_count,
-        "nees_ensemble": nees_mc,
-        "nis_ensemble": nis_mc,
+        "nees_ensemble": ensemble_consistency(nees_1hz, nees_1hz_k, NAV_DOF, min_runs),
+        "nis_ensemble": ensemble_consistency([m.nis for m in metrics], [m.nis_epoch for m in metrics], POSE_DOF,
+                                             min_runs),
         "nees_run_means": run_means.tolist(),
         "nees_mean_std_error": float(run_means.std(ddof=1) / np.sqrt(len(run_means))) if len(run_means) > 1 else None,
         "nees_block_means": {"pos": float(blocks[:, 0].mean()), "vel": float(blocks[:, 1].mean()),
                              "att": float(blocks[:, 2].mean()), "dof_each": 3},
         "nis_block_means": {"pos": float(np.mean(np.concatenate([m.nis_pos for m in metrics]))),
                             "att": float(np.mean(np.concatenate([m.nis_att for m in metrics]))), "dof_each": 3},
-        "gated_count": int(gated),
-        "status_counts": statuses,
-        "docked": int(sum(m.docked for m in metrics)),
-        "t_end_s": [m.t_end_s for m in metrics],
-        "checks": {
-            "pos_p95_le_0.10": pos["p95"] <= 0.10,
-            "vel_p95_le_0.03": vel["p95"] <= 0.03,
-            "pos_median_le_0.05": pos["median"] <= 0.05,
-            "vel_median_le_0.015": vel["median"] <= 0.015,
-            "nees_in_band": nees_band[0] <= nees_mean <= nees_band[1],
-            "nis_in_band": nis_band[0] <= nis_mean <= nis_band[1],
-            "nees_in_per_sample_band": nees_band_sample[0] <= nees_mean <= nees_band_sample[1],
-            "nis_in_per_sample_band": nis_band_sample[0] <= nis_mean <= nis_band_sample[1],
-            "nees_ensemble_in_band_ge_0.95": nees_mc["in_band_fraction"] >= 0.95,
-            "nis_ensemble_in_band_ge_0.95": nis_mc["in_band_fraction"] >= 0.95,
-        },
+    }
+
+
+def _checks(pos: dict, vel: dict, c: dict) -> dict:
+    """The campaign's pass criteria."""
+    def inside(band, x):
+        return band[0] <= x <= band[1]
+
+    return {
+        "pos_p95_le_0.10": pos["p95"] <= 0.10,
+        "vel_p95_le_0.03": vel["p95"] <= 0.03,
+        "pos_median_le_0.05": pos["median"] <= 0.05,
+        "vel_median_le_0.015": vel["median"] <= 0.015,
+        "nees_in_band": inside(c["nees_band"], c["nees_mean"]),
+        "nis_in_band": inside(c["nis_band"], c["nis_mean"]),
+        "nees_in_per_sample_band": inside(c["nees_band_per_sample"], c["nees_mean"]),
+        "nis_in_per_sample_band": inside(c["nis_band_per_sample"], c["nis_mean"]),
+        "nees_ensemble_in_band_ge_0.95": c["nees_ensemble"]["in_band_fraction"] >= 0.95,
+        "nis_ensemble_in_band_ge_0.95": c["nis_ensemble"]["in_band_fraction"] >= 0.95,
     }
 
 
@@ -257,12 +277,12 @@ def run_campaign(n_runs: int, seed: int, cfg: ScenarioConfig | None = None, prog
     done = [r for r in results(recs) if r is not None]
     if not done:
         raise ValueError("no finished runs to summarise")
-    summary = summarise([RunMetrics(**r["metrics"]) for r in done], cfg, seed)
+    summary = summarise([RunMetrics.from_record(r["metrics"]) for r in done], cfg, seed)
     if len(done) < n_runs:
         summary["runs_requested"] = n_runs
         summary["failed_runs"] = failures(recs)
         summary["missing_runs"] = missing(recs)
     if campaign.store.path is not None:
         summary["store"] = str(campaign.store.path)
-    kept = [r["run"] for r in results(recs)[:keep_runs] if r is not None]
+    kept = [DockingRun.from_record(r["run"]) for r in results(recs)[:keep_runs] if r is not None]
     return summary, kept

@@ -32,7 +32,7 @@ def in_process_rtf(duration_s: float, seed: int) -> float:
     while t_done < duration_s - 1e-9:
         sc = ScenarioConfig(t_max_s=min(ScenarioConfig().t_max_s, duration_s - t_done))
         run = run_docking(seed + k, sc)
-        t_done += float(run["summary"]["t_end_s"]) + sc.dt_s
+        t_done += float(run.summary.t_end_s) + sc.dt_s
         k += 1
     return t_done / (time.perf_counter() - t0)
 

@@ -19,6 +19,7 @@ import argparse
 import hashlib
 import json
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -48,7 +49,7 @@ def _effects_at(effects: EffectSet, t_s: float) -> EffectSet:
 def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
                   scenario: ScenarioConfig | None = None, scripts: list | None = None,
                   then_scripts: list | None = None) -> list:
-    """Docking runs (run_docking results) chained to fill duration_s. With
+    """Docking runs (DockingRun, run_docking) chained to fill duration_s. With
     ``scripts`` (each run's valve configurations, from an earlier call) the
     runs replay those valves open loop, so the chain splits where it did.
     ``then_scripts``: after the docking runs, one run per valve script, open
@@ -66,7 +67,7 @@ def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
             cfg = ScenarioConfig(**{**cfg.__dict__, "valve_script": tuple(int(c) for c in scripts[k])})
         run = run_docking(int(seed) + k, cfg)
         runs.append(run)
-        t_done += float(run["summary"]["t_end_s"]) + cfg.dt_s
+        t_done += float(run.summary.t_end_s) + cfg.dt_s
         k += 1
     for sc in (then if scripts is None else scripts[k:]):
         # Long enough for the script after the wait for the first pose; the run ends with its script.
@@ -74,7 +75,7 @@ def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
         cfg = ScenarioConfig(**{**cfg.__dict__, "valve_script": tuple(int(c) for c in sc)})
         run = run_docking(int(seed) + k, cfg)
         runs.append(run)
-        t_done += float(run["summary"]["t_end_s"]) + cfg.dt_s
+        t_done += float(run.summary.t_end_s) + cfg.dt_s
         k += 1
     return runs
 
@@ -89,14 +90,14 @@ def runs_to_log(runs: list, config: dict, clock_rate: float = 1.0, with_truth: b
     from bench.flight_log import runs_to_flight_log
 
     if clock_rate != 1.0:
-        runs = [dict(r, t=r["t"] * clock_rate) for r in runs]
+        runs = [replace(r, t=r.t * clock_rate) for r in runs]
     log = runs_to_flight_log(runs, config)
     t_v, mask, offset = [], [], 0.0
     for r in runs:
-        n = r["config"].size
-        t_v.append(r["t"][:n] + offset)
-        mask.append(np.asarray(r["config"], dtype=np.int64))
-        offset = r["t"][-1] + offset + DT_S
+        n = r.config.size
+        t_v.append(r.t[:n] + offset)
+        mask.append(np.asarray(r.config, dtype=np.int64))
+        offset = r.t[-1] + offset + DT_S
     t_v = np.concatenate(t_v) if t_v else np.zeros(0)
     log.streams["valves"] = {"t_s": t_v, "interval_s": np.full(t_v.size, DT_S * clock_rate),
                              "mask": np.concatenate(mask) if mask else np.zeros(0, dtype=np.int64)}
@@ -183,25 +184,25 @@ def gap_statistics(runs: list) -> dict:
     sa, sg = sc.profile.accel_sigma_mps2, sc.profile.gyro_sigma_rps
     nis, white, ea, xa, eg, xg, wg, nees = [], [], [], [], [], [], [], []
     for r in runs:
-        t0 = r["summary"]["first_update_t_s"]
+        t0 = r.summary.first_update_t_s
         if t0 is not None:
-            nees.extend(r["nees"][r["t"] >= t0 - 1e-9])
-        u = r["updates"]
-        ok = np.asarray(u["status"]) != "bad_input"
-        nis.extend(np.asarray(u["nis"])[ok])
-        for nu, S in zip(np.asarray(u["innovation"])[ok], np.asarray(u["S"])[ok]):
+            nees.extend(r.nees[r.t >= t0 - 1e-9])
+        u = r.updates
+        ok = np.asarray(u.status) != "bad_input"
+        nis.extend(np.asarray(u.nis)[ok])
+        for nu, S in zip(np.asarray(u.innovation)[ok], np.asarray(u.S)[ok]):
             white.append(np.linalg.solve(np.linalg.cholesky(S), nu))
-        cfgs = r["config"]
-        n = min(cfgs.size, len(r["imu_accel"]))
-        ea.append(r["imu_accel"][:n] - f_tab[cfgs[:n]] / v.mass_kg)
+        cfgs = r.config
+        n = min(cfgs.size, len(r.imu_accel))
+        ea.append(r.imu_accel[:n] - f_tab[cfgs[:n]] / v.mass_kg)
         xa.append(np.column_stack([valves_tab[cfgs[:n]], np.ones(n)]))
         al = alpha_tab[cfgs[:n]]
-        eg.append(np.diff(r["imu_gyro"][:n], axis=0) - 0.5 * (al[:-1] + al[1:]) * DT_S)
+        eg.append(np.diff(r.imu_gyro[:n], axis=0) - 0.5 * (al[:-1] + al[1:]) * DT_S)
         vv = valves_tab[cfgs[:n]]
         # Mean rate over interval k: w0 + sum_{j<k} alpha_j dt + alpha_k dt / 2.
         cum_v = (np.cumsum(vv, axis=0) - 0.5 * vv) * DT_S
         cum_a = (np.cumsum(al, axis=0) - 0.5 * al) * DT_S
-        wg.append(r["imu_gyro"][:n] - cum_a)
+        wg.append(r.imu_gyro[:n] - cum_a)
         xg.append(cum_v)
     white = np.array(white).reshape(-1, 6)
     # One unknown initial rate per run: an intercept column per run.

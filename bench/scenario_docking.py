@@ -38,9 +38,9 @@ Pose source (``pose_source``):
     (fsw_bindings.LedPoseEstimator); the filter gets that pose with the
     covariance the pipeline reports (``pose_R_from`` does not apply). A frame
     whose status is not Ok delivers nothing and is counted by status
-    (``summary["vision_status_counts"]``). If the frame at t = 0 gives no
+    (``summary.vision_status_counts``). If the frame at t = 0 gives no
     pose, the inspector holds its valves closed and the filter is started
-    from the first frame that does (``summary["t_nav_init_s"]``).
+    from the first frame that does (``summary.t_nav_init_s``).
 
 Physical effects (``effects``: an EffectSet, bench/effects.py and
 docs/EFFECTS.md) change the truth plant, the truth vehicle and the sensors;
@@ -53,7 +53,7 @@ Without effects the run is the same, bit for bit.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -119,6 +119,70 @@ class ScenarioConfig:
     pose_source: str = "synthetic"
 
 
+@dataclass
+class PoseUpdates:
+    """One row per pose delivered to the filter, in delivery order."""
+
+    t_capture: np.ndarray  # capture time tag [s]
+    t_fused: np.ndarray  # when it was fused, on the IMU's clock [s]
+    nis: np.ndarray
+    status: np.ndarray  # the filter's update status (str)
+    fused: np.ndarray  # bool
+    innovation: np.ndarray  # (N, 6)
+    S: np.ndarray  # (N, 6, 6) innovation covariance
+    loglik: np.ndarray
+    r_meas: np.ndarray  # (N, 3) [m]
+    q_meas: np.ndarray  # (N, 4)
+    r_sigma: np.ndarray  # 1-sigma of the position handed to the filter [m]
+    att_sigma: np.ndarray  # 1-sigma of the attitude [rad]
+
+
+@dataclass
+class DockingSummary:
+    seed: int
+    docked: bool  # reached contact before t_max_s
+    t_end_s: float
+    contact_speed_mps: float  # along the approach axis at the end
+    lateral_miss_m: float
+    attitude_miss_rad: float
+    first_update_t_s: float | None  # first pose delivered to the filter (None: none)
+    valve_seconds: float
+    firing_steps: int
+    blr_steps: int  # firing steps whose predict took the BLR's specific force
+    pose_source: str = "synthetic"
+    vision_status_counts: dict = field(default_factory=dict)  # images: the vision pipeline's status per frame
+    t_nav_init_s: float | None = 0.0  # images: when a frame first gave a pose (None: never)
+    cut_by_duration: bool = False  # HIL: not docked because the HIL run's time ran out
+
+
+@dataclass
+class DockingRun:
+    """Time histories of one docking run: one row at the start and one per
+    control step (``config``: one per step)."""
+
+    t: np.ndarray  # (N,) [s]
+    r_true: np.ndarray  # (N, 3) Hill [m]
+    v_true: np.ndarray  # (N, 3) Hill [m/s]
+    q_true: np.ndarray  # (N, 4) q_hb
+    w_true: np.ndarray  # (N, 3) omega_bi_b [rad/s]
+    est: np.ndarray  # (N, 10) the filter's [r, v, q] (NaN before it starts)
+    P: np.ndarray  # (N, 9, 9)
+    nees: np.ndarray  # (N,)
+    config: np.ndarray  # (N - 1,) valve configuration of each step (int)
+    predict_status: np.ndarray  # (N,) str
+    updates: PoseUpdates
+    imu_t: np.ndarray  # (M,) IMU time tags [s]
+    imu_accel: np.ndarray  # (M, 3) [m/s^2]
+    imu_gyro: np.ndarray  # (M, 3) [rad/s]
+    summary: DockingSummary
+
+    @classmethod
+    def from_record(cls, d: dict) -> DockingRun:
+        """A run as a results store gives it back (dataclasses as dicts,
+        bench/campaign/records.py)."""
+        return cls(**{**d, "updates": PoseUpdates(**d["updates"]), "summary": DockingSummary(**d["summary"])})
+
+
 class _TruthNav:
     """Perfect navigation, for exercising the controller and plant alone."""
 
@@ -169,14 +233,27 @@ def nav_error(truth_r, truth_v, truth_q, est):
     return np.concatenate([truth_r - est[0:3], truth_v - est[3:6], boxminus(truth_q, est[6:10])])
 
 
-def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=None) -> dict:
-    """One docking run. Returns time histories (numpy arrays) and a summary."""
-    cfg = cfg or ScenarioConfig()
-    rng = np.random.default_rng(seed)
-    rng_imu, rng_pose, rng_init, rng_p0 = (np.random.default_rng(s) for s in rng.integers(0, 2**63, 4))
-    if cfg.pose_source not in ("synthetic", "images"):
-        raise ValueError(f"pose_source must be 'synthetic' or 'images', not {cfg.pose_source!r}")
-    images = cfg.pose_source == "images"
+def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=None) -> DockingRun:
+    """One docking run: its time histories, pose updates, IMU samples and
+    summary. ``nav``: any object with NavUkf's interface (the HIL link's
+    LinkNav); None builds the in-process filter. ``on_step(t)`` is called
+    after each IMU sample."""
+    return _DockingLoop(seed, cfg or ScenarioConfig(), nav, on_step).run()
+
+
+@dataclass
+class _Truth:
+    """The truth plant and the sensors as the effects make them."""
+
+    plant: Plant
+    imu: Imu
+    pose: object  # PoseSensor or ImagePoseSensor
+    latency_s: float = 0.0  # camera latency: the frame tagged t shows the truth at t - latency
+    clock_rate: float = 1.0  # the IMU clock runs at this rate (1 + eps)
+
+
+def _truth_and_sensors(cfg: ScenarioConfig, seed: int, images: bool, rng_imu, rng_pose, rng_init) -> _Truth:
+    lens_k1 = 0.0
     if cfg.effects:
         from bench.effects import realise
 
@@ -190,102 +267,28 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
             raise ValueError("lens_distortion needs pose_source 'images' (the synthetic pose sensor has no lens)")
         lens_k1 = fx.lens_k1
         pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=fx.lever_arm_b_m, occlusion=fx.occlusion)
-        latency_s, clock_rate = fx.camera_latency_s, fx.imu_clock_rate
+        truth = _Truth(plant, imu, pose, fx.camera_latency_s, fx.imu_clock_rate)
     else:
         plant = Plant(initial_truth(rng_init, cfg), vehicle=cfg.truth_vehicle, dynamics=cfg.dynamics,
                       substep_s=cfg.substep_s)
-        imu = Imu(cfg.profile, rng_imu)
-        pose = PoseSensor(cfg.profile, rng_pose)
-        latency_s, clock_rate, lens_k1 = 0.0, 1.0, 0.0
+        truth = _Truth(plant, Imu(cfg.profile, rng_imu), PoseSensor(cfg.profile, rng_pose))
     if images:
         from bench.image_pose import ImagePoseSensor
 
-        pose = ImagePoseSensor(cfg.profile, rng_pose, lens_k1=lens_k1)
-    ctrl = DockingController(params=cfg.controller)
+        truth.pose = ImagePoseSensor(cfg.profile, rng_pose, lens_k1=lens_k1)
+    return truth
 
-    def seen(t_tag):
-        """(r, q) the camera sees in the frame tagged t_tag: the truth at
-        t_tag - latency, interpolated over the recorded control steps."""
-        s = plant.state
-        tc = max(t_tag - latency_s, 0.0)
-        if latency_s == 0.0 or tc >= s.t_s:
-            return s.r_hill_m, s.q_hb
-        ts = h["t"] + [s.t_s]
-        rs, qs = h["r_true"] + [s.r_hill_m], h["q_true"] + [s.q_hb]
-        j = min(max(int(np.searchsorted(ts, tc, side="right")) - 1, 0), len(ts) - 1)
-        if j == len(ts) - 1:
-            return rs[j], qs[j]
-        f = (tc - ts[j]) / (ts[j + 1] - ts[j])
-        return rs[j] + f * (rs[j + 1] - rs[j]), boxplus(qs[j], f * boxminus(qs[j + 1], qs[j]))
 
-    def init_from_pose(t_s, m0):
-        P0 = np.zeros((9, 9))
-        P0[0:3, 0:3], P0[6:9, 6:9] = m0.R[0:3, 0:3], m0.R[3:6, 3:6]
-        P0[3:6, 3:6] = cfg.v0_sigma_mps**2 * np.eye(3)
-        nav.init(t_s, m0.r_hill_m, np.zeros(3), m0.q_hb, P0)
+class _History:
+    """The time histories, one row per record (the start and each step)."""
 
-    s0 = plant.state
-    nav_ready = True  # False only while image poses have not yet given a first fix
-    t_nav_init = 0.0
-    if cfg.nav == "ukf":
-        # ``nav``: any object with NavUkf's interface (the HIL link's LinkNav);
-        # None builds the in-process filter.
-        nav = make_nav_ukf(cfg) if nav is None else nav
-        if cfg.init == "pose":
-            m0 = pose.measure(0.0, *seen(0.0))
-            if m0 is None:  # images: no pose in the first frame
-                nav_ready, t_nav_init = False, None
-            else:
-                init_from_pose(0.0, m0)
-        elif cfg.init == "truth_draw":
-            d0 = P0_SIGMAS * rng_p0.standard_normal(NAV_DOF)
-            P0 = np.diag(P0_SIGMAS**2)
-            nav.init(0.0, s0.r_hill_m + d0[0:3], s0.v_hill_mps + d0[3:6], boxplus(s0.q_hb, -d0[6:9]), P0)
-        else:
-            raise ValueError(f"init must be 'pose' or 'truth_draw', not {cfg.init!r}")
-    elif cfg.nav == "truth":
-        nav = _TruthNav(plant)
-    else:
-        raise ValueError(f"nav must be 'ukf' or 'truth', not {cfg.nav!r}")
+    KEYS = ("t", "r_true", "v_true", "q_true", "w_true", "est", "P", "nees", "config", "predict_status")
 
-    h = {k: [] for k in ("t", "r_true", "v_true", "q_true", "w_true", "est", "P", "nees", "config",
-                         "predict_status")}
-    upd = {k: [] for k in ("t_capture", "t_fused", "nis", "status", "fused", "innovation", "S", "loglik",
-                           "r_meas", "q_meas", "r_sigma", "att_sigma")}
-    imu_log = {"t": [], "accel": [], "gyro": []}
-    pending = []
-    n_steps_pose = int(round(cfg.pose_period_s / cfg.dt_s))
-    gyro_last = s0.omega_bi_b_rps.copy()  # before the first sample: the initial rate, no better guess
-    first_update_t = None
+    def __init__(self):
+        self.rows = {k: [] for k in self.KEYS}
 
-    def deliver(t_now):
-        nonlocal first_update_t
-        while pending and pending[0].t_deliver_s <= t_now + 1e-9:
-            m = pending.pop(0)
-            if cfg.nav != "ukf":
-                continue
-            if images or cfg.pose_R_from == "measurement":
-                R = m.R
-            else:
-                R = pose.covariance(np.asarray(nav.r_hill_m, float))
-            rec = nav.update_pose(m.t_capture_s, m.r_hill_m, m.q_hb, R)
-            upd["t_capture"].append(m.t_capture_s)
-            upd["t_fused"].append(t_now if clock_rate == 1.0 else t_now * clock_rate)
-            upd["nis"].append(rec.nis)
-            upd["status"].append(rec.status)
-            upd["fused"].append(bool(rec.fused))
-            upd["innovation"].append(np.asarray(rec.innovation))
-            upd["S"].append(np.asarray(rec.innovation_cov))
-            upd["loglik"].append(rec.log_likelihood)
-            upd["r_meas"].append(np.asarray(m.r_hill_m, float))
-            upd["q_meas"].append(np.asarray(m.q_hb, float))
-            upd["r_sigma"].append(float(np.sqrt(R[0, 0])))
-            upd["att_sigma"].append(float(np.sqrt(R[3, 3])))
-            if first_update_t is None:
-                first_update_t = t_now
-
-    def record(status):
-        s = plant.state
+    def record(self, s: PlantState, nav, nav_ready: bool, status: str) -> None:
+        h = self.rows
         est = np.asarray(nav.state(), float) if nav_ready else np.full(10, np.nan)
         h["t"].append(s.t_s)
         h["r_true"].append(s.r_hill_m.copy())
@@ -302,122 +305,276 @@ def run_docking(seed: int, cfg: ScenarioConfig | None = None, nav=None, on_step=
             h["nees"].append(float(e @ np.linalg.solve(P, e)))
         h["predict_status"].append(status)
 
-    if not (cfg.nav == "ukf" and cfg.init == "pose"):
-        m0 = pose.measure(0.0, *seen(0.0))
-        if m0 is not None:
-            pending.append(m0)
-        deliver(0.0)
-    record("init")
-    if cfg.accel_source not in ("imu", "blr"):
-        raise ValueError(f"accel_source must be 'imu' or 'blr', not {cfg.accel_source!r}")
-    learner = None
-    if cfg.accel_source == "blr":
-        import fsw_bindings as fb
+    def seen(self, s: PlantState, t_tag: float, latency_s: float):
+        """(r, q) the camera sees in the frame tagged t_tag: the truth at
+        t_tag - latency, interpolated over the recorded control steps (``s``
+        is the truth now)."""
+        tc = max(t_tag - latency_s, 0.0)
+        if latency_s == 0.0 or tc >= s.t_s:
+            return s.r_hill_m, s.q_hb
+        h = self.rows
+        ts = h["t"] + [s.t_s]
+        rs, qs = h["r_true"] + [s.r_hill_m], h["q_true"] + [s.q_hb]
+        j = min(max(int(np.searchsorted(ts, tc, side="right")) - 1, 0), len(ts) - 1)
+        if j == len(ts) - 1:
+            return rs[j], qs[j]
+        f = (tc - ts[j]) / (ts[j + 1] - ts[j])
+        return rs[j] + f * (rs[j + 1] - rs[j]), boxplus(qs[j], f * boxminus(qs[j + 1], qs[j]))
 
-        learner = fb.ThrusterBlr(prior_precision=1e-3)
-    accel_sigma_nav = cfg.profile.accel_sigma_mps2 if cfg.nav_accel_sigma_mps2 is None else cfg.nav_accel_sigma_mps2
-    learner_count, blr_used, gyro_prev = 0, 0, gyro_last
-    k = 0
-    contact = False
-    while plant.state.t_s < cfg.t_max_s - 1e-9:
-        est = np.asarray(nav.state(), float) if nav_ready else None
-        if not nav_ready:  # waiting for the first image pose: valves closed
-            dec = ControlDecision(0, ALL_VALVES[0].copy(), np.zeros(3), np.zeros(3), "wait")
-        elif cfg.valve_script is not None:
-            if k >= len(cfg.valve_script):
-                break
-            c = int(cfg.valve_script[k])
-            dec = ControlDecision(c, ALL_VALVES[c].copy(), np.zeros(3), np.zeros(3), "script")
-        else:
-            dec = ctrl.step(est[0:3], est[3:6], est[6:10], gyro_last)
-        if hasattr(nav, "note_valves"):  # the flight app's thruster learner hears the command
-            nav.note_valves(k * cfg.dt_s, cfg.dt_s, int(dec.config))
-        step = plant.step(dec.valves, cfg.dt_s)
-        k += 1
-        t = k * cfg.dt_s
-        t_imu = t if clock_rate == 1.0 else t * clock_rate  # the IMU's own (drifting) time tag
-        sample = imu.sample(t_imu, step.specific_force_b_mps2, step.omega_mean_bi_b_rps)
-        gyro_last = sample.omega_bi_b_rps
-        imu_log["t"].append(t_imu)
-        imu_log["accel"].append(np.asarray(sample.accel_b_mps2, float))
-        imu_log["gyro"].append(np.asarray(sample.omega_bi_b_rps, float))
-        if on_step is not None:
-            on_step(t)
-        status = "ok"
+
+class _UpdateLog:
+    """The pose updates delivered to the filter (PoseUpdates, as lists)."""
+
+    def __init__(self):
+        self.rows = {f.name: [] for f in fields(PoseUpdates)}
+
+    def append(self, m, rec, R: np.ndarray, t_fused: float) -> None:
+        u = self.rows
+        u["t_capture"].append(m.t_capture_s)
+        u["t_fused"].append(t_fused)
+        u["nis"].append(rec.nis)
+        u["status"].append(rec.status)
+        u["fused"].append(bool(rec.fused))
+        u["innovation"].append(np.asarray(rec.innovation))
+        u["S"].append(np.asarray(rec.innovation_cov))
+        u["loglik"].append(rec.log_likelihood)
+        u["r_meas"].append(np.asarray(m.r_hill_m, float))
+        u["q_meas"].append(np.asarray(m.q_hb, float))
+        u["r_sigma"].append(float(np.sqrt(R[0, 0])))
+        u["att_sigma"].append(float(np.sqrt(R[3, 3])))
+
+    def arrays(self) -> PoseUpdates:
+        a = {key: np.array(v) for key, v in self.rows.items()}
+        a["r_meas"] = a["r_meas"].reshape(-1, 3)
+        a["innovation"] = a["innovation"].reshape(-1, 6)
+        a["q_meas"] = a["q_meas"].reshape(-1, 4)
+        return PoseUpdates(**a)
+
+
+class _SpecificForce:
+    """What the filter's predict takes as the specific force
+    (``ScenarioConfig.accel_source``): the accelerometer, or during firings
+    the flight BLR's prediction once it knows the configuration well enough."""
+
+    def __init__(self, cfg: ScenarioConfig, gyro0):
+        if cfg.accel_source not in ("imu", "blr"):
+            raise ValueError(f"accel_source must be 'imu' or 'blr', not {cfg.accel_source!r}")
+        self.learner = None
+        if cfg.accel_source == "blr":
+            import fsw_bindings as fb
+
+            self.learner = fb.ThrusterBlr(prior_precision=1e-3)
+        self.dt_s, self.min_samples = cfg.dt_s, cfg.blr_min_samples
+        self.accel_sigma_nav = (cfg.profile.accel_sigma_mps2 if cfg.nav_accel_sigma_mps2 is None
+                                else cfg.nav_accel_sigma_mps2)
+        self.count, self.used, self.gyro_prev = 0, 0, gyro0
+
+    def for_predict(self, config: int, sample):
+        """The specific force for this step's predict; the learner then
+        learns from the step (each prediction is made before its sample)."""
         accel_nav = sample.accel_b_mps2
-        if learner is not None and dec.config != 0:
-            if learner_count >= cfg.blr_min_samples:
-                mean, var_mean = learner.mean_and_its_variance_mask(int(dec.config))
+        if self.learner is not None and config != 0:
+            if self.count >= self.min_samples:
+                mean, var_mean = self.learner.mean_and_its_variance_mask(int(config))
                 # Only where the learner knows this configuration's effect
                 # better than the accelerometer measures it (the filter's
                 # noise model); a rarely seen configuration stays on the IMU.
-                if np.sqrt(np.max(var_mean[0:3])) / cfg.dt_s < accel_sigma_nav:
-                    accel_nav = mean[0:3] / cfg.dt_s
-                    blr_used += 1
-            dw = np.asarray(sample.omega_bi_b_rps, float) - np.asarray(gyro_prev, float)
-            learner.add_mask(int(dec.config), np.concatenate([np.asarray(sample.accel_b_mps2, float) * cfg.dt_s, dw]))
-            learner_count += 1
-        gyro_prev = sample.omega_bi_b_rps
-        if cfg.nav == "ukf" and nav_ready:
-            status = nav.predict(t_imu, accel_nav, sample.omega_bi_b_rps).status
-        elif not nav_ready:
+                if np.sqrt(np.max(var_mean[0:3])) / self.dt_s < self.accel_sigma_nav:
+                    accel_nav = mean[0:3] / self.dt_s
+                    self.used += 1
+            dw = np.asarray(sample.omega_bi_b_rps, float) - np.asarray(self.gyro_prev, float)
+            self.learner.add_mask(int(config),
+                                  np.concatenate([np.asarray(sample.accel_b_mps2, float) * self.dt_s, dw]))
+            self.count += 1
+        self.gyro_prev = sample.omega_bi_b_rps
+        return accel_nav
+
+
+def _init_from_pose(nav, cfg: ScenarioConfig, t_s: float, m0) -> None:
+    """Filter start from a pose: its r, q and R; v = 0 with sigma v0_sigma_mps."""
+    P0 = np.zeros((9, 9))
+    P0[0:3, 0:3], P0[6:9, 6:9] = m0.R[0:3, 0:3], m0.R[3:6, 3:6]
+    P0[3:6, 3:6] = cfg.v0_sigma_mps**2 * np.eye(3)
+    nav.init(t_s, m0.r_hill_m, np.zeros(3), m0.q_hb, P0)
+
+
+class _DockingLoop:
+    """One run of the loop of the module docstring; ``run()`` returns it."""
+
+    def __init__(self, seed: int, cfg: ScenarioConfig, nav, on_step):
+        self.seed, self.cfg, self.on_step = seed, cfg, on_step
+        rng = np.random.default_rng(seed)
+        rng_imu, rng_pose, rng_init, rng_p0 = (np.random.default_rng(s) for s in rng.integers(0, 2**63, 4))
+        if cfg.pose_source not in ("synthetic", "images"):
+            raise ValueError(f"pose_source must be 'synthetic' or 'images', not {cfg.pose_source!r}")
+        self.images = cfg.pose_source == "images"
+        truth = _truth_and_sensors(cfg, seed, self.images, rng_imu, rng_pose, rng_init)
+        self.plant, self.imu, self.pose = truth.plant, truth.imu, truth.pose
+        self.latency_s, self.clock_rate = truth.latency_s, truth.clock_rate
+        self.ctrl = DockingController(params=cfg.controller)
+        self.hist, self.updates = _History(), _UpdateLog()
+        self.imu_log = {"t": [], "accel": [], "gyro": []}
+        self.pending = []  # poses captured, not yet delivered
+        self.first_update_t = None
+        self.nav_ready = True  # False only while image poses have not yet given a first fix
+        self.t_nav_init = 0.0
+        self.nav = self._start_nav(nav, rng_p0)
+
+    def seen(self, t_tag: float):
+        return self.hist.seen(self.plant.state, t_tag, self.latency_s)
+
+    def _start_nav(self, nav, rng_p0):
+        cfg = self.cfg
+        if cfg.nav == "truth":
+            return _TruthNav(self.plant)
+        if cfg.nav != "ukf":
+            raise ValueError(f"nav must be 'ukf' or 'truth', not {cfg.nav!r}")
+        nav = make_nav_ukf(cfg) if nav is None else nav
+        if cfg.init == "pose":
+            m0 = self.pose.measure(0.0, *self.seen(0.0))
+            if m0 is None:  # images: no pose in the first frame
+                self.nav_ready, self.t_nav_init = False, None
+            else:
+                _init_from_pose(nav, cfg, 0.0, m0)
+        elif cfg.init == "truth_draw":
+            s0 = self.plant.state
+            d0 = P0_SIGMAS * rng_p0.standard_normal(NAV_DOF)
+            P0 = np.diag(P0_SIGMAS**2)
+            nav.init(0.0, s0.r_hill_m + d0[0:3], s0.v_hill_mps + d0[3:6], boxplus(s0.q_hb, -d0[6:9]), P0)
+        else:
+            raise ValueError(f"init must be 'pose' or 'truth_draw', not {cfg.init!r}")
+        return nav
+
+    def run(self) -> DockingRun:
+        cfg = self.cfg
+        gyro_last = self.plant.state.omega_bi_b_rps.copy()  # before the first sample: the initial rate
+        if not (cfg.nav == "ukf" and cfg.init == "pose"):
+            m0 = self.pose.measure(0.0, *self.seen(0.0))
+            if m0 is not None:
+                self.pending.append(m0)
+            self._deliver(0.0)
+        self._record("init")
+        force = _SpecificForce(cfg, gyro_last)
+        k, contact = 0, False
+        while self.plant.state.t_s < cfg.t_max_s - 1e-9:
+            dec = self._decide(k, gyro_last)
+            if dec is None:
+                break
+            gyro_last, contact = self._step(k, dec, force)
+            k += 1
+            if contact:
+                break
+        return self._result(contact, force.used)
+
+    def _decide(self, k: int, gyro_last) -> ControlDecision | None:
+        """The step's valves: closed while waiting for a first pose, the
+        script's (None when it has run out), or the controller's."""
+        est = np.asarray(self.nav.state(), float) if self.nav_ready else None
+        script = self.cfg.valve_script
+        if not self.nav_ready:
+            return ControlDecision(0, ALL_VALVES[0].copy(), np.zeros(3), np.zeros(3), "wait")
+        if script is not None:
+            if k >= len(script):
+                return None
+            c = int(script[k])
+            return ControlDecision(c, ALL_VALVES[c].copy(), np.zeros(3), np.zeros(3), "script")
+        return self.ctrl.step(est[0:3], est[3:6], est[6:10], gyro_last)
+
+    def _step(self, k: int, dec: ControlDecision, force: _SpecificForce):
+        """Control interval k: plant, IMU, predict, pose capture and delivery.
+        Returns the gyro sample and whether the inspector made contact."""
+        cfg = self.cfg
+        if hasattr(self.nav, "note_valves"):  # the flight app's thruster learner hears the command
+            self.nav.note_valves(k * cfg.dt_s, cfg.dt_s, int(dec.config))
+        step = self.plant.step(dec.valves, cfg.dt_s)
+        t = (k + 1) * cfg.dt_s
+        t_imu = t if self.clock_rate == 1.0 else t * self.clock_rate  # the IMU's own (drifting) time tag
+        sample = self.imu.sample(t_imu, step.specific_force_b_mps2, step.omega_mean_bi_b_rps)
+        self.imu_log["t"].append(t_imu)
+        self.imu_log["accel"].append(np.asarray(sample.accel_b_mps2, float))
+        self.imu_log["gyro"].append(np.asarray(sample.omega_bi_b_rps, float))
+        if self.on_step is not None:
+            self.on_step(t)
+        accel_nav = force.for_predict(dec.config, sample)
+        status = "ok"
+        if cfg.nav == "ukf" and self.nav_ready:
+            status = self.nav.predict(t_imu, accel_nav, sample.omega_bi_b_rps).status
+        elif not self.nav_ready:
             status = "waiting_for_pose"
-        if k % n_steps_pose == 0:
-            m = pose.measure(t, *seen(t))
-            if m is not None and clock_rate != 1.0:
-                m.t_capture_s = t_imu  # the flight clock (the IMU's) tags the frame with its tick
-            if m is not None and not nav_ready:
-                init_from_pose(m.t_capture_s, m)
-                nav_ready, t_nav_init = True, m.t_capture_s
-            elif m is not None:
-                pending.append(m)
-        deliver(t)
-        record(status)
-        h["config"].append(dec.config)
-        d_axial = float((DOCK_HILL_M - plant.state.r_hill_m) @ APPROACH_AXIS_HILL)
-        if d_axial <= 0.0 and cfg.valve_script is None:
-            contact = True
-            break
+        if (k + 1) % int(round(cfg.pose_period_s / cfg.dt_s)) == 0:
+            self._capture(t, t_imu)
+        self._deliver(t)
+        self._record(status)
+        self.hist.rows["config"].append(dec.config)
+        d_axial = float((DOCK_HILL_M - self.plant.state.r_hill_m) @ APPROACH_AXIS_HILL)
+        return sample.omega_bi_b_rps, d_axial <= 0.0 and cfg.valve_script is None
 
-    out = {key: np.array(v) for key, v in h.items()}
-    out["config"] = np.array(h["config"], dtype=int)
-    out["updates"] = {key: np.array(v) for key, v in upd.items()}
-    for key in ("r_meas", "innovation"):
-        out["updates"][key] = out["updates"][key].reshape(-1, 3 if key == "r_meas" else 6)
-    out["updates"]["q_meas"] = out["updates"]["q_meas"].reshape(-1, 4)
-    out["imu_t"] = np.array(imu_log["t"])
-    out["imu_accel"] = np.array(imu_log["accel"]).reshape(-1, 3)
-    out["imu_gyro"] = np.array(imu_log["gyro"]).reshape(-1, 3)
-    s = plant.state
-    e_lat = s.r_hill_m - DOCK_HILL_M
-    e_lat = e_lat - (e_lat @ APPROACH_AXIS_HILL) * APPROACH_AXIS_HILL
-    out["summary"] = {
-        "seed": int(seed),
-        "docked": bool(contact),
-        "t_end_s": float(s.t_s),
-        "contact_speed_mps": float(s.v_hill_mps @ APPROACH_AXIS_HILL),
-        "lateral_miss_m": float(np.linalg.norm(e_lat)),
-        "attitude_miss_rad": float(np.linalg.norm(boxminus(s.q_hb, ctrl.q_des_hb))),
-        "first_update_t_s": first_update_t,
-        "valve_seconds": float(np.sum([bin(c).count("1") for c in h["config"]]) * cfg.dt_s),
-        "firing_steps": int(np.count_nonzero(h["config"])),
-        "blr_steps": int(blr_used),  # firing steps whose predict took the BLR's specific force
-    }
-    if images:
-        out["summary"]["pose_source"] = "images"
-        out["summary"]["vision_status_counts"] = dict(pose.status_counts)
-        out["summary"]["t_nav_init_s"] = t_nav_init
-    return out
+    def _capture(self, t: float, t_imu: float) -> None:
+        """The pose of the frame at t: it starts the filter if it waits for
+        one, else it is delivered after the latency."""
+        m = self.pose.measure(t, *self.seen(t))
+        if m is not None and self.clock_rate != 1.0:
+            m.t_capture_s = t_imu  # the flight clock (the IMU's) tags the frame with its tick
+        if m is not None and not self.nav_ready:
+            _init_from_pose(self.nav, self.cfg, m.t_capture_s, m)
+            self.nav_ready, self.t_nav_init = True, m.t_capture_s
+        elif m is not None:
+            self.pending.append(m)
+
+    def _deliver(self, t_now: float) -> None:
+        """Fuse every pending pose due by t_now."""
+        cfg = self.cfg
+        while self.pending and self.pending[0].t_deliver_s <= t_now + 1e-9:
+            m = self.pending.pop(0)
+            if cfg.nav != "ukf":
+                continue
+            if self.images or cfg.pose_R_from == "measurement":
+                R = m.R
+            else:
+                R = self.pose.covariance(np.asarray(self.nav.r_hill_m, float))
+            rec = self.nav.update_pose(m.t_capture_s, m.r_hill_m, m.q_hb, R)
+            self.updates.append(m, rec, R, t_now if self.clock_rate == 1.0 else t_now * self.clock_rate)
+            if self.first_update_t is None:
+                self.first_update_t = t_now
+
+    def _record(self, status: str) -> None:
+        self.hist.record(self.plant.state, self.nav, self.nav_ready, status)
+
+    def _result(self, contact: bool, blr_used: int) -> DockingRun:
+        h = self.hist.rows
+        out = {key: np.array(v) for key, v in h.items()}
+        out["config"] = np.array(h["config"], dtype=int)
+        return DockingRun(**out, updates=self.updates.arrays(), imu_t=np.array(self.imu_log["t"]),
+                          imu_accel=np.array(self.imu_log["accel"]).reshape(-1, 3),
+                          imu_gyro=np.array(self.imu_log["gyro"]).reshape(-1, 3),
+                          summary=self._summary(contact, blr_used))
+
+    def _summary(self, contact: bool, blr_used: int) -> DockingSummary:
+        s, config = self.plant.state, self.hist.rows["config"]
+        e_lat = s.r_hill_m - DOCK_HILL_M
+        e_lat = e_lat - (e_lat @ APPROACH_AXIS_HILL) * APPROACH_AXIS_HILL
+        out = DockingSummary(
+            seed=int(self.seed), docked=bool(contact), t_end_s=float(s.t_s),
+            contact_speed_mps=float(s.v_hill_mps @ APPROACH_AXIS_HILL),
+            lateral_miss_m=float(np.linalg.norm(e_lat)),
+            attitude_miss_rad=float(np.linalg.norm(boxminus(s.q_hb, self.ctrl.q_des_hb))),
+            first_update_t_s=self.first_update_t,
+            valve_seconds=float(np.sum([bin(c).count("1") for c in config]) * self.cfg.dt_s),
+            firing_steps=int(np.count_nonzero(config)), blr_steps=int(blr_used), t_nav_init_s=self.t_nav_init)
+        if self.images:
+            out.pose_source = "images"
+            out.vision_status_counts = dict(self.pose.status_counts)
+        return out
 
 
-def errors_from_first_update(run: dict) -> dict:
+def errors_from_first_update(run: DockingRun) -> dict:
     """Per-axis errors (N, 3) of position, velocity and attitude from the first
     pose update on, with the matching 1-sigma bounds from P."""
-    t0 = run["summary"]["first_update_t_s"]
-    sel = run["t"] >= (t0 if t0 is not None else np.inf) - 1e-9
-    est = run["est"][sel]
+    t0 = run.summary.first_update_t_s
+    sel = run.t >= (t0 if t0 is not None else np.inf) - 1e-9
+    est = run.est[sel]
     e = np.array([nav_error(r, v, q, x) for r, v, q, x in
-                  zip(run["r_true"][sel], run["v_true"][sel], run["q_true"][sel], est)])
-    sig = np.sqrt(np.array([np.diag(P) for P in run["P"][sel]]))
-    return {"t": run["t"][sel], "pos": e[:, 0:3], "vel": e[:, 3:6], "att": e[:, 6:9], "sigma": sig,
-            "nees": run["nees"][sel]}
+                  zip(run.r_true[sel], run.v_true[sel], run.q_true[sel], est)])
+    sig = np.sqrt(np.array([np.diag(P) for P in run.P[sel]]))
+    return {"t": run.t[sel], "pos": e[:, 0:3], "vel": e[:, 3:6], "att": e[:, 6:9], "sigma": sig,
+            "nees": run.nees[sel]}

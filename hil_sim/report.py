@@ -7,10 +7,10 @@ import numpy as np
 
 from bench.flight_log import runs_to_flight_log, write_flight_log
 from bench.report import matplotlib_agg
-from bench.scenario_docking import errors_from_first_update
+from bench.scenario_docking import DockingRun, errors_from_first_update
 
 
-def plot_run(run: dict, path: Path, title: str):
+def plot_run(run: DockingRun, path: Path, title: str):
     plt = matplotlib_agg()
     e = errors_from_first_update(run)
     fig, ax = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
@@ -24,11 +24,11 @@ def plot_run(run: dict, path: Path, title: str):
         a.set_ylabel(f"{block} error [{unit}]")
         a.legend(loc="upper right", ncol=3)
         a.grid(alpha=0.3)
-    ax[2].semilogy(run["t"], [np.trace(P) for P in run["P"]])
+    ax[2].semilogy(run.t, [np.trace(P) for P in run.P])
     ax[2].set_ylabel("trace P")
     ax[2].grid(alpha=0.3)
-    u = run["updates"]
-    ax[3].plot(u["t_fused"], u["nis"], "o", ms=3)
+    u = run.updates
+    ax[3].plot(u.t_fused, u.nis, "o", ms=3)
     ax[3].axhline(22.46, color="r", lw=0.8, label="gate (chi2 6, p=0.999)")
     ax[3].axhline(6.0, color="k", lw=0.8, ls=":", label="expected (6)")
     ax[3].set_ylabel("NIS")

@@ -78,11 +78,11 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
             run = run_docking(cfg.seed + k, sc, nav=nav, on_step=pacer)
             # A run not docked when the time left ran out was cut by the
             # end of the HIL run, not failed by the scenario's own limit.
-            run["summary"]["cut_by_duration"] = bool(
-                not run["summary"]["docked"] and sc.t_max_s < cfg.scenario.t_max_s
-                and run["summary"]["t_end_s"] >= sc.t_max_s - sc.dt_s)
+            run.summary.cut_by_duration = bool(
+                not run.summary.docked and sc.t_max_s < cfg.scenario.t_max_s
+                and run.summary.t_end_s >= sc.t_max_s - sc.dt_s)
             runs.append(run)
-            t_done += float(run["summary"]["t_end_s"]) + sc.dt_s
+            t_done += float(run.summary.t_end_s) + sc.dt_s
             k += 1
             if progress:
                 progress(t_done, cfg.duration_s, run)

@@ -57,8 +57,8 @@ def hil_summary(res: dict, args) -> dict:
     from hil_sim.run import nav_errors
 
     errs = nav_errors(res["runs"])
-    nis = np.concatenate([r["updates"]["nis"][np.asarray(r["updates"]["fused"], bool)]
-                          for r in res["runs"] if len(r["updates"]["nis"])] or [np.zeros(0)])
+    nis = np.concatenate([r.updates.nis[np.asarray(r.updates.fused, bool)]
+                          for r in res["runs"] if len(r.updates.nis)] or [np.zeros(0)])
     return {
         "scenario": args.scenario,
         "duration_s": args.duration,
@@ -68,8 +68,8 @@ def hil_summary(res: dict, args) -> dict:
                    "stall_rate": args.stall_rate},
         "seed": args.seed,
         "docking_runs": len(res["runs"]),
-        "docked": int(sum(r["summary"]["docked"] for r in res["runs"])),
-        "docking_runs_cut_by_duration": int(sum(r["summary"].get("cut_by_duration", False) for r in res["runs"])),
+        "docked": int(sum(r.summary.docked for r in res["runs"])),
+        "docking_runs_cut_by_duration": int(sum(r.summary.cut_by_duration for r in res["runs"])),
         "real_time_factor": res["real_time_factor"],
         "wall_s": res["wall_s"],
         "sim_time_s": res["sim_time_s"],
@@ -200,10 +200,10 @@ def _main(args):
     timeout = 0.05 if faults.clean else 0.02
 
     def progress(t_done, total, run):
-        summ = run["summary"]
-        how = ("docked" if summ["docked"] else
-               "cut short by the end of the run" if summ.get("cut_by_duration") else "not docked")
-        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: {how} at t = {summ['t_end_s']:.1f} s",
+        summ = run.summary
+        how = ("docked" if summ.docked else
+               "cut short by the end of the run" if summ.cut_by_duration else "not docked")
+        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: {how} at t = {summ.t_end_s:.1f} s",
               file=sys.stderr, flush=True)
 
     cfg = HilConfig(duration_s=args.duration, realtime=args.realtime, seed=args.seed, faults=faults,

@@ -90,7 +90,7 @@ def make_plots(runs, summary, folder) -> None:
     # Fig. 3: trace of P, every kept run.
     fig, ax = plt.subplots(figsize=(7, 3.5))
     for r in runs:
-        ax.semilogy(r["t"], np.trace(r["P"], axis1=1, axis2=2), lw=0.7)
+        ax.semilogy(r.t, np.trace(r.P, axis1=1, axis2=2), lw=0.7)
     ax.set(xlabel="time [s]", ylabel="trace P", title="UKF uncertainty (trace of P)")
     fig.tight_layout()
     fig.savefig(out / "nav_trace_p.png", dpi=120)
@@ -107,7 +107,7 @@ def make_plots(runs, summary, folder) -> None:
             ax.plot(e["t"], sig, "k--", lw=0.6, label="3-sigma")
             ax.plot(e["t"], -sig, "k--", lw=0.6)
             ax.set_ylabel(f"{'xyz'[j]} [{unit}]")
-        axes[0].set_title(f"UKF {title}, seed {runs[0]['summary']['seed']}")
+        axes[0].set_title(f"UKF {title}, seed {runs[0].summary.seed}")
         axes[0].legend(loc="upper right", fontsize=7)
         axes[-1].set_xlabel("time [s]")
         fig.tight_layout()
@@ -118,8 +118,8 @@ def make_plots(runs, summary, folder) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 3.5))
     for r in runs:
-        u = r["updates"]
-        ax.plot(u["t_capture"], u["nis"], ".", ms=3)
+        u = r.updates
+        ax.plot(u.t_capture, u.nis, ".", ms=3)
     lo, hi = chi2.ppf([0.025, 0.975], 6)
     ax.axhline(lo, color="k", ls="--", lw=0.6)
     ax.axhline(hi, color="k", ls="--", lw=0.6)

@@ -130,7 +130,7 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
         def simulate(eff, scripts=None):
             runs = simulate_runs(seed, eff, duration_s, scripts=scripts, then_scripts=then_scripts)
             log = runs_to_log(runs, log_config(seed, duration_s), clock_rate(EffectSet(eff)), with_truth=False)
-            return log, [r["config"] for r in runs]
+            return log, [r.config for r in runs]
 
     spec = EFFECTS[name]
     if max_size is not None:

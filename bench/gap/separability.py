@@ -40,7 +40,7 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
     from bench.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
     runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts, then_scripts=then_scripts)
-    scripts = [r["config"] for r in runs1]
+    scripts = [r.config for r in runs1]
     runs0 = simulate_runs(seed, {}, duration_s, scripts=scripts, then_scripts=then_scripts)
     log1 = runs_to_log(runs1, log_config(seed, duration_s), clock_rate(EffectSet(effects)), with_truth=False)
     log0 = runs_to_log(runs0, log_config(seed, duration_s), 1.0, with_truth=False)

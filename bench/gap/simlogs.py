@@ -8,15 +8,15 @@ import numpy as np
 from bench.flight_log import FlightLog
 
 
-def run_to_log(run: dict, dt_s: float = 0.1, config: dict | None = None) -> FlightLog:
+def run_to_log(run, dt_s: float = 0.1, config: dict | None = None) -> FlightLog:
     from bench.flight_log import runs_to_flight_log
 
     cfg = {"orbit_radius_m": 6378137.0 + 500e3, "dt_imu_s": dt_s, "source": "bench docking"}
     cfg.update(config or {})
     log = runs_to_flight_log([run], cfg)
-    n = run["config"].size
+    n = run.config.size
     log.streams["valves"] = {"t_s": np.arange(n) * dt_s, "interval_s": np.full(n, dt_s),
-                             "mask": np.asarray(run["config"], dtype=np.int64)}
+                             "mask": np.asarray(run.config, dtype=np.int64)}
     return log
 
 

@@ -65,11 +65,11 @@ def test_velocity_error_fires_toward_it_in_body_frame():
 
 def test_docks_with_perfect_navigation():
     run = run_docking(3, ScenarioConfig(nav="truth", t_max_s=150.0))
-    s = run["summary"]
-    assert s["docked"]
-    assert 0.0 < s["contact_speed_mps"] <= 0.01
-    assert s["lateral_miss_m"] <= 0.03
-    assert s["attitude_miss_rad"] <= 0.05
+    s = run.summary
+    assert s.docked
+    assert 0.0 < s.contact_speed_mps <= 0.01
+    assert s.lateral_miss_m <= 0.03
+    assert s.attitude_miss_rad <= 0.05
 
 
 def test_open_loop_replay_of_a_runs_valves_reproduces_it():
@@ -78,10 +78,10 @@ def test_open_loop_replay_of_a_runs_valves_reproduces_it():
     # detectable size's probes rely on.
     cfg = ScenarioConfig(t_max_s=30.0)
     closed = run_docking(8, cfg)
-    replay = run_docking(8, ScenarioConfig(t_max_s=30.0, valve_script=tuple(int(c) for c in closed["config"])))
-    assert np.array_equal(replay["config"], closed["config"])
+    replay = run_docking(8, ScenarioConfig(t_max_s=30.0, valve_script=tuple(int(c) for c in closed.config)))
+    assert np.array_equal(replay.config, closed.config)
     for k in ("r_true", "q_true", "imu_accel", "imu_gyro"):
-        assert np.array_equal(replay[k], closed[k]), k
+        assert np.array_equal(getattr(replay, k), getattr(closed, k)), k
     # A script shorter than the run ends it there; nothing past it is fired.
-    short = run_docking(8, ScenarioConfig(t_max_s=30.0, valve_script=tuple(int(c) for c in closed["config"][:50])))
-    assert short["config"].size == 50
+    short = run_docking(8, ScenarioConfig(t_max_s=30.0, valve_script=tuple(int(c) for c in closed.config[:50])))
+    assert short.config.size == 50

@@ -33,9 +33,9 @@ def hill_fixed(r=(0.0, -0.75, 0.0), v=(0.0, 0.0, 0.0)):
 
 def assert_runs_equal(a, b):
     for k in ("t", "r_true", "v_true", "q_true", "w_true", "est", "P", "imu_t", "imu_accel", "imu_gyro", "config"):
-        assert np.array_equal(a[k], b[k]), k
+        assert np.array_equal(getattr(a, k), getattr(b, k)), k
     for k in ("nis", "innovation", "r_meas", "q_meas", "t_capture"):
-        assert np.array_equal(a["updates"][k], b["updates"][k]), k
+        assert np.array_equal(getattr(a.updates, k), getattr(b.updates, k)), k
 
 
 # --- contract ---------------------------------------------------------------
@@ -128,17 +128,17 @@ def test_accel_bias_shifts_every_accel_sample_by_exactly_the_bias():
     cfg = dict(t_max_s=8.0, nav="truth")
     a = run_docking(12, ScenarioConfig(**cfg))
     b = run_docking(12, ScenarioConfig(**cfg, effects=EffectSet(accel_bias=bias)))
-    assert np.array_equal(a["r_true"], b["r_true"])  # the controller steers on the truth: same path
-    assert np.allclose(b["imu_accel"] - a["imu_accel"], bias, rtol=0, atol=1e-16)
-    assert np.array_equal(a["imu_gyro"], b["imu_gyro"])
+    assert np.array_equal(a.r_true, b.r_true)  # the controller steers on the truth: same path
+    assert np.allclose(b.imu_accel - a.imu_accel, bias, rtol=0, atol=1e-16)
+    assert np.array_equal(a.imu_gyro, b.imu_gyro)
 
 
 def test_gyro_bias_shifts_the_first_gyro_sample_by_exactly_the_bias():
     bias = np.array([1e-3, -5e-4, 2e-4])
     a = run_docking(13, ScenarioConfig(t_max_s=1.0))
     b = run_docking(13, ScenarioConfig(t_max_s=1.0, effects=EffectSet(gyro_bias=bias)))
-    assert np.allclose(b["imu_gyro"][0] - a["imu_gyro"][0], bias, rtol=0, atol=1e-16)
-    assert np.array_equal(a["imu_accel"][0], b["imu_accel"][0])
+    assert np.allclose(b.imu_gyro[0] - a.imu_gyro[0], bias, rtol=0, atol=1e-16)
+    assert np.array_equal(a.imu_accel[0], b.imu_accel[0])
 
 
 def quiet_imu(effects):
@@ -168,15 +168,15 @@ def first_pose(seed, effects):
     """The pose captured at t = 1 s (the path up to then does not depend on
     pose-side effects) and the run."""
     run = run_docking(seed, ScenarioConfig(t_max_s=1.0, effects=EffectSet(effects) if effects else None))
-    return run["updates"]["r_meas"][0], run
+    return run.updates.r_meas[0], run
 
 
 def test_camera_latency_shows_the_truth_from_latency_earlier():
     lat = 0.3
     r_nom, a = first_pose(14, None)
     r_lat, b = first_pose(14, {"camera_latency": [lat]})
-    assert np.array_equal(a["r_true"], b["r_true"])
-    r1, r07 = a["r_true"][10], a["r_true"][7]  # truth at 1.0 s and at 0.7 s
+    assert np.array_equal(a.r_true, b.r_true)
+    r1, r07 = a.r_true[10], a.r_true[7]  # truth at 1.0 s and at 0.7 s
     z = (r_nom - r1) / (0.05 * np.linalg.norm(r1))  # the noise draw both runs share
     assert np.allclose(r_lat, r07 + 0.05 * np.linalg.norm(r07) * z, rtol=0, atol=1e-12)
     assert np.linalg.norm(r07 - r1) > 1e-4  # the motion over the latency is visible
@@ -186,16 +186,16 @@ def test_camera_lever_arm_adds_the_rotated_offset():
     d = np.array([0.02, -0.03, 0.05])
     r_nom, a = first_pose(15, None)
     r_arm, b = first_pose(15, {"camera_lever_arm": d})  # the t = 0 pose differs: so does the path
-    r1 = a["r_true"][10]
+    r1 = a.r_true[10]
     z = (r_nom - r1) / (0.05 * np.linalg.norm(r1))  # the noise draw both runs share
-    seen = b["r_true"][10] + rotmat(b["q_true"][10]) @ d
+    seen = b.r_true[10] + rotmat(b.q_true[10]) @ d
     assert np.allclose(r_arm, seen + 0.05 * np.linalg.norm(seen) * z, rtol=0, atol=1e-12)
 
 
 def test_led_occlusion_on_every_frame_shifts_along_the_line_of_sight():
     r_nom, a = first_pose(16, None)
     r_occ, b = first_pose(16, {"led_occlusion": [0.04, 1.0]})  # the t = 0 pose is shifted too
-    r1a, r1b = a["r_true"][10], b["r_true"][10]
+    r1a, r1b = a.r_true[10], b.r_true[10]
     z = (r_nom - r1a) / (0.05 * np.linalg.norm(r1a))
     expected = r1b + 0.05 * np.linalg.norm(r1b) * z + 0.04 * r1b / np.linalg.norm(r1b)
     assert np.allclose(r_occ, expected, rtol=0, atol=1e-12)
@@ -207,19 +207,19 @@ def test_led_occlusion_hits_the_frames_its_own_generator_picks():
     picks = np.random.default_rng([17, 0x0CC1]).uniform(size=31) < 0.3  # frame at t = k s draws k-th
     j = int(np.argmax(picks[1:])) + 1  # first occluded fused frame (t = j s)
     assert 1 < j < 30
-    ua, ub = a["updates"]["r_meas"], b["updates"]["r_meas"]
+    ua, ub = a.updates.r_meas, b.updates.r_meas
     assert np.array_equal(ua[: j - 1], ub[: j - 1])
-    r = a["r_true"][10 * j]
+    r = a.r_true[10 * j]
     assert np.allclose(ub[j - 1] - ua[j - 1], 0.05 * r / np.linalg.norm(r), rtol=0, atol=1e-15)
 
 
 def test_clock_drift_scales_imu_time_tags_and_updates_still_fuse():
     eps = 1e-3
     run = run_docking(18, ScenarioConfig(t_max_s=10.0, effects=EffectSet(clock_drift=[eps])))
-    t = np.arange(1, len(run["imu_t"]) + 1) * 0.1
-    assert np.allclose(run["imu_t"], t * (1 + eps), rtol=0, atol=1e-12)
-    assert np.allclose(run["updates"]["t_capture"], np.arange(1, 11) * (1 + eps), rtol=0, atol=1e-12)
-    assert np.all(run["updates"]["status"] != "bad_input")
+    t = np.arange(1, len(run.imu_t) + 1) * 0.1
+    assert np.allclose(run.imu_t, t * (1 + eps), rtol=0, atol=1e-12)
+    assert np.allclose(run.updates.t_capture, np.arange(1, 11) * (1 + eps), rtol=0, atol=1e-12)
+    assert np.all(run.updates.status != "bad_input")
 
 
 # --- dynamics effects -------------------------------------------------------------

@@ -326,13 +326,13 @@ def test_a_characterisation_flown_after_docking_is_replayed_run_for_run():
     then = single_valve_scripts(fire_s=1.0, coast_s=2.0)
     runs = reality.simulate_runs(12, {"thrust_loss": [0.0, 0.1, 0, 0, 0, 0, 0, 0]}, 20.0, then_scripts=then)
     n_dock = len(runs) - len(then)
-    assert n_dock >= 1 and sum(r["summary"]["t_end_s"] for r in runs[:n_dock]) >= 20.0 - 0.1 * n_dock - 1e-9
+    assert n_dock >= 1 and sum(r.summary.t_end_s for r in runs[:n_dock]) >= 20.0 - 0.1 * n_dock - 1e-9
     for r, sc in zip(runs[n_dock:], then):  # each valve alone, then closed, one run each
-        assert list(r["config"]) == sc
+        assert list(r.config) == sc
     # Replayed open loop without the effect: the same runs, the same valves.
-    again = reality.simulate_runs(12, {}, 20.0, scripts=[r["config"] for r in runs], then_scripts=then)
+    again = reality.simulate_runs(12, {}, 20.0, scripts=[r.config for r in runs], then_scripts=then)
     assert len(again) == len(runs)
-    assert all(np.array_equal(a["config"], r["config"]) for a, r in zip(again, runs))
+    assert all(np.array_equal(a.config, r.config) for a, r in zip(again, runs))
 
 
 def test_a_campaign_with_the_characterisation_records_it_in_every_key():
@@ -390,7 +390,7 @@ def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
     then = single_valve_scripts(fire_s=3.0, coast_s=6.0)
     tau = 0.1
     runs1 = reality.simulate_runs(4, {"camera_latency": [tau]}, 30.0, then_scripts=then)
-    scripts = [r["config"] for r in runs1]
+    scripts = [r.config for r in runs1]
     runs0 = reality.simulate_runs(4, {}, 30.0, scripts=scripts, then_scripts=then)
     cfg = reality.log_config(4, 30.0)
     ctx0, e0, rows_ok = residuals_of(reality.runs_to_log(runs0, cfg, 1.0, with_truth=False))

@@ -83,7 +83,7 @@ def test_hil_against_a_device_gives_the_same_run_as_over_the_pty_relay():
     assert dev["steps"] == pty["steps"] > 150
     assert dev["fsw_node_exit_code"] is None and "not started by the bench" in dev["fsw_node_summary"]
     for a, b in zip(dev["runs"], pty["runs"]):
-        np.testing.assert_array_equal(a["est"], b["est"])
+        np.testing.assert_array_equal(a.est, b.est)
 
 
 def test_hil_cli_with_device(tmp_path, capsys):

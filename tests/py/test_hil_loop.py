@@ -23,15 +23,15 @@ def test_link_estimates_equal_in_process_estimates():
         nav = LinkNav(link, step_timeout_s=2.0)
         nav.configure_nav(nav_config(cfg))
         hil = run_docking(5, cfg, nav=nav)
-    assert ref["est"].shape == hil["est"].shape
+    assert ref.est.shape == hil.est.shape
     # The pose sigma crosses the link as sqrt(R) and is squared again on the
     # flight side: that round trip may move R by one ulp, nothing else differs.
-    np.testing.assert_allclose(hil["est"], ref["est"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(hil["updates"]["nis"], ref["updates"]["nis"], rtol=1e-9)
-    assert list(hil["updates"]["status"]) == list(ref["updates"]["status"])
+    np.testing.assert_allclose(hil.est, ref.est, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(hil.updates.nis, ref.updates.nis, rtol=1e-9)
+    assert list(hil.updates.status) == list(ref.updates.status)
     # P over the link is the diagonal of the flight covariance.
-    np.testing.assert_allclose(np.diagonal(hil["P"], axis1=1, axis2=2),
-                               np.diagonal(ref["P"], axis1=1, axis2=2), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(np.diagonal(hil.P, axis1=1, axis2=2),
+                               np.diagonal(ref.P, axis1=1, axis2=2), rtol=1e-12, atol=0)
 
 
 def test_faulty_link_rejects_every_corrupted_packet_and_keeps_navigating():
@@ -94,7 +94,7 @@ def test_a_run_cut_by_the_end_of_the_hil_run_is_reported_as_such(capsys):
 
     res = run_hil(HilConfig(duration_s=5.0, seed=2))
     (run,) = res["runs"]
-    assert not run["summary"]["docked"] and run["summary"]["cut_by_duration"]
+    assert not run.summary.docked and run.summary.cut_by_duration
     args = argparse.Namespace(scenario="docking", duration=5.0, realtime=False, ber=0.0, drop_rate=0.0,
                               burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0, stall_rate=0.0, seed=2)
     s = hil_summary(res, args)

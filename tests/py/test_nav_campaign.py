@@ -108,9 +108,9 @@ def test_blr_accel_source_learns_in_flight_and_stands_in_during_firings():
     from bench.scenario_docking import run_docking
 
     run = run_docking(1000, ScenarioConfig(accel_source="blr", t_max_s=60.0))
-    s = run["summary"]
-    assert s["firing_steps"] > 30
-    assert 0 < s["blr_steps"] <= s["firing_steps"] - 30  # only after the window has filled
-    assert np.all(np.isfinite(run["est"]))
+    s = run.summary
+    assert s.firing_steps > 30
+    assert 0 < s.blr_steps <= s.firing_steps - 30  # only after the window has filled
+    assert np.all(np.isfinite(run.est))
     with pytest.raises(ValueError, match="accel_source"):
         run_docking(1000, ScenarioConfig(accel_source="magic", t_max_s=1.0))

@@ -27,18 +27,18 @@ def test_filter_fuses_image_poses_every_second(campaign):
     summary, runs = campaign
     assert summary["pose_source"] == "images" and summary["docked"] == 2
     for run in runs:
-        s, u = run["summary"], run["updates"]
-        assert s["t_nav_init_s"] == 0.0  # these starts see the pattern at once
-        frames = sum(s["vision_status_counts"].values())
-        assert frames == int(np.floor(s["t_end_s"] + 1e-9)) + 1  # one frame per whole second, t = 0 included
-        ok = s["vision_status_counts"].get("Ok", 0)
+        s, u = run.summary, run.updates
+        assert s.t_nav_init_s == 0.0  # these starts see the pattern at once
+        frames = sum(s.vision_status_counts.values())
+        assert frames == int(np.floor(s.t_end_s + 1e-9)) + 1  # one frame per whole second, t = 0 included
+        ok = s.vision_status_counts.get("Ok", 0)
         assert ok >= 0.95 * frames
         # Every Ok frame after the initialising one is fused (none gated).
-        assert len(u["nis"]) == ok - 1 and np.all(u["fused"])
+        assert len(u.nis) == ok - 1 and np.all(u.fused)
         # The covariance is the pipeline's (millimetres), not the synthetic 5 % of range (centimetres).
-        rng_m = np.linalg.norm(u["r_meas"], axis=1)
-        assert np.all(u["r_sigma"] < 0.01 * rng_m)
-        assert np.all(u["r_sigma"] > 0.0) and np.all(u["att_sigma"] > 0.0)
+        rng_m = np.linalg.norm(u.r_meas, axis=1)
+        assert np.all(u.r_sigma < 0.01 * rng_m)
+        assert np.all(u.r_sigma > 0.0) and np.all(u.att_sigma > 0.0)
 
 
 def test_errors_within_the_navigation_bounds(campaign):
@@ -54,8 +54,8 @@ def test_campaign_counts_vision_statuses(campaign):
     summary, runs = campaign
     counts = summary["vision_status_counts"]
     assert sum(counts.values()) == summary["vision_frames"]
-    assert summary["vision_frames"] == sum(sum(r["summary"]["vision_status_counts"].values()) for r in runs)
-    assert summary["fused_pose_count"] == sum(len(r["updates"]["nis"]) for r in runs)
+    assert summary["vision_frames"] == sum(sum(r.summary.vision_status_counts.values()) for r in runs)
+    assert summary["fused_pose_count"] == sum(len(r.updates.nis) for r in runs)
     assert set(counts) <= {"Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "DegenerateGeometry",
                            "SolverFailed", "BadInput"}
 
@@ -90,18 +90,18 @@ def test_start_out_of_view_holds_valves_until_the_first_image_pose():
     # frame gives no pose, the valves stay closed and the filter starts from
     # the t = 1 s frame.
     run = run_docking(2186, ScenarioConfig(pose_source="images", t_max_s=10.0))
-    s = run["summary"]
-    assert s["t_nav_init_s"] == 1.0 and s["first_update_t_s"] == 2.0
-    assert s["vision_status_counts"] == {"TooFewLeds": 1, "Ok": 10}
-    assert not np.any(run["config"][:10])  # steps ending at 0.1 .. 1.0 s: no valve open
-    assert np.all(np.isnan(run["nees"][:10])) and np.all(np.isfinite(run["nees"][10:]))
-    assert np.all(np.isfinite(run["est"][10:]))
+    s = run.summary
+    assert s.t_nav_init_s == 1.0 and s.first_update_t_s == 2.0
+    assert s.vision_status_counts == {"TooFewLeds": 1, "Ok": 10}
+    assert not np.any(run.config[:10])  # steps ending at 0.1 .. 1.0 s: no valve open
+    assert np.all(np.isnan(run.nees[:10])) and np.all(np.isfinite(run.nees[10:]))
+    assert np.all(np.isfinite(run.est[10:]))
 
 
 def _pose_errors_mm(run):
-    u = run["updates"]
-    i = np.searchsorted(run["t"], np.asarray(u["t_capture"]) - 1e-9)
-    return 1e3 * np.linalg.norm(u["r_meas"] - run["r_true"][i], axis=1)
+    u = run.updates
+    i = np.searchsorted(run.t, np.asarray(u.t_capture) - 1e-9)
+    return 1e3 * np.linalg.norm(u.r_meas - run.r_true[i], axis=1)
 
 
 def test_lens_distortion_effect_biases_image_poses_and_the_innovations_show_it():
@@ -113,7 +113,7 @@ def test_lens_distortion_effect_biases_image_poses_and_the_innovations_show_it()
                                             effects={"lens_distortion": [-0.1]}))
     e0, e1 = np.median(_pose_errors_mm(base)), np.median(_pose_errors_mm(lens))
     assert e0 < 3.0 and e1 > 10.0 * e0
-    assert np.mean(lens["updates"]["nis"]) > 5.0 * max(np.mean(base["updates"]["nis"]), 6.0)
+    assert np.mean(lens.updates.nis) > 5.0 * max(np.mean(base.updates.nis), 6.0)
 
 
 def test_lens_distortion_effect_needs_image_poses():
