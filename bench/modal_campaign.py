@@ -7,6 +7,8 @@ shape reconstruction (eqs. 8-9) for the shape error.
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from bench import structure as st
@@ -143,7 +145,6 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     (bench.structure.plate_points). coarse_check: also compare every
     image's coarse amplitudes with the truth (normalised estimation error
     squared, per-mode bias in units of the reported sigma)."""
-    fb = _fb()
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
     sensor = st.plate_sensor(plate)
@@ -152,61 +153,105 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     w_prior = w_true * (1 + rng.uniform(-prior_err, prior_err, n_modes))
     batch_ml_images = _images_at(batch_ml_periods, w_true[0], dt_s, n_images, "batch ML reference")
     crb_images = _images_at(crb_periods, w_true[0], dt_s, n_images, "Cramer-Rao bound")
-    gx, gy = plate.grid(40)
-    phi_grid = plate.phi(gx, gy)
-
-    def new_filter(w0, sw0):
-        return make_filter(kind, n_modes, w0, np.zeros(n_modes), sigma_v0=w0 * 1.0, sigma_w0=sw0,
-                           sigma_a0=1e-6, q_a=0.0, q_v=0.0, ut_alpha=ut_alpha)
-
-    sigma_w_prior = 0.1 * w_prior
-    filt = new_filter(w_prior, sigma_w_prior)
-    orc = new_filter(w_true, 1e-6 * w_true) if oracle else None
-    dec = getattr(fb, f"ModalDecomposition{n_modes}")()
-    shape = getattr(fb, f"reconstruct_shape{n_modes}")
-    est = np.zeros((n_images, n_modes, 4))
-    coarse = np.full((n_images, n_modes), np.nan)
-    keep_cov = bool(batch_ml_periods or crb_periods or acquire_periods or coarse_check)
-    coarse_cov = np.full((n_images, n_modes, n_modes), np.nan) if keep_cov else None
+    new_filter = partial(_plate_filter, kind, n_modes, ut_alpha)
     if acquire_periods is not None:
         if not crb_periods:
             raise ValueError("the two-pass prototype is scored at the Cramer-Rao times: give crb_periods (--crb-at)")
         (acquire_image,) = _images_at([acquire_periods], w_true[0], dt_s, n_images, "acquisition")
-    records = [] if acquire_periods is not None else None
-    truth = np.zeros((n_images, n_modes))
-    shape_rms = np.full(n_images, np.nan)
-    shape_rms_oracle = np.full(n_images, np.nan)
-    shape_sigma = np.full(n_images, np.nan)
-    cond, n_used, n_nan, statuses = [], [], [], []
-    for k in range(n_images):
-        t = k * dt_s
-        a = st.plate_coeffs(plate, amp, phase, t)
-        r_meas, d = st.plate_range_image(plate, sensor, a, rng, noise_frac=noise_frac)
-        phi, z, var = st.plate_points(plate, sensor, r_meas, d, noise_frac=noise_frac, at=points_at)
-        rec = dec.decompose(phi, z, var)
-        cond.append(rec.condition_number)
-        n_used.append(rec.n_used)
-        n_nan.append(rec.n_nonfinite)
-        if rec.ok:
-            coarse[k] = rec.a_coarse
-            if coarse_cov is not None:
-                coarse_cov[k] = rec.cov_a
-        statuses.append(filt.step(dt_s, rec)["status"])
-        if records is not None:
-            records.append(rec)
-        est[k] = filt.state
-        truth[k] = a
-        z_true = phi_grid @ a
-        if filt.initialized:
-            z_hat, var_hat = shape(filt.amplitudes, filt.amplitude_cov, phi_grid)
-            shape_rms[k] = np.sqrt(np.mean((z_hat - z_true) ** 2))
-            shape_sigma[k] = np.sqrt(np.mean(var_hat))
-        if orc is not None:
-            orc.step(dt_s, rec)
-            if orc.initialized:
-                z_o, _ = shape(orc.amplitudes, orc.amplitude_cov, phi_grid)
-                shape_rms_oracle[k] = np.sqrt(np.mean((z_o - z_true) ** 2))
+    keep_cov = bool(batch_ml_periods or crb_periods or acquire_periods or coarse_check)
+    fl = _PlateFlight(plate, n_images, keep_cov, keep_records=acquire_periods is not None)
+    sigma_w_prior = 0.1 * w_prior
+    fl.fly(sensor, amp, phase, rng, dt_s, noise_frac, points_at, new_filter(w_prior, sigma_w_prior),
+           new_filter(w_true, 1e-6 * w_true) if oracle else None)
     t = np.arange(n_images) * dt_s
+    period1 = 2 * np.pi / w_true[0]
+    strong = amp >= 0.2  # see _plate_summary
+    out = _plate_summary(seed, kind, dt_s, amp, w_true, w_prior, fl)
+    if oracle:
+        out.update(_shape_convergence(fl.shape_rms, fl.shape_rms_oracle, dt_s, period1))
+    if batch_ml_periods:
+        out["batch_ml"] = [_batch_ml_row(k, fl.coarse, fl.coarse_cov, t, w_prior, sigma_w_prior, fl.est, fl.truth,
+                                         fl.phi_grid, fl.shape_rms, fl.shape_rms_oracle, w_true, strong, period1)
+                           for k in batch_ml_images]
+    if crb_periods:
+        out["crb"] = [_crb_row(k, fl.coarse_cov, t, amp, phase, w_true, sigma_w_prior, fl.est, fl.phi_grid,
+                               fl.shape_rms, fl.shape_rms_oracle, strong, period1) for k in crb_images]
+    if acquire_periods is not None:
+        out["acquisition"] = _acquire(acquire_with, acquire_image, fl.records, fl.coarse, fl.coarse_cov, t, w_prior,
+                                      sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, fl.shape, fl.phi_grid,
+                                      fl.truth, w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas,
+                                      shape_rms_known=fl.shape_rms_oracle)
+    if coarse_check:
+        out["coarse_check"] = _coarse_check(fl.coarse, fl.coarse_cov, fl.truth)
+    out["points_at"] = points_at
+    if keep_series:
+        out.update(t_s=t, est=fl.est, coarse=fl.coarse, truth=fl.truth)
+    return out
+
+
+def _plate_filter(kind: str, n_modes: int, ut_alpha: float, w0, sw0):
+    """The plate's estimating filter from frequencies w0 with 1-sigma sw0."""
+    return make_filter(kind, n_modes, w0, np.zeros(n_modes), sigma_v0=w0 * 1.0, sigma_w0=sw0,
+                       sigma_a0=1e-6, q_a=0.0, q_v=0.0, ut_alpha=ut_alpha)
+
+
+class _PlateFlight:
+    """Per image of a plate run: the decomposition, the filter's state, and
+    the shape error on a 40 x 40 grid of the filter (and of the filter that
+    knows the frequencies, the oracle)."""
+
+    def __init__(self, plate, n_images: int, keep_cov: bool, keep_records: bool):
+        m = plate.n_modes
+        self.plate = plate
+        gx, gy = plate.grid(40)
+        self.phi_grid = plate.phi(gx, gy)
+        self.dec = getattr(_fb(), f"ModalDecomposition{m}")()
+        self.shape = getattr(_fb(), f"reconstruct_shape{m}")
+        self.est = np.zeros((n_images, m, 4))
+        self.coarse = np.full((n_images, m), np.nan)
+        self.coarse_cov = np.full((n_images, m, m), np.nan) if keep_cov else None
+        self.records = [] if keep_records else None
+        self.truth = np.zeros((n_images, m))
+        self.shape_rms = np.full(n_images, np.nan)
+        self.shape_rms_oracle = np.full(n_images, np.nan)
+        self.shape_sigma = np.full(n_images, np.nan)
+        self.cond, self.n_used, self.n_nan, self.statuses = [], [], [], []
+
+    def fly(self, sensor, amp, phase, rng, dt_s: float, noise_frac: float, points_at: str, filt, orc) -> None:
+        plate = self.plate
+        for k in range(self.est.shape[0]):
+            a = st.plate_coeffs(plate, amp, phase, k * dt_s)
+            r_meas, d = st.plate_range_image(plate, sensor, a, rng, noise_frac=noise_frac)
+            phi, z, var = st.plate_points(plate, sensor, r_meas, d, noise_frac=noise_frac, at=points_at)
+            rec = self.dec.decompose(phi, z, var)
+            self.cond.append(rec.condition_number)
+            self.n_used.append(rec.n_used)
+            self.n_nan.append(rec.n_nonfinite)
+            if rec.ok:
+                self.coarse[k] = rec.a_coarse
+                if self.coarse_cov is not None:
+                    self.coarse_cov[k] = rec.cov_a
+            self.statuses.append(filt.step(dt_s, rec)["status"])
+            if self.records is not None:
+                self.records.append(rec)
+            self.est[k] = filt.state
+            self.truth[k] = a
+            z_true = self.phi_grid @ a
+            if filt.initialized:
+                z_hat, var_hat = self.shape(filt.amplitudes, filt.amplitude_cov, self.phi_grid)
+                self.shape_rms[k] = np.sqrt(np.mean((z_hat - z_true) ** 2))
+                self.shape_sigma[k] = np.sqrt(np.mean(var_hat))
+            if orc is not None:
+                orc.step(dt_s, rec)
+                if orc.initialized:
+                    z_o, _ = self.shape(orc.amplitudes, orc.amplitude_cov, self.phi_grid)
+                    self.shape_rms_oracle[k] = np.sqrt(np.mean((z_o - z_true) ** 2))
+
+
+def _plate_summary(seed: int, kind: str, dt_s: float, amp, w_true, w_prior, fl: _PlateFlight) -> dict:
+    """Frequency convergence, final errors and the decomposition's figures."""
+    n_modes = w_true.size
+    est = fl.est
     period1 = 2 * np.pi / w_true[0]
     kw = _converged_index(est[:, :, 2], w_true, rel=0.01)
     per_mode = [_converged_index(est[:, i, 2], w_true[i], rel=0.01) for i in range(n_modes)]
@@ -215,7 +260,7 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     strong = amp >= 0.2
     ks = [per_mode[i] for i in np.nonzero(strong)[0]]
     k_strong = None if any(v is None for v in ks) else (max(ks) if ks else 0)
-    out = {
+    return {
         "seed": seed,
         "n_modes": n_modes,
         "amp_true": amp,
@@ -231,42 +276,27 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
         "freq_rel_err_final_max": float(np.max(np.abs(est[-1, :, 2] / w_true - 1))),
         "measurements_to_converge_1pct": kw,
         "time_to_converge_1pct_periods": None if kw is None else kw * dt_s / period1,
-        "shape_rms_m": shape_rms,
-        "shape_rms_oracle_m": shape_rms_oracle,
-        "shape_sigma_m": shape_sigma,
-        "condition_number_median": float(np.median(cond)),
-        "n_points_used_median": float(np.median(n_used)),
-        "n_nonfinite_median": float(np.median(n_nan)),
-        "n_not_ok": int(sum(s != "ok" for s in statuses)),
+        "shape_rms_m": fl.shape_rms,
+        "shape_rms_oracle_m": fl.shape_rms_oracle,
+        "shape_sigma_m": fl.shape_sigma,
+        "condition_number_median": float(np.median(fl.cond)),
+        "n_points_used_median": float(np.median(fl.n_used)),
+        "n_nonfinite_median": float(np.median(fl.n_nan)),
+        "n_not_ok": int(sum(s != "ok" for s in fl.statuses)),
     }
-    if oracle:
-        half = n_images // 2
-        floor = float(np.median(shape_rms_oracle[half:]))
-        out["shape_noise_floor_m"] = floor
-        # first image from which the 5-image running median stays within 2x the floor
-        rm = np.array([np.nanmedian(shape_rms[max(0, i - 2): i + 3]) for i in range(n_images)])
-        ok = rm <= 2.0 * floor
-        bad = np.nonzero(~ok)[0]
-        ks = 0 if bad.size == 0 else int(bad[-1]) + 1
-        out["shape_converge_index"] = ks if ks < n_images else None
-        out["shape_converge_periods"] = None if ks >= n_images else ks * dt_s / period1
-    if batch_ml_periods:
-        out["batch_ml"] = [_batch_ml_row(k, coarse, coarse_cov, t, w_prior, sigma_w_prior, est, truth, phi_grid,
-                                         shape_rms, shape_rms_oracle, w_true, strong, period1) for k in batch_ml_images]
-    if crb_periods:
-        out["crb"] = [_crb_row(k, coarse_cov, t, amp, phase, w_true, sigma_w_prior, est, phi_grid, shape_rms,
-                               shape_rms_oracle, strong, period1) for k in crb_images]
-    if acquire_periods is not None:
-        out["acquisition"] = _acquire(acquire_with, acquire_image, records, coarse, coarse_cov, t, w_prior,
-                                      sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, shape, phi_grid, truth,
-                                      w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas,
-                                      shape_rms_known=shape_rms_oracle)
-    if coarse_check:
-        out["coarse_check"] = _coarse_check(coarse, coarse_cov, truth)
-    out["points_at"] = points_at
-    if keep_series:
-        out.update(t_s=t, est=est, coarse=coarse, truth=truth)
-    return out
+
+
+def _shape_convergence(shape_rms, shape_rms_oracle, dt_s: float, period1: float) -> dict:
+    """The oracle's shape error over the second half (the noise floor), and
+    the first image from which the filter's 5-image running median stays
+    within twice it."""
+    n_images = shape_rms.size
+    floor = float(np.median(shape_rms_oracle[n_images // 2:]))
+    rm = np.array([np.nanmedian(shape_rms[max(0, i - 2): i + 3]) for i in range(n_images)])
+    bad = np.nonzero(~(rm <= 2.0 * floor))[0]
+    ks = 0 if bad.size == 0 else int(bad[-1]) + 1
+    return {"shape_noise_floor_m": floor, "shape_converge_index": ks if ks < n_images else None,
+            "shape_converge_periods": None if ks >= n_images else ks * dt_s / period1}
 
 
 def _coarse_check(coarse, cov, truth):
