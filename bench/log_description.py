@@ -221,77 +221,17 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
     config = config or {}
     base = bench_description()
     defaults = []
-
-    def pick(section: dict, key: str, where: str, fallback, why: str = "bench inspector"):
-        if key in section:
-            return section[key]
-        defaults.append(f"{where} = {_short(fallback)} ({why})")
-        return fallback
-
     veh = _obj(desc.get("vehicle"), "vehicle", ("mass_kg", "inertia_kgm2", "com_b_m", "thrusters", "envelope_m"))
-    cveh = config.get("vehicle") if isinstance(config.get("vehicle"), dict) else {}
-    bv = dict(base["vehicle"])
-    for k in ("mass_kg", "inertia_kgm2"):  # version 1's config_json, where a log has no description
-        if k in cveh:
-            bv[k] = cveh[k]
-    if "thrust_n" in cveh:
-        bv["thrusters"] = [dict(t, thrust_n=cveh["thrust_n"]) for t in bv["thrusters"]]
-    mass = _num(pick(veh, "mass_kg", "vehicle.mass_kg", bv["mass_kg"]), "vehicle.mass_kg", 0.0, strict_lo=True)
-    inertia = _inertia(pick(veh, "inertia_kgm2", "vehicle.inertia_kgm2", bv["inertia_kgm2"]), "vehicle.inertia_kgm2")
-    com = _vec(pick(veh, "com_b_m", "vehicle.com_b_m", bv["com_b_m"]), 3, "vehicle.com_b_m")
-    thr = _thrusters(pick(veh, "thrusters", "vehicle.thrusters", bv["thrusters"], "bench inspector's 8 thrusters"),
-                     "vehicle.thrusters")
-    # What version 1's config_json stated is not a default.
-    defaults[:] = [x for x in defaults if x.split(" ")[0].split(".")[-1] not in cveh]
-
-    imu = _obj(desc.get("imu"), "imu", ("rate_hz", "sample", "q_body_imu", "position_b_m", "accel_sigma_mps2",
-                                        "gyro_sigma_rps", "accel_noise_density_mps2_rthz",
-                                        "gyro_noise_density_rps_rthz", "accel_bias_stability_mps2",
-                                        "gyro_bias_stability_rps"))
-    rate = None
-    if "rate_hz" in imu:
-        rate = _num(imu["rate_hz"], "imu.rate_hz", 0.0, 1e4, strict_lo=True)
-    sample = imu.get("sample", "mean")
-    if sample != "mean":
-        raise DescriptionError(f"imu.sample: {sample!r} not supported: each sample must be the mean over the "
-                               "interval ending at its time stamp ('mean'), as delta-v / delta-angle IMUs report")
-    qbi = _vec(pick(imu, "q_body_imu", "imu.q_body_imu", base["imu"]["q_body_imu"], "IMU axes = body axes"), 4,
-               "imu.q_body_imu")
-    if abs(np.linalg.norm(qbi) - 1.0) > 1e-6:
-        raise DescriptionError(f"imu.q_body_imu: quaternion [w, x, y, z] norm {np.linalg.norm(qbi):.9g}, expected 1")
-    ipos = _vec(pick(imu, "position_b_m", "imu.position_b_m", com.tolist(), "at the centre of mass"), 3,
-                "imu.position_b_m")
-    cnoise = config.get("noise") if isinstance(config.get("noise"), dict) else {}
-    sig_a = _sigma(imu, cnoise, config, "accel", rate, base["imu"]["accel_sigma_mps2"], defaults)
-    sig_g = _sigma(imu, cnoise, config, "gyro", rate, base["imu"]["gyro_sigma_rps"], defaults)
-    bias_a = _num(pick(imu, "accel_bias_stability_mps2", "imu.accel_bias_stability_mps2", 0.0,
-                       "not stated: a constant accelerometer bias of any size is a gap"),
-                  "imu.accel_bias_stability_mps2", 0.0, 1.0)
-    bias_g = _num(pick(imu, "gyro_bias_stability_rps", "imu.gyro_bias_stability_rps", 0.0,
-                       "not stated: a constant gyro bias of any size is a gap"),
-                  "imu.gyro_bias_stability_rps", 0.0, 1.0)
-
+    mass, inertia, com, thr = _resolve_vehicle(veh, config, base, defaults)
+    rate, qbi, ipos, sig_a, sig_g, bias_a, bias_g = _resolve_imu(desc.get("imu"), config, base, com, defaults)
     pose = _obj(desc.get("pose_sensor"), "pose_sensor", ("reference_point_b_m", "time_offset_s", "latency_s"))
-    pref = _vec(pick(pose, "reference_point_b_m", "pose_sensor.reference_point_b_m", com.tolist(),
-                     "the centre of mass"), 3, "pose_sensor.reference_point_b_m")
-    toff = _num(pick(pose, "time_offset_s", "pose_sensor.time_offset_s", 0.0, "pose and IMU on one clock"),
+    pref = _vec(_pick(defaults, pose, "reference_point_b_m", "pose_sensor.reference_point_b_m", com.tolist(),
+                      "the centre of mass"), 3, "pose_sensor.reference_point_b_m")
+    toff = _num(_pick(defaults, pose, "time_offset_s", "pose_sensor.time_offset_s", 0.0, "pose and IMU on one clock"),
                 "pose_sensor.time_offset_s")
-    lat = _num(pick(pose, "latency_s", "pose_sensor.latency_s", 0.0, "capture times exact"), "pose_sensor.latency_s",
-               0.0)
-
-    orb = _obj(desc.get("orbit"), "orbit", ("radius_m", "altitude_m"))
-    if "radius_m" in orb and "altitude_m" in orb:
-        raise DescriptionError("orbit: give radius_m or altitude_m, not both")
-    if "altitude_m" in orb:
-        radius = EARTH_RADIUS_M + _num(orb["altitude_m"], "orbit.altitude_m", 100e3, 1e8)
-    elif "radius_m" in orb:
-        radius = _num(orb["radius_m"], "orbit.radius_m", EARTH_RADIUS_M + 100e3, 1e8)
-    elif "orbit_radius_m" in config:
-        radius = _num(config["orbit_radius_m"], "config_json.orbit_radius_m", EARTH_RADIUS_M + 100e3, 1e8)
-    else:
-        radius = base["orbit"]["radius_m"]
-        defaults.append(f"orbit.radius_m = {radius:.0f} (circular, 500 km altitude)")
-
+    lat = _num(_pick(defaults, pose, "latency_s", "pose_sensor.latency_s", 0.0, "capture times exact"),
+               "pose_sensor.latency_s", 0.0)
+    radius = _resolve_orbit(desc.get("orbit"), config, base, defaults)
     if "envelope_m" in veh:
         envelope = _num(veh["envelope_m"], "vehicle.envelope_m", 0.0, 100.0, strict_lo=True)
     else:
@@ -299,7 +239,6 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
         envelope = 2.0 * max(float(np.linalg.norm(p)) for p in pts)
         defaults.append(f"vehicle.envelope_m = {envelope:.3g} (twice the farthest described point from the body "
                         "origin)")
-
     segs = _segments(desc["segments"], "segments") if "segments" in desc else []
     if "segments" not in desc:
         defaults.append("segments = found from the data (a skipped IMU tick or a break in the pose stream starts a "
@@ -307,6 +246,85 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
     return Resolved(mass, inertia, com, thr, rate, qbi / np.linalg.norm(qbi), ipos, sig_a, sig_g, pref, toff, lat,
                     radius, segs, envelope_m=envelope, accel_bias_stability_mps2=bias_a,
                     gyro_bias_stability_rps=bias_g, defaults=defaults)
+
+
+def _pick(defaults: list, section: dict, key: str, where: str, fallback, why: str = "bench inspector"):
+    """section[key], or the fallback, named in ``defaults`` with why."""
+    if key in section:
+        return section[key]
+    defaults.append(f"{where} = {_short(fallback)} ({why})")
+    return fallback
+
+
+def _resolve_vehicle(veh: dict, config: dict, base: dict, defaults: list) -> tuple:
+    """(mass, inertia, centre of mass, thrusters); what version 1's
+    config_json stated fills a missing field and is not a default."""
+    cveh = config.get("vehicle") if isinstance(config.get("vehicle"), dict) else {}
+    bv = dict(base["vehicle"])
+    for k in ("mass_kg", "inertia_kgm2"):  # version 1's config_json, where a log has no description
+        if k in cveh:
+            bv[k] = cveh[k]
+    if "thrust_n" in cveh:
+        bv["thrusters"] = [dict(t, thrust_n=cveh["thrust_n"]) for t in bv["thrusters"]]
+    found = []
+    mass = _num(_pick(found, veh, "mass_kg", "vehicle.mass_kg", bv["mass_kg"]), "vehicle.mass_kg", 0.0, strict_lo=True)
+    inertia = _inertia(_pick(found, veh, "inertia_kgm2", "vehicle.inertia_kgm2", bv["inertia_kgm2"]),
+                       "vehicle.inertia_kgm2")
+    com = _vec(_pick(found, veh, "com_b_m", "vehicle.com_b_m", bv["com_b_m"]), 3, "vehicle.com_b_m")
+    thr = _thrusters(_pick(found, veh, "thrusters", "vehicle.thrusters", bv["thrusters"],
+                           "bench inspector's 8 thrusters"), "vehicle.thrusters")
+    defaults.extend(x for x in found if x.split(" ")[0].split(".")[-1] not in cveh)
+    return mass, inertia, com, thr
+
+
+_IMU_FIELDS = ("rate_hz", "sample", "q_body_imu", "position_b_m", "accel_sigma_mps2", "gyro_sigma_rps",
+               "accel_noise_density_mps2_rthz", "gyro_noise_density_rps_rthz", "accel_bias_stability_mps2",
+               "gyro_bias_stability_rps")
+
+
+def _resolve_imu(imu, config: dict, base: dict, com: np.ndarray, defaults: list) -> tuple:
+    """(rate, q_body_imu, position, accel sigma, gyro sigma, accel and gyro
+    bias stability)."""
+    imu = _obj(imu, "imu", _IMU_FIELDS)
+    rate = None
+    if "rate_hz" in imu:
+        rate = _num(imu["rate_hz"], "imu.rate_hz", 0.0, 1e4, strict_lo=True)
+    sample = imu.get("sample", "mean")
+    if sample != "mean":
+        raise DescriptionError(f"imu.sample: {sample!r} not supported: each sample must be the mean over the "
+                               "interval ending at its time stamp ('mean'), as delta-v / delta-angle IMUs report")
+    qbi = _vec(_pick(defaults, imu, "q_body_imu", "imu.q_body_imu", base["imu"]["q_body_imu"], "IMU axes = body axes"),
+               4, "imu.q_body_imu")
+    if abs(np.linalg.norm(qbi) - 1.0) > 1e-6:
+        raise DescriptionError(f"imu.q_body_imu: quaternion [w, x, y, z] norm {np.linalg.norm(qbi):.9g}, expected 1")
+    ipos = _vec(_pick(defaults, imu, "position_b_m", "imu.position_b_m", com.tolist(), "at the centre of mass"), 3,
+                "imu.position_b_m")
+    cnoise = config.get("noise") if isinstance(config.get("noise"), dict) else {}
+    sig_a = _sigma(imu, cnoise, config, "accel", rate, base["imu"]["accel_sigma_mps2"], defaults)
+    sig_g = _sigma(imu, cnoise, config, "gyro", rate, base["imu"]["gyro_sigma_rps"], defaults)
+    bias_a = _num(_pick(defaults, imu, "accel_bias_stability_mps2", "imu.accel_bias_stability_mps2", 0.0,
+                        "not stated: a constant accelerometer bias of any size is a gap"),
+                  "imu.accel_bias_stability_mps2", 0.0, 1.0)
+    bias_g = _num(_pick(defaults, imu, "gyro_bias_stability_rps", "imu.gyro_bias_stability_rps", 0.0,
+                        "not stated: a constant gyro bias of any size is a gap"),
+                  "imu.gyro_bias_stability_rps", 0.0, 1.0)
+    return rate, qbi, ipos, sig_a, sig_g, bias_a, bias_g
+
+
+def _resolve_orbit(orb, config: dict, base: dict, defaults: list) -> float:
+    """The host's orbit radius [m]."""
+    orb = _obj(orb, "orbit", ("radius_m", "altitude_m"))
+    if "radius_m" in orb and "altitude_m" in orb:
+        raise DescriptionError("orbit: give radius_m or altitude_m, not both")
+    if "altitude_m" in orb:
+        return EARTH_RADIUS_M + _num(orb["altitude_m"], "orbit.altitude_m", 100e3, 1e8)
+    if "radius_m" in orb:
+        return _num(orb["radius_m"], "orbit.radius_m", EARTH_RADIUS_M + 100e3, 1e8)
+    if "orbit_radius_m" in config:
+        return _num(config["orbit_radius_m"], "config_json.orbit_radius_m", EARTH_RADIUS_M + 100e3, 1e8)
+    radius = base["orbit"]["radius_m"]
+    defaults.append(f"orbit.radius_m = {radius:.0f} (circular, 500 km altitude)")
+    return radius
 
 
 def _sigma(imu: dict, cnoise: dict, config: dict, which: str, rate, fallback: float, defaults: list) -> float:
