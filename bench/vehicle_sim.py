@@ -102,18 +102,7 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
     rng = np.random.default_rng(seed)
     veh, pfx = _vehicle_with_effects(desc, effects)
     T = 1.0 / (desc.imu_rate_hz or 10.0)
-    c_bi = rotmat(desc.imu_q_body_imu)  # IMU axes -> body axes
-    c_ib = c_bi.T
-    if "imu_misalignment" in effects:
-        c_ib = rotmat(qexp(effects["imu_misalignment"])).T @ c_ib
-    rho = desc.imu_position_b_m - desc.com_b_m  # known lever arm of the accelerometer
-    # The reference point is fixed in B; the truth is the true centre of mass (a centre-of-mass offset moves it).
-    pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
-    lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
-    latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
-    ba = np.asarray(effects.get("accel_bias", np.zeros(3)), float)
-    bg = np.asarray(effects.get("gyro_bias", np.zeros(3)), float)
-    sg = np.asarray(effects.get("gyro_scale", np.zeros(3)), float)
+    sensors = _Sensors.of(desc, effects)
     streams = {k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von",
                                "tt", "tr", "tv", "tq", "tw")}
     segments = []
@@ -122,32 +111,10 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         tm = times[i_seg] if times is not None else None
         if tm is not None:
             t0 = float(tm["imu_t"][0] - T)
-        out = _fly_segment(seg, t0, veh, pfx, desc, T, clocks, rng, latency, tm)
-        imu_t, f_mean, w_mean, alpha, states, poses = out
-        # The accelerometer sits at rho from the centre of mass (known to the log).
-        f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
-        acc = (f_imu @ c_ib.T) + ba + desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
-        # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
-        gyr = (1.0 + sg) * (w_mean @ c_ib.T) + bg + desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
-        keep = np.ones(imu_t.size, bool)
-        if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
-            keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac
-        streams["imu_t"].append(imu_t[keep])
-        streams["acc"].append(acc[keep])
-        streams["gyr"].append(gyr[keep])
-        delays = list(tm["pose_delay"]) if tm is not None else []
-        for tc, r, q in poses:
-            r_meas = r + rotmat(q) @ (pref + lever)
-            sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05)
-            r_meas = r_meas + sig * rng.standard_normal(3)
-            q_meas = qnormalize(qmul(q, qexp(POSE_ATT_SIGMA_RAD * rng.standard_normal(3))))
-            # Stamped on the pose clock: IMU time minus the description's offset, plus its known latency.
-            stamp = tc - desc.pose_time_offset_s + desc.pose_latency_s
-            streams["pc"].append(stamp)
-            streams["pd"].append(stamp + (delays.pop(0) if delays else clocks.pose_delay_s))
-            streams["pr"].append(r_meas)
-            streams["pq"].append(q_meas)
-            streams["prs"].append(sig)
+        imu_t, f_mean, w_mean, alpha, states, poses = _fly_segment(seg, t0, veh, pfx, desc, T, clocks, rng,
+                                                                   sensors.latency_s, tm)
+        sensors.imu_samples(streams, rng, clocks, imu_t, f_mean, w_mean, alpha)
+        sensors.poses(streams, rng, poses, list(tm["pose_delay"]) if tm is not None else [], clocks.pose_delay_s)
         streams["vt"].append(t0 + seg.cmd_t_s)
         streams["von"].append(seg.cmd_on_s)
         st_t, st = states
@@ -159,12 +126,80 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         segments.append({"t_start_s": float(t0), "t_end_s": float(t0 + seg.duration_s), "manoeuvre": seg.manoeuvre,
                          "starts_at_rest": bool(np.all(seg.v0_hill_mps == 0.0))})
         t0 += seg.duration_s + clocks.gap_s
+    log = _log_of(streams, dict(description, segments=segments), desc.n_thrusters, seed, with_truth)
+    key = {"seed": int(seed), "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
+    return log, key
+
+
+@dataclass
+class _Sensors:
+    """The IMU and the pose sensor as mounted, with the effects on them."""
+
+    desc: object  # the resolved description
+    c_ib: np.ndarray  # body axes -> IMU axes (with an IMU misalignment)
+    rho: np.ndarray  # known lever arm of the accelerometer from the centre of mass
+    pref: np.ndarray  # pose reference point from the true centre of mass
+    lever: np.ndarray  # camera lever arm (an effect)
+    latency_s: float
+    accel_bias: np.ndarray
+    gyro_bias: np.ndarray
+    gyro_scale: np.ndarray
+
+    @classmethod
+    def of(cls, desc, effects: dict) -> _Sensors:
+        c_bi = rotmat(desc.imu_q_body_imu)  # IMU axes -> body axes
+        c_ib = c_bi.T
+        if "imu_misalignment" in effects:
+            c_ib = rotmat(qexp(effects["imu_misalignment"])).T @ c_ib
+        # The reference point is fixed in B; the truth is the true centre of mass (a centre-of-mass offset moves it).
+        pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
+        return cls(desc, c_ib, desc.imu_position_b_m - desc.com_b_m, pref,
+                   np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float),
+                   float(np.atleast_1d(effects.get("camera_latency", 0.0))[0]),
+                   np.asarray(effects.get("accel_bias", np.zeros(3)), float),
+                   np.asarray(effects.get("gyro_bias", np.zeros(3)), float),
+                   np.asarray(effects.get("gyro_scale", np.zeros(3)), float))
+
+    def imu_samples(self, streams: dict, rng, clocks: Clocks, imu_t, f_mean, w_mean, alpha) -> None:
+        """The segment's IMU samples, less the dropped ones."""
+        rho, c_ib = self.rho, self.c_ib
+        # The accelerometer sits at rho from the centre of mass (known to the log).
+        f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
+        acc = (f_imu @ c_ib.T) + self.accel_bias + self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
+        # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
+        gyr = ((1.0 + self.gyro_scale) * (w_mean @ c_ib.T) + self.gyro_bias
+               + self.desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape))
+        keep = np.ones(imu_t.size, bool)
+        if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
+            keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac
+        streams["imu_t"].append(imu_t[keep])
+        streams["acc"].append(acc[keep])
+        streams["gyr"].append(gyr[keep])
+
+    def poses(self, streams: dict, rng, poses: list, delays: list, delay_s: float) -> None:
+        """The segment's pose measurements; each delivered after the next of
+        ``delays`` (given time stamps) or ``delay_s``."""
+        desc = self.desc
+        for tc, r, q in poses:
+            r_meas = r + rotmat(q) @ (self.pref + self.lever)
+            sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05)
+            r_meas = r_meas + sig * rng.standard_normal(3)
+            q_meas = qnormalize(qmul(q, qexp(POSE_ATT_SIGMA_RAD * rng.standard_normal(3))))
+            # Stamped on the pose clock: IMU time minus the description's offset, plus its known latency.
+            stamp = tc - desc.pose_time_offset_s + desc.pose_latency_s
+            streams["pc"].append(stamp)
+            streams["pd"].append(stamp + (delays.pop(0) if delays else delay_s))
+            streams["pr"].append(r_meas)
+            streams["pq"].append(q_meas)
+            streams["prs"].append(sig)
+
+
+def _log_of(streams: dict, log_desc: dict, n_thrusters: int, seed: int, with_truth: bool) -> FlightLog:
+    """The flight log of the segments' streams (version 2, with ``log_desc``)."""
     cat = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else np.asarray(v)) for k, v in streams.items()}
     pc = np.asarray(streams["pc"], float)
     if cat["von"].size == 0:
-        cat["von"] = np.zeros((0, desc.n_thrusters))
-    log_desc = dict(description)
-    log_desc["segments"] = segments
+        cat["von"] = np.zeros((0, n_thrusters))
     log = FlightLog(streams={
         "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
         "pose": {"t_capture_s": pc, "t_delivered_s": np.asarray(streams["pd"], float),
@@ -177,8 +212,7 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         # Truth on the IMU clock (the centre of mass), at every IMU tick.
         log.streams["truth"] = {"t_s": cat["tt"], "r_hill_m": cat["tr"], "v_hill_mps": cat["tv"], "q_hb": cat["tq"],
                                 "omega_bi_b_rps": cat["tw"]}
-    key = {"seed": int(seed), "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
-    return log, key
+    return log
 
 
 def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: Clocks, rng, latency: float,
