@@ -1,5 +1,7 @@
 """The Python side passes its linter (ruff, configured in pyproject.toml:
-pyflakes, syntax errors and bugbear's likely bugs)."""
+pyflakes, syntax errors and bugbear's likely bugs), and its functions are
+short."""
+import ast
 import shutil
 import subprocess
 import sys
@@ -29,3 +31,59 @@ def test_ruff_would_catch_an_unused_import(tmp_path):
     r = subprocess.run(_ruff() + ["check", "--no-cache", "--config", str(ROOT / "pyproject.toml"), str(bad)],
                        capture_output=True, text=True)
     assert r.returncode != 0 and "F401" in r.stdout
+
+
+# No function of the bench or the HIL loop is longer than this many lines
+# (from its def to its last line, nested functions counted in their parent).
+MAX_FUNCTION_LINES = 80
+# Longer ones not yet split, at their length today: they may shrink, not grow.
+LONG_FUNCTIONS = {
+    "bench/basilisk_sim.py:_fly_segment": 257,
+    "bench/basilisk_sim.py:simulate": 94,
+    "bench/gap/detectable.py:min_detectable_size": 114,
+    "bench/gap/diagnose.py:diagnose": 227,
+    "bench/gap/validate.py:score": 104,
+}
+
+
+def function_lengths(source: str, where: str) -> dict:
+    """{"<where>:<qualified name>": lines} of every function in ``source``."""
+    out = {}
+
+    def visit(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                name = prefix + child.name
+                if not isinstance(child, ast.ClassDef):
+                    out[f"{where}:{name}"] = child.end_lineno - child.lineno + 1
+                visit(child, name + ".")
+            else:
+                visit(child, prefix)
+
+    visit(ast.parse(source), "")
+    return out
+
+
+def _project_function_lengths() -> dict:
+    out = {}
+    for path in sorted([*(ROOT / "bench").rglob("*.py"), *(ROOT / "hil_sim").rglob("*.py")]):
+        out.update(function_lengths(path.read_text(), path.relative_to(ROOT).as_posix()))
+    return out
+
+
+def test_functions_are_short():
+    lengths = _project_function_lengths()
+    bad = [f"{name}: {n} lines (at most {LONG_FUNCTIONS.get(name, MAX_FUNCTION_LINES)})"
+           for name, n in sorted(lengths.items()) if n > LONG_FUNCTIONS.get(name, MAX_FUNCTION_LINES)]
+    assert not bad, "functions too long (split them by concept):\n" + "\n".join(bad)
+    done = [f"{name}: {lengths.get(name, 'gone')}" for name in LONG_FUNCTIONS
+            if lengths.get(name, 0) <= MAX_FUNCTION_LINES]
+    assert not done, "short now or gone: remove from LONG_FUNCTIONS:\n" + "\n".join(done)
+
+
+def test_function_length_counts_nested_functions_and_methods():
+    body = "\n".join(f"        x{i} = {i}" for i in range(78))
+    src = f"class A:\n    def f(self):\n        def g():\n            pass\n{body}\n\n\ndef h():\n    pass\n"
+    n = function_lengths(src, "m.py")
+    assert n == {"m.py:A.f": 81, "m.py:A.f.g": 2, "m.py:h": 2}
+    assert n["m.py:A.f"] > MAX_FUNCTION_LINES
