@@ -85,6 +85,24 @@ class Camera:
         return np.column_stack([self.fx_px * xd + self.cx_px, self.fy_px * yd + self.cy_px]), front
 
 
+def make_estimator(cam: Camera | None = None, model_distortion: bool = True, pixel_sigma_px: float | None = None,
+                   face_offset_m: float = FACE_OFFSET_M):
+    """The flight pipeline (fsw_bindings.LedPoseEstimator) configured with this camera: one source of truth."""
+    import fsw_bindings as fb
+
+    cam = Camera() if cam is None else cam
+    cfg = fb.LedPoseConfig()
+    cfg.width, cfg.height = cam.width, cam.height
+    cfg.fx_px, cfg.fy_px, cfg.cx_px, cfg.cy_px = cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px
+    cfg.dist = np.asarray(cam.dist, float) if model_distortion else np.zeros(5)
+    cfg.R_bc = cam.R_bc
+    cfg.p_cam_b_m = cam.p_cam_b_m
+    cfg.set_pattern(HALF_SIDE_M, face_offset_m)
+    if pixel_sigma_px is not None:
+        cfg.pixel_sigma_px = pixel_sigma_px
+    return fb.LedPoseEstimator(cfg)
+
+
 def camera_from_nav(r_hill_m, q_hb, q_h_host, cam: Camera):
     """Inspector pose (r_hill_m, q_hb) and host attitude -> (R_cp, t_cp_m): host body -> camera."""
     R_hb, R_hp = rotmat(q_hb), rotmat(q_h_host)

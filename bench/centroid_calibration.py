@@ -141,10 +141,9 @@ def _detect_all(est, img, max_blobs):
 
 def estimator(**overrides):
     """The flight pipeline's estimator with the bench camera, max_blobs raised for the spot grid."""
-    from bench.pose_campaign import make_estimator
     import fsw_bindings as fb
 
-    base = make_estimator(cm.Camera())
+    base = cm.make_estimator(cm.Camera())
     cfg = base.config
     cfg.max_blobs = len(spot_grid()) + 20
     for k, v in overrides.items():

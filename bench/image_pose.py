@@ -81,10 +81,8 @@ class ImagePoseSensor:
     lens_k1: float = 0.0
 
     def __post_init__(self):
-        from bench.pose_campaign import make_estimator
-
         self.pattern = docking_pattern()
-        self.estimator = make_estimator(self.cam, face_offset_m=DOCK_FACE_OFFSET_M)
+        self.estimator = cm.make_estimator(self.cam, face_offset_m=DOCK_FACE_OFFSET_M)
         k1_extra = np.array([float(self.lens_k1), 0.0, 0.0, 0.0, 0.0])
         self.render_cam = replace(self.cam, dist=np.asarray(self.cam.dist, float) + k1_extra)
 

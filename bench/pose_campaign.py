@@ -27,24 +27,6 @@ GROSS_NEES = float(chi2.ppf(0.9999, 6))  # beyond this an "Ok" pose is a gross e
 RANGE_BINS_M = (0.3, 1.0, 2.0, 3.0, 4.0, 5.0)  # camera to pattern, for the per-range summary
 
 
-def make_estimator(cam: cm.Camera | None = None, model_distortion: bool = True, pixel_sigma_px: float | None = None,
-                   face_offset_m: float = cm.FACE_OFFSET_M):
-    """The flight pipeline configured with the bench camera (one source of truth: bench/camera.py)."""
-    import fsw_bindings as fb
-
-    cam = cm.Camera() if cam is None else cam
-    cfg = fb.LedPoseConfig()
-    cfg.width, cfg.height = cam.width, cam.height
-    cfg.fx_px, cfg.fy_px, cfg.cx_px, cfg.cy_px = cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px
-    cfg.dist = np.asarray(cam.dist, float) if model_distortion else np.zeros(5)
-    cfg.R_bc = cam.R_bc
-    cfg.p_cam_b_m = cam.p_cam_b_m
-    cfg.set_pattern(cm.HALF_SIDE_M, face_offset_m)
-    if pixel_sigma_px is not None:
-        cfg.pixel_sigma_px = pixel_sigma_px
-    return fb.LedPoseEstimator(cfg)
-
-
 def pose_error(r_meas, q_meas, r_true, q_true) -> np.ndarray:
     """[position (Hill) m, body-frame attitude rad]: estimate minus truth, the filter's convention."""
     return np.concatenate([np.asarray(r_meas) - r_true, boxminus(np.asarray(q_meas), q_true)])
@@ -116,7 +98,7 @@ def image_campaign(seed: int, runs: int, conditions: dict | None = None, cam: cm
                    range_m=(0.3, 5.0)) -> dict:
     cam = cm.Camera() if cam is None else cam
     conditions = cm.CONDITIONS if conditions is None else conditions
-    est = make_estimator(cam)
+    est = cm.make_estimator(cam)
     rng_pose = np.random.default_rng(seed)
     rng_img = np.random.default_rng(seed + 1)
     per_cond = {name: [] for name in conditions}
@@ -138,7 +120,7 @@ def distortion_experiment(seed: int, runs: int, k1_values=(0.0, -0.05, -0.1, -0.
     rng_pose = np.random.default_rng(seed + 100)
     rng_img = np.random.default_rng(seed + 101)
     pinhole = cm.Camera()
-    est = make_estimator(pinhole)  # assumes no distortion
+    est = cm.make_estimator(pinhole)  # assumes no distortion
     scene = cm.CONDITIONS["nominal"]
     poses = [cm.sample_pose(rng_pose, pinhole, (0.3, 5.0), margin_px=25.0) for _ in range(runs)]
     rows = []

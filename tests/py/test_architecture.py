@@ -118,5 +118,5 @@ def test_gap_layers(graph):
 def test_the_checks_see_function_local_imports(graph):
     """The graph holds imports made inside functions (the cycle check would
     be blind without them)."""
-    details = graph.get_import_details(importer="bench.image_pose", imported="bench.pose_campaign")
-    assert details and details[0]["line_contents"].startswith("from bench.pose_campaign import")
+    details = graph.get_import_details(importer="bench.scenario_docking", imported="bench.image_pose")
+    assert details and details[0]["line_contents"].startswith("from bench.image_pose import")

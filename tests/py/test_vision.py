@@ -14,12 +14,12 @@ from bench.so3 import qexp, qmul  # noqa: E402
 
 @pytest.fixture(scope="module")
 def est():
-    return pc.make_estimator(cm.Camera())
+    return cm.make_estimator(cm.Camera())
 
 
 def test_bench_camera_matches_flight_projection_with_distortion():
     cam = cm.Camera(dist=np.array([-0.15, 0.04, 0.001, -0.002, 0.0]))
-    est = pc.make_estimator(cam)
+    est = cm.make_estimator(cam)
     rng = np.random.default_rng(3)
     r, q, qh, _ = cm.sample_pose(rng, cam, (0.5, 3.0))
     ok, px_flight = est.project(r, q, qh)
