@@ -74,9 +74,8 @@ py::dict result_dict(const fsw::DeframeResult& r) {
   return d;
 }
 
-}  // namespace
-
-void bind_link(py::module_& m) {
+// CRC and COBS of any bytes.
+void bind_codecs(py::module_& m) {
   m.def(
       "link_crc16",
       [](const py::bytes& b) {
@@ -93,6 +92,10 @@ void bind_link(py::module_& m) {
         return py::bytes(out.data(), n);
       },
       py::arg("data"), "COBS encoding of data (no trailing 0x00).");
+}
+
+// The rejection reasons and the APID table, as the flight code has them.
+void bind_tables(py::module_& m) {
   m.def(
       "link_reject_reasons",
       []() {
@@ -121,6 +124,10 @@ void bind_link(py::module_& m) {
         return l;
       },
       "The flight APID table.");
+}
+
+// One frame with any header values (the cross-check's malformed packets too).
+void bind_build_frame(py::module_& m) {
   m.def(
       "link_build_frame",
       [](int apid, int seq_count, double t_s, const py::bytes& payload, int seq_flags, int packet_type) {
@@ -142,7 +149,9 @@ void bind_link(py::module_& m) {
       py::arg("apid"), py::arg("seq_count"), py::arg("t_s"), py::arg("payload"), py::arg("seq_flags") = 3,
       py::arg("packet_type") = 1,
       "Frame (COBS bytes and 0x00) of one packet with any header values; t_s [s] is the time tag.");
+}
 
+void bind_framer(py::module_& m) {
   py::class_<fsw::Framer>(m, "LinkFramer", "Framer of one direction with per-APID sequence counts.")
       .def(py::init([](const std::string& dir) { return fsw::Framer(direction_of(dir)); }), py::arg("direction"))
       .def(
@@ -159,7 +168,9 @@ void bind_link(py::module_& m) {
             return py::bytes(out.data(), n);
           },
           py::arg("apid"), py::arg("t_s"), py::arg("payload"), py::arg("seq_flags") = 3);
+}
 
+void bind_deframer(py::module_& m) {
   py::class_<fsw::Deframer, std::unique_ptr<fsw::Deframer>>(
       m, "LinkDeframer", "Streaming deframer of the flight code; feed() takes any chunk of bytes.")
       .def(py::init([](const std::string& dir) { return std::make_unique<fsw::Deframer>(direction_of(dir)); }),
@@ -184,4 +195,14 @@ void bind_link(py::module_& m) {
       .def("counters", [](const fsw::Deframer& d) { return link_counters_dict(d.counters()); })
       .def("reset_history", &fsw::Deframer::reset_history)
       .def("reset_time_history", &fsw::Deframer::reset_time_history);
+}
+
+}  // namespace
+
+void bind_link(py::module_& m) {
+  bind_codecs(m);
+  bind_tables(m);
+  bind_build_frame(m);
+  bind_framer(m);
+  bind_deframer(m);
 }

@@ -209,11 +209,9 @@ void bind_acquisition(py::module_& m) {
 }
 
 template <int M>
-void bind_size(py::module_& m) {
-  using D = fsw::ModalDecomposition<double, M>;
+void bind_decomposition_record(py::module_& m) {
   using R = fsw::ModalDecompositionRecord<double, M>;
-  const std::string sfx = std::to_string(M);
-  py::class_<R>(m, ("ModalDecompositionRecord" + sfx).c_str(), "Result of one decomposition (eqs. 3-4).")
+  py::class_<R>(m, ("ModalDecompositionRecord" + std::to_string(M)).c_str(), "Result of one decomposition (eqs. 3-4).")
       .def_property_readonly("status", [](const R& r) { return std::string(fsw::to_string(r.status)); })
       .def_property_readonly("ok", &R::ok)
       .def_property_readonly("a_coarse", [](const R& r) { return to_numpy(r.a_coarse); })
@@ -226,8 +224,13 @@ void bind_size(py::module_& m) {
       .def_readonly("n_nonfinite", &R::n_nonfinite)
       .def_readonly("n_bad_variance", &R::n_bad_variance)
       .def_readonly("per_point_variance", &R::per_point_variance);
+}
 
-  py::class_<D, std::unique_ptr<D>>(m, ("ModalDecomposition" + sfx).c_str(),
+template <int M>
+void bind_decomposition(py::module_& m) {
+  using D = fsw::ModalDecomposition<double, M>;
+  using R = fsw::ModalDecompositionRecord<double, M>;
+  py::class_<D, std::unique_ptr<D>>(m, ("ModalDecomposition" + std::to_string(M)).c_str(),
                                     "Streaming modal decomposition of one range image (eqs. 2-4).")
       .def(py::init([](double sigma_e, double max_cond, int min_points) {
              fsw::ModalDecompositionConfig<double> c;
@@ -280,12 +283,11 @@ void bind_size(py::module_& m) {
             return r;
           },
           py::arg("phi"), py::arg("z_m"), py::arg("var_m2") = py::none(), "reset + add_points + solve.");
+}
 
-  bind_filter<fsw::ModalUkfBank<double, M>, M>(m, "ModalUkfBank" + sfx,
-                                               "Bank of decoupled per-mode 4-state UKFs (eqs. 5-7).");
-  bind_filter<fsw::ModalUkfJoint<double, M>, M>(m, "ModalUkfJoint" + sfx,
-                                                "Joint 4M-state UKF with the coupled measurement covariance.");
-  m.def(("reconstruct_shape" + sfx).c_str(),
+template <int M>
+void bind_reconstruct_shape(py::module_& m) {
+  m.def(("reconstruct_shape" + std::to_string(M)).c_str(),
         [](const Arr& a, const Arr& cov, const Arr& phi) {
           const auto av = mvec<M>(a, "a");
           const auto P = mat<M, M>(cov, "cov_a");
@@ -296,6 +298,19 @@ void bind_size(py::module_& m) {
         },
         py::arg("a"), py::arg("cov_a"), py::arg("phi"),
         "Eqs. 8-9: (z_m, var_m2) at the points whose mode-shape rows are phi (n, M).");
+}
+
+// Everything of one modal size M, in the order its signatures need.
+template <int M>
+void bind_size(py::module_& m) {
+  const std::string sfx = std::to_string(M);
+  bind_decomposition_record<M>(m);
+  bind_decomposition<M>(m);
+  bind_filter<fsw::ModalUkfBank<double, M>, M>(m, "ModalUkfBank" + sfx,
+                                               "Bank of decoupled per-mode 4-state UKFs (eqs. 5-7).");
+  bind_filter<fsw::ModalUkfJoint<double, M>, M>(m, "ModalUkfJoint" + sfx,
+                                                "Joint 4M-state UKF with the coupled measurement covariance.");
+  bind_reconstruct_shape<M>(m);
   bind_acquisition<M>(m);
 }
 

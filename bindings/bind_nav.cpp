@@ -15,9 +15,8 @@ namespace {
 using Cfg = fsw::NavConfig<double>;
 using Ukf = fsw::NavUkf<double, false>;
 using Rec = Ukf::Record;
-}  // namespace
 
-void bind_nav(py::module_& m) {
+void bind_config(py::module_& m) {
   py::class_<Cfg>(m, "NavConfig", "Navigation filter configuration (plain struct, all fields read/write, SI units).")
       .def(py::init<>())
       .def_readwrite("n_radps", &Cfg::n_radps, "Orbit rate n [rad/s]; default 500 km circular.")
@@ -55,7 +54,9 @@ void bind_nav(py::module_& m) {
                ", gyro_sigma_rps=" + std::to_string(c.gyro_sigma_rps) + ", gate_chi2=" + std::to_string(c.gate_chi2) +
                ", max_delay_s=" + std::to_string(c.max_delay_s) + ")";
       });
+}
 
+void bind_record(py::module_& m) {
   py::class_<Rec>(m, "NavStepRecord", "What one navigation filter step did.")
       .def_property_readonly(
           "status", [](const Rec& r) { return std::string(fsw::to_string(r.status)); },
@@ -77,7 +78,9 @@ void bind_nav(py::module_& m) {
                fsw::to_string(r.detail) + "', fused=" + (r.fused ? "True" : "False") +
                ", nis=" + std::to_string(r.nis) + ")";
       });
+}
 
+void bind_ukf(py::module_& m) {
   py::class_<Ukf>(m, "NavUkf",
                   "9-state multiplicative quaternion UKF (double): Hill-frame position, velocity and q_hb; "
                   "covariance over [dr_hill, dv_hill, dtheta_body]. IMU predict, pose update with delay.")
@@ -132,4 +135,12 @@ void bind_nav(py::module_& m) {
       .def_property_readonly_static("history_capacity", [](py::object) { return Ukf::kHistoryCapacity; })
       .def(
           "state", [](const Ukf& u) { return to_numpy(u.state().stored()); }, "(10,) [r(3), v(3), q_wxyz(4)].");
+}
+
+}  // namespace
+
+void bind_nav(py::module_& m) {
+  bind_config(m);
+  bind_record(m);
+  bind_ukf(m);
 }
