@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from bench.vehicle_sim import Clocks
+from bench.sim.vehicle_sim import Clocks
 
 # The in-library effects at the sizes the cross-check flies (large enough to
 # stand far above both engines' numerical floor), and the stream that shows each.
@@ -71,7 +71,8 @@ def _streams(log) -> dict:
 
 
 def _fly(engine: str, description: dict, plan: list, effects: dict) -> dict:
-    from bench import basilisk_sim, vehicle_sim
+    from bench import basilisk_sim
+    from bench.sim import vehicle_sim
 
     clocks = Clocks(pose_period_s=0.5, pose_phase_s=0.4)
     if engine == "bench":
@@ -84,8 +85,8 @@ def _fly(engine: str, description: dict, plan: list, effects: dict) -> dict:
 
 def _noise_free_bench_pose(description, plan, effects) -> np.ndarray:
     """The bench's pose without noise: its truth at the captures, moved to the reference point."""
-    from bench import vehicle_sim
-    from bench.log_description import resolve
+    from bench.sim import vehicle_sim
+    from bench.sim.log_description import resolve
     from bench.so3 import rotmat
 
     clocks = Clocks(pose_period_s=0.5, pose_phase_s=0.4)
@@ -223,7 +224,7 @@ def main(argv=None):
     import json
 
     from bench.basilisk_sim import basilisk_version
-    from bench.vehicles import VEHICLES
+    from bench.sim.vehicles import VEHICLES
 
     ap = argparse.ArgumentParser(description="The bench's plant against Basilisk: null, effect signatures, impulses")
     ap.add_argument("--vehicle", default="12kg", choices=sorted(VEHICLES))

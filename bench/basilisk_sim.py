@@ -38,10 +38,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.flight_log import FlightLog
-from bench.log_description import resolve
+from bench.sim.flight_log import FlightLog
+from bench.sim.log_description import resolve
 from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
-from bench.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
+from bench.sim.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
 
 STEP_S = 1e-3
 J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/plant.py)
@@ -153,7 +153,7 @@ def _host_orbit(desc, effects: dict, t0: float, mu: float):
     """Host position and velocity (inertial) at the run's start: a circular
     orbit (inclination 51.6 deg, node on x, argument of latitude n t0), or
     the eccentric orbit of ``host_eccentricity`` with the bench's phase."""
-    from bench.effects import true_anomaly_after
+    from bench.sim.effects import true_anomaly_after
 
     a = desc.orbit_radius_m
     n = np.sqrt(mu / a**3)

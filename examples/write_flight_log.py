@@ -43,8 +43,8 @@ def stand_in_arrays(seed: int = 3):
     captures between IMU samples on a clock of their own, and pulse-width
     modulated valves, standing in for a team's own telemetry."""
     from bench.gap.plans import characterisation_plan
-    from bench.vehicle_sim import Clocks, simulate
-    from bench.vehicles import inspector_12kg
+    from bench.sim.vehicle_sim import Clocks, simulate
+    from bench.sim.vehicles import inspector_12kg
 
     desc = inspector_12kg()
     log, _ = simulate(desc, characterisation_plan(desc, seed=seed), {}, seed=seed,

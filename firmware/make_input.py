@@ -2,14 +2,14 @@
 the uplink of a docking run and of the vibrating plate's range images, as
 link frames (COBS, each ending in 0x00).
 
-Navigation: one docking run of the bench (bench/scenario_docking.py: plant,
+Navigation: one docking run of the bench (bench/sim/scenario_docking.py: plant,
 IMU, LED poses, controller, thruster valve commands) with its navigation in
 the flight application in-process (hil_sim/link_nav.LinkNav over a link that
 records every byte sent up), so the recording is what the ground sent to a
 flight side that answered: cmd_config, cmd_reset, imu_sample, led_pose,
 thruster_valves.
 
-Structure: range images of the range-image paper's 10-mode plate (bench/structure.py),
+Structure: range images of the range-image paper's 10-mode plate (bench/sim/structure.py),
 one a minute, each thinned to points spread evenly over its rays, as
 range_image_segment packets; enough images for the tracker's frequency
 acquisition (2 periods of the lowest mode). Their packets are interleaved
@@ -26,8 +26,8 @@ import types
 import numpy as np
 
 import fsw_bindings as fb
-from bench import structure as st
-from bench.scenario_docking import ScenarioConfig, nav_config, run_docking
+from bench.sim import structure as st
+from bench.sim.scenario_docking import ScenarioConfig, nav_config, run_docking
 from hil_sim import packets as pk
 from hil_sim.link_nav import LinkNav
 

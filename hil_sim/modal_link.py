@@ -1,5 +1,5 @@
 """The plate over the link: range images of the paper's vibrating plate
-(bench/structure.py) sent as range_image_segment packets to the flight
+(bench/sim/structure.py) sent as range_image_segment packets to the flight
 executable behind a pseudo-terminal, its modal estimate back as tm_modal.
 
 Lockstep: each image's segments go out in one write, then the bench waits
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench import structure as st
+from bench.sim import structure as st
 from hil_sim import packets as pk
 from hil_sim.faults import FaultConfig
 from hil_sim.pty_link import BAUD, open_link

@@ -5,9 +5,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.flight_log import runs_to_flight_log, write_flight_log
+from bench.sim.flight_log import runs_to_flight_log, write_flight_log
 from bench.report import matplotlib_agg
-from bench.scenario_docking import DockingRun, errors_from_first_update
+from bench.sim.scenario_docking import DockingRun, errors_from_first_update
 
 
 def plot_run(run: DockingRun, path: Path, title: str):

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.scenario_docking import ScenarioConfig, errors_from_first_update, nav_config, run_docking
+from bench.sim.scenario_docking import ScenarioConfig, errors_from_first_update, nav_config, run_docking
 from hil_sim.faults import FaultConfig
 from hil_sim.link_nav import LinkNav
 from hil_sim.pty_link import BAUD, open_link

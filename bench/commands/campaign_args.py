@@ -1,6 +1,6 @@
 """The arguments every campaign command shares: where its runs execute
 (a local Dask cluster, or an existing one) and where their results are kept
-(bench/campaign, docs/CAMPAIGNS.md)."""
+(bench/runner, docs/CAMPAIGNS.md)."""
 from __future__ import annotations
 
 from bench.commands.args import number
@@ -23,11 +23,11 @@ def add_campaign_arguments(p, workers: bool = True) -> None:
 
 
 def campaign_from(args, name: str, arguments: dict, progress: bool = True):
-    """The Campaign (bench/campaign/runner.py) of a command's parsed args;
+    """The Campaign (bench/runner/runner.py) of a command's parsed args;
     ``arguments``: everything the runs' results depend on (the store's key)."""
-    from bench.campaign import cluster
-    from bench.campaign.runner import Campaign
-    from bench.campaign.store import RunStore
+    from bench.runner import cluster
+    from bench.runner.runner import Campaign
+    from bench.runner.store import RunStore
 
     if args.scheduler is not None and "://" not in args.scheduler:
         raise ValueError(f"--scheduler {args.scheduler}: expected an address such as tcp://HOST:PORT")

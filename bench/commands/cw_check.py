@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from bench import cw_check, orbit
+from bench.campaigns import cw_check
+from bench.sim import orbit
 from bench.commands.args import number, one_line_errors
 from bench.report import write_json
 

@@ -96,10 +96,10 @@ def _summary(vals):
 
 
 def _run_trials(args, spec: dict) -> list:
-    """Trials seed, seed + 1, ... as a campaign (bench/campaign): each a Dask
+    """Trials seed, seed + 1, ... as a campaign (bench/runner): each a Dask
     task kept in the results store; the first keeps its series for --plots."""
-    from bench import modal_campaign as mc
-    from bench.campaign.runner import all_failed, failures, missing, results
+    from bench.campaigns import modal_campaign as mc
+    from bench.runner.runner import all_failed, failures, missing, results
 
     campaign = campaign_from(args, f"modal-{spec['scenario']}", {"seed": args.seed, **spec})
     items = [{"seed": args.seed + k, "keep_series": bool(k == 0 and args.plots)} for k in range(args.trials)]
@@ -116,7 +116,7 @@ def _run_trials(args, spec: dict) -> list:
 
 
 def main(args):
-    from bench import modal_campaign as mc
+    from bench.campaigns import modal_campaign as mc
 
     if args.modes is None:
         args.modes = 3 if args.scenario == "pendulum" else 10
@@ -405,7 +405,7 @@ def _flight_bindings(m, n, kind, repeats):
     q = 1 + np.arange(m) // 7
     phi = np.ascontiguousarray(np.sin(p * np.pi * x[:, None]) * np.sin(q * np.pi * y[:, None]))
     z = phi @ (0.1 * np.cos(np.arange(m))) + 0.01 * rng.standard_normal(n)
-    from bench.modal_campaign import make_filter
+    from bench.campaigns.modal_campaign import make_filter
 
     w = 0.01 * (1 + np.arange(m))
     f = make_filter(kind, m, w, np.zeros(m), w, 0.1 * w, 1e-5, 1e-8, 1e-10)
@@ -472,7 +472,7 @@ def _fit(cells):
 
 def timing_main(args):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from bench import modal_numpy as mn
+    from bench.perf import modal_numpy as mn
 
     ns = [n for n in GRID_N if n <= args.max_points]
     exes = _labelled_exes(args.bench_exe)

@@ -9,10 +9,10 @@ import numpy as np
 
 from bench.commands.args import number, one_line_errors
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
-from bench.nav_campaign import run_campaign
+from bench.campaigns.nav_campaign import run_campaign
 from bench.report import matplotlib_agg, report_dir, write_json
-from bench.scenario_docking import ScenarioConfig, errors_from_first_update
-from bench.sensors import NoiseProfile
+from bench.sim.scenario_docking import ScenarioConfig, errors_from_first_update
+from bench.sim.sensors import NoiseProfile
 
 
 def register(sub):

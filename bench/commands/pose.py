@@ -1,7 +1,7 @@
 """`proxops pose`: the LED pose pipeline's accuracy campaign on rendered
-images (bench/pose_campaign.py, docs/VISION.md), and the dual-quaternion paper's feature
+images (bench/campaigns/pose_campaign.py, docs/VISION.md), and the dual-quaternion paper's feature
 comparison (points, lines, circles, all; EKF and UKF) on the flight feature
-filters (bench/feature_pose.py, docs/FEATURES.md)."""
+filters (bench/campaigns/feature_pose.py, docs/FEATURES.md)."""
 from __future__ import annotations
 
 import argparse
@@ -75,7 +75,7 @@ def _print_features(result):
 
 
 def _main_features(args):
-    from bench import feature_pose as fp
+    from bench.campaigns import feature_pose as fp
 
     if args.feature_runs < 1 or args.duration < 10:
         raise ValueError("--feature-runs must be >= 1 and --duration >= 10")
@@ -94,7 +94,7 @@ def _main_features(args):
 def main(args):
     if args.experiment == "features":
         return _main_features(args)
-    from bench import pose_campaign as pc
+    from bench.campaigns import pose_campaign as pc
 
     if args.runs < 1:
         raise ValueError("--runs must be >= 1")

@@ -47,7 +47,7 @@ def main(args):
 def diagnose_bundled(report_dir: Path) -> int:
     """Diagnose the bundled reality run, blind, then open its sealed key."""
     from bench.commands.diagnose import print_answers
-    from bench.flight_log import read_flight_log
+    from bench.sim.flight_log import read_flight_log
     from bench.gap import bundled
     from bench.gap.diagnose import diagnose, public
     from bench.gap.report import write_report

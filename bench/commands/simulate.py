@@ -1,7 +1,7 @@
 """`proxops simulate --engine {bench,basilisk} --vehicle V --manoeuvres characterisation
 --effects JSON --seed S --out LOG.h5`: a flight log (format version 2) of a
 described vehicle flying a characterisation open loop, from the bench's own
-plant (bench/vehicle_sim.py) or from Basilisk (bench/basilisk_sim.py, the
+plant (bench/sim/vehicle_sim.py) or from Basilisk (bench/basilisk_sim.py, the
 optional extra `pip install .[basilisk]`)."""
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def register(sub):
                    help="bench: the bench's plant; basilisk: Basilisk's spacecraft, thrusters and IMU "
                         "(needs pip install '.[basilisk]')")
     p.add_argument("--vehicle", default="12kg", choices=("3kg", "12kg"),
-                   help="the described vehicle (bench/vehicles.py)")
+                   help="the described vehicle (bench/sim/vehicles.py)")
     p.add_argument("--description", default=None,
                    help="a flight-log description JSON file (docs/FLIGHT_LOG.md) instead of --vehicle")
     p.add_argument("--manoeuvres", default="characterisation", choices=("characterisation",),
@@ -48,7 +48,7 @@ def _effects(text: str) -> dict:
         raise ValueError(f"--effects: not JSON ({exc})") from None
     if not isinstance(eff, dict):
         raise ValueError("--effects: expected a JSON object, name -> parameters")
-    from bench.effects import canonical
+    from bench.sim.effects import canonical
 
     for name, p in eff.items():
         if name not in ("thrust_loss", "thruster_misalignment"):  # sized per vehicle, checked by the engine
@@ -57,14 +57,14 @@ def _effects(text: str) -> dict:
 
 
 def main(args):
-    from bench.flight_log import validate_log, write_flight_log
+    from bench.sim.flight_log import validate_log, write_flight_log
     from bench.gap.plans import characterisation_plan
-    from bench.vehicle_sim import Clocks
+    from bench.sim.vehicle_sim import Clocks
 
     if args.description:
         description = json.loads(Path(args.description).read_text())
     else:
-        from bench.vehicles import VEHICLES
+        from bench.sim.vehicles import VEHICLES
 
         description = VEHICLES[args.vehicle]()
     effects = _effects(args.effects)
@@ -79,7 +79,7 @@ def main(args):
     if args.engine == "basilisk":
         from bench.basilisk_sim import simulate
     else:
-        from bench.vehicle_sim import simulate
+        from bench.sim.vehicle_sim import simulate
     log, key = simulate(description, plan, effects, seed=args.seed, clocks=clocks, with_truth=not args.no_truth)
     log.config = dict(log.config or {}, engine=args.engine, manoeuvres=args.manoeuvres)
     problems = validate_log(log)

@@ -1,13 +1,13 @@
 """`proxops thrusters`: online thruster learning, BLR (flight code) against
 GPR, on the protocol of section 3.4 of "Online Dynamic Modeling and Localization
-for Small-Spacecraft Proximity Operations" (Rogers-Marcovitz; bench/thrusters.py)."""
+for Small-Spacecraft Proximity Operations" (Rogers-Marcovitz; bench/campaigns/thrusters.py)."""
 from __future__ import annotations
 
 import argparse
 
 import numpy as np
 
-from bench import thrusters as th
+from bench.campaigns import thrusters as th
 from bench.commands.args import number, one_line_errors
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
@@ -89,8 +89,8 @@ def main(args):
     cfg = th.ProtocolConfig(n_samples=args.samples, noise_model=args.noise_model)
     learners = LEARNERS + tuple(args.extra)
     print(f"{'seed':>5s} " + " ".join(f"{n + ' lin':>14s} {n + ' ang':>14s}" for n in learners))
-    # One seed per run of a campaign (bench/campaign): a Dask task each, kept in the results store.
-    from bench.campaign.runner import all_failed, failures, results
+    # One seed per run of a campaign (bench/runner): a Dask task each, kept in the results store.
+    from bench.runner.runner import all_failed, failures, results
 
     campaign = campaign_from(args, "thrusters", {"seed": args.seed, "config": cfg, "learners": list(learners)})
     items = [{"seed": seed, "plot": bool(args.plots) and seed == args.seed}

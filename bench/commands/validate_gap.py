@@ -36,7 +36,7 @@ def register(sub):
 def _campaign(args):
     """The campaign's store is keyed by every argument its runs depend on,
     and by the null calibration it scores against."""
-    from bench.campaign.records import sha256
+    from bench.runner.records import sha256
 
     if args.vehicle == "12kg" or args.engine == "basilisk":
         from bench.gap.validate_vehicle import load_calibration

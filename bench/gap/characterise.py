@@ -40,7 +40,7 @@ RIVAL = {"thruster_misalignment": "thrust_loss", "thrust_loss": "thruster_misali
 def compare(seed: int, effect: str, size: float, fire_s: float, coast_s: float, docking_s: float = 120.0) -> dict:
     """delta2 of ``effect`` at ``size`` (a random direction from ``seed``) in
     the docking run of ``seed`` and in the single-valve characterisation."""
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
     from bench.gap.separability import separability
 
     spec = EFFECTS[effect]

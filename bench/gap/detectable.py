@@ -119,13 +119,13 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
     characterisation flown after the docking runs (bench.reality.simulate_runs);
     ``max_size``: the largest sensible size on the vehicle flown (default the
     effect library's, bench.effects.max_size_for)."""
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
     from bench.gap.attribute import numerical_rank, signature
     from bench.gap.candidates import CANDIDATES
 
     if simulate is None:
-        from bench.effects import EffectSet
-        from bench.reality import clock_rate, log_config, runs_to_log, simulate_runs
+        from bench.sim.effects import EffectSet
+        from bench.sim.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
         def simulate(eff, scripts=None):
             runs = simulate_runs(seed, eff, duration_s, scripts=scripts, then_scripts=then_scripts)

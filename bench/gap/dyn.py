@@ -88,7 +88,7 @@ def build(d: LogData) -> DynChannel | None:
     vehicle the log describes (bench/log_description.py)."""
     if d.valves is None:
         return None
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     desc = d.desc if d.desc is not None else resolve(None, d.config)
     veh = desc.vehicle()

@@ -58,7 +58,7 @@ def plan_of(log):
     each run from its first pose, at rest, with the log's valve commands,
     IMU time stamps and pose capture times."""
     from bench.gap.replay import prepare
-    from bench.vehicle_sim import PlanSegment
+    from bench.sim.vehicle_sim import PlanSegment
 
     d = prepare(log)
     desc = d.desc
@@ -111,7 +111,7 @@ def fingerprint(log, runs: int, seed: int) -> str:
 
 def null_log_like(log, seed: int, prepared=None):
     """One null log of the flight in ``log`` (fresh noise from ``seed``)."""
-    from bench.vehicle_sim import simulate
+    from bench.sim.vehicle_sim import simulate
 
     description, plan, times, _ = prepared or plan_of(log)
     sim, _ = simulate(description, plan, stated_biases(description, seed), seed=seed, times=times, with_truth=False)
@@ -124,7 +124,7 @@ def stated_biases(description: dict, seed: int) -> dict:
     """Constant IMU biases drawn at the description's stated bias stability
     (per axis, 1 sigma, IMU axes): a bias the IMU's data sheet allows is part
     of the null, not a gap. Empty where none is stated."""
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     r = resolve(description)
     rng = np.random.default_rng([int(seed), 0xB1A5])
@@ -153,8 +153,8 @@ def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: 
     Its runs are a campaign (bench/campaign/runner.py) on the cluster the
     process was configured with, each kept as it finishes next to the cache
     entry, so an interrupted calibration resumes."""
-    from bench.campaign.runner import Campaign, results
-    from bench.campaign.store import RunStore
+    from bench.runner.runner import Campaign, results
+    from bench.runner.store import RunStore
 
     prepared = plan_of(log)
     key = fingerprint(log, runs, seed)
@@ -210,7 +210,7 @@ class CalibrationMismatch(ValueError):
 def _bench_like(desc, ref=None) -> list:
     """Where the log's vehicle and sensors differ from ``ref``'s (default the
     bench inspector's; empty: the same)."""
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     ref = ref if ref is not None else resolve(None)
     diffs = []
@@ -255,7 +255,7 @@ def check_supplied(cal: dict, log, d, source: str) -> None:
             raise CalibrationMismatch(f"{source}: made for another log (its fingerprint {str(cal.get('fingerprint'))[:12]}, "
                                       f"this log's {key[:12]}): vehicle, sensors, valve commands or time stamps differ")
         return
-    from bench.log_description import DescriptionError, resolve
+    from bench.sim.log_description import DescriptionError, resolve
 
     try:
         ref = resolve(cal["description"]) if isinstance(cal.get("description"), dict) else None

@@ -49,7 +49,7 @@ def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
 
     then = then_scripts({"manoeuvres": manoeuvres})
     if reality_available():
-        from bench.reality import simulate_log_with_key
+        from bench.sim.reality import simulate_log_with_key
 
         log, _ = simulate_log_with_key(seed, {}, duration_s=duration_s, with_truth=True, then_scripts=then)
         return log
@@ -75,7 +75,7 @@ def _threshold(values: np.ndarray, fa: float) -> float:
 
 def calibrate(seeds, duration_s: float = 120.0, workers: int | None = None, progress: bool = True,
               manoeuvres: str = "docking", campaign=None) -> dict:
-    from bench.campaign.runner import all_failed, failures, new_campaign, results
+    from bench.runner.runner import all_failed, failures, new_campaign, results
 
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()

@@ -17,7 +17,7 @@ import numpy as np
 def long_log(minutes: float, seed: int = 5):
     from bench.gap import validate_vehicle as vv
     from bench.gap.plans import characterisation_plan
-    from bench.vehicle_sim import simulate
+    from bench.sim.vehicle_sim import simulate
 
     desc = vv.description()
     plan = []

@@ -91,7 +91,7 @@ def prepare(log) -> LogData:
     point and clock, orbit, vehicle, segments; pose capture times are moved
     to the nearest IMU tick (the flight filter fuses a pose at a stored tick),
     the motion over that shift corrected like a known latency."""
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     desc = resolve(getattr(log, "description", None), log.config)
     imu = log["imu"]
@@ -375,7 +375,7 @@ class ReplayResult:
 def nav_config(d: LogData, gate_chi2: float = 0.0):
     import fsw_bindings as fb
 
-    from bench.sensors import NoiseProfile
+    from bench.sim.sensors import NoiseProfile
 
     nc = fb.NavConfig()
     nc.n_radps = d.n_radps

@@ -69,7 +69,7 @@ def scores_table(res: dict) -> str:
 
 
 def per_effect_table(res: dict) -> str:
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
 
     by = {a["run"]: a for a in res["answers"]}
     keys = [k for k in res["keys"] if k["category"] == "in_library"]

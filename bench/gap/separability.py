@@ -36,8 +36,8 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
     ``scripts``: fly these valve scripts (bench.reality.simulate_runs) instead
     of the closed-loop docking runs; ``then_scripts``: fly these after the
     docking runs (bench.reality.simulate_runs)."""
-    from bench.effects import EffectSet
-    from bench.reality import clock_rate, log_config, runs_to_log, simulate_runs
+    from bench.sim.effects import EffectSet
+    from bench.sim.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
     runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts, then_scripts=then_scripts)
     scripts = [r.config for r in runs1]

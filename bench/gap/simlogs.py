@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.flight_log import FlightLog
+from bench.sim.flight_log import FlightLog
 
 
 def run_to_log(run, dt_s: float = 0.1, config: dict | None = None) -> FlightLog:
-    from bench.flight_log import runs_to_flight_log
+    from bench.sim.flight_log import runs_to_flight_log
 
     cfg = {"orbit_radius_m": 6378137.0 + 500e3, "dt_imu_s": dt_s, "source": "bench docking"}
     cfg.update(config or {})
@@ -22,8 +22,8 @@ def run_to_log(run, dt_s: float = 0.1, config: dict | None = None) -> FlightLog:
 
 def docking_log(seed: int, profile=None, t_max_s: float = 120.0) -> FlightLog:
     """One docking run (sensor options through ``profile``, a NoiseProfile)."""
-    from bench.scenario_docking import ScenarioConfig, run_docking
-    from bench.sensors import NoiseProfile
+    from bench.sim.scenario_docking import ScenarioConfig, run_docking
+    from bench.sim.sensors import NoiseProfile
 
     prof = profile or NoiseProfile.paper()
     # The filter runs with the nominal (paper) noise: the profile's biases are
@@ -35,8 +35,8 @@ def docking_log(seed: int, profile=None, t_max_s: float = 120.0) -> FlightLog:
 
 def reality_available() -> bool:
     try:
-        import bench.reality  # noqa: F401
-        import bench.effects  # noqa: F401
+        import bench.sim.reality  # noqa: F401
+        import bench.sim.effects  # noqa: F401
     except Exception:
         return False
     return True

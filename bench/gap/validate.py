@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.campaign.runner import new_campaign  # noqa: F401  (re-exported for the validations)
+from bench.runner.runner import new_campaign  # noqa: F401  (re-exported for the validations)
 
 # What each campaign run flies: bench/gap/plans.py.
 from bench.gap.plans import MANOEUVRES, then_scripts
@@ -51,7 +51,7 @@ def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str
     written to ``<out>.prereg.json``, then each run's diagnosis. Returns
     (keys, answers) of the runs that finished both, the hashes of every
     drawn run (None where its sizing failed) and what the campaign did."""
-    from bench.campaign.runner import all_failed, failures, missing, results
+    from bench.runner.runner import all_failed, failures, missing, results
 
     sized = campaign.map("size", size_fn, drawn, shared=shared, label="minimum detectable sizes")
     all_failed(sized)
@@ -84,7 +84,7 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     """The drawn plan: [{"run", "seed", "category", "effect", "scale", "unit"}];
     ``unit`` is the effect's direction (a draw at size 1; sign, spread, phase);
     ``manoeuvres`` one of MANOEUVRES, recorded in every key."""
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
 
     if manoeuvres not in MANOEUVRES:
         raise ValueError(f"manoeuvres must be one of {MANOEUVRES}, not {manoeuvres!r}")
@@ -114,9 +114,9 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
 def _size_one(key, run_ctx):
     """The drawn run's minimum detectable size, and its effect at scale x that."""
     duration_s, calibration = run_ctx
-    from bench.effects import EFFECTS, max_size_for
+    from bench.sim.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     key = dict(key)
     if key["effect"] is None:
@@ -142,7 +142,7 @@ def simulate(key: dict, duration_s: float):
     from bench.gap.simlogs import docking_log, reality_available
 
     if reality_available():
-        from bench.reality import simulate_log_with_key
+        from bench.sim.reality import simulate_log_with_key
 
         log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,
                                        then_scripts=then_scripts(key))
@@ -150,7 +150,7 @@ def simulate(key: dict, duration_s: float):
     if then_scripts(key) is not None:
         raise ValueError("a characterisation needs bench.reality")
     # Fallback without bench.reality: the sensor-profile effects only.
-    from bench.sensors import NoiseProfile
+    from bench.sim.sensors import NoiseProfile
 
     prof = NoiseProfile.paper()
     for name, p in key["effects"].items():
@@ -180,9 +180,9 @@ def truth_in_body_axes(effect: str, params, vehicle: str | None = None) -> np.nd
     truth = np.asarray(params, float)
     if vehicle is None or effect not in IMU_AXIS_EFFECTS:
         return truth
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
     from bench.so3 import rotmat
-    from bench.vehicles import VEHICLES
+    from bench.sim.vehicles import VEHICLES
 
     c_bi = rotmat(resolve(VEHICLES[vehicle]()).imu_q_body_imu)  # IMU axes -> body axes
     return (c_bi**2) @ truth if effect == "gyro_scale" else c_bi @ truth

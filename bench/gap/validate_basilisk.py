@@ -47,7 +47,7 @@ def run_one(key: dict, calibration: dict) -> dict:
 def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True,
                  campaign=None) -> dict:
     from bench.basilisk_sim import basilisk_version
-    from bench.campaign.runner import new_campaign
+    from bench.runner.runner import new_campaign
 
     cal = vv.load_calibration()
     campaign = new_campaign(campaign, workers, progress)

@@ -32,7 +32,7 @@ KINDS = ("pair", "triple", "in+out")
 
 
 def draw_mixtures(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
 
     rng = np.random.default_rng(seed)
     inlib = sorted(n for n, s in EFFECTS.items() if s.in_library and not s.needs_images and s.detectable
@@ -63,9 +63,9 @@ def _size_one(key, run_ctx):
     duration_s, calibration = run_ctx
     from dataclasses import replace
 
-    from bench.effects import EFFECTS, max_size_for
+    from bench.sim.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     key = dict(key)
     key["min_detectable"], key["effects"] = {}, {}
@@ -85,10 +85,10 @@ def _size_one(key, run_ctx):
 
 def _run_one(key, run_ctx):
     duration_s, calibration = run_ctx
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
     from bench.gap import select
     from bench.gap.diagnose import diagnose, public
-    from bench.reality import simulate_log_with_key
+    from bench.sim.reality import simulate_log_with_key
 
     log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,
                                    then_scripts=then_scripts(key))
@@ -111,7 +111,7 @@ def _run_one(key, run_ctx):
 
 
 def score_mixtures(keys: list, answers: list) -> dict:
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
 
     by = {a["run"]: a for a in answers}
     apart = [k for k in keys if not k.get("detectable", True)]
@@ -180,7 +180,7 @@ PAIRS = {
 def _pair_answer(effects: dict, seed: int) -> dict:
     from bench.gap import null as nullmod
     from bench.gap.diagnose import diagnose, public
-    from bench.reality import simulate_log_with_key
+    from bench.sim.reality import simulate_log_with_key
 
     key = {"manoeuvres": "docking+characterisation"}
     log, _ = simulate_log_with_key(seed, effects, duration_s=120.0, with_truth=False, then_scripts=then_scripts(key))

@@ -41,13 +41,13 @@ OUT_OF_LIBRARY = ("flex_mode", "fuel_slosh")
 
 
 def description() -> dict:
-    from bench.vehicles import VEHICLES
+    from bench.sim.vehicles import VEHICLES
 
     return VEHICLES[VEHICLE]()
 
 
 def clocks_for(seed: int):
-    from bench.vehicle_sim import Clocks
+    from bench.sim.vehicle_sim import Clocks
 
     rng = np.random.default_rng([int(seed), 0xC10C])
     return Clocks(imu_jitter_s=0.05 * 0.05, imu_drop_frac=0.02, pose_phase_s=float(rng.uniform(0.05, 0.95)),
@@ -56,7 +56,7 @@ def clocks_for(seed: int):
 
 def unit_draw(rng, name: str, k: int) -> list:
     """A draw at size 1 for a vehicle with k thrusters (per-valve effects sized to it)."""
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
 
     if name == "thrust_loss":
         u = rng.uniform(0.2, 1.0, k)
@@ -71,7 +71,7 @@ def unit_draw(rng, name: str, k: int) -> list:
 def simulate_key(key: dict, effects: dict | None = None):
     """The log of ``key``'s run (with ``effects``, default the key's)."""
     from bench.gap.plans import characterisation_plan
-    from bench.vehicle_sim import simulate
+    from bench.sim.vehicle_sim import simulate
 
     desc = description()
     log, _ = simulate(desc, characterisation_plan(desc, seed=key["seed"]), key["effects"] if effects is None else effects,
@@ -103,9 +103,9 @@ def draw_campaign(n_runs: int, seed: int) -> list:
 
 
 def _size_one(key, calibration):
-    from bench.effects import EFFECTS, max_size_for
+    from bench.sim.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     key = dict(key)
     if key["effect"] is None:
@@ -199,9 +199,9 @@ def _null_stats(seed: int) -> dict:
 
 def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool = True, campaign=None) -> dict:
     """The null calibration of this vehicle's flight family."""
-    from bench.campaign.runner import all_failed, failures, results
+    from bench.runner.runner import all_failed, failures, results
     from bench.gap.log_null import FA_EACH, frechet_threshold
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()

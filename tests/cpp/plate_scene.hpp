@@ -1,4 +1,4 @@
-// The range-image paper's plate vibrating (bench/structure.py's Plate, 10 modes), seen
+// The range-image paper's plate vibrating (bench/sim/structure.py's Plate, 10 modes), seen
 // as range images for the modal tests: random amplitudes in [0, 1] and
 // phases, n x n points over the central quarter, 3 % range noise at 600 m.
 #pragma once

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bench import basilisk_crosscheck as xc
-from bench.vehicles import VEHICLES
+from bench.sim.vehicles import VEHICLES
 
 DESC = VEHICLES["12kg"]()
 PLAN = xc.short_plan(DESC, 12.0)

@@ -11,8 +11,8 @@ import pytest
 from bench import basilisk_crosscheck as xc
 from bench import basilisk_sim
 from bench.cli import main
-from bench.flight_log import read_flight_log, validate_log
-from bench.vehicles import VEHICLES
+from bench.sim.flight_log import read_flight_log, validate_log
+from bench.sim.vehicles import VEHICLES
 
 
 def test_simulate_writes_a_valid_log_from_each_engine(tmp_path):

@@ -1,5 +1,5 @@
 """fsw_bindings.ThrusterBlr against an independent batch ridge least-squares
-solve of the same window (numpy lstsq) and against bench/blr_numpy.py."""
+solve of the same window (numpy lstsq) and against bench/perf/blr_numpy.py."""
 import numpy as np
 import pytest
 
@@ -7,7 +7,7 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "ThrusterBlr"):
     pytest.skip("fsw_bindings built without the thruster learner", allow_module_level=True)
 
-from bench.blr_numpy import NumpyBlr  # noqa: E402
+from bench.perf.blr_numpy import NumpyBlr  # noqa: E402
 
 LAMBDA = 1e-3
 

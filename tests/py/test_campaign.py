@@ -1,4 +1,4 @@
-"""The campaign machinery (bench/campaign): records that read back bit for
+"""The campaign machinery (bench/runner): records that read back bit for
 bit, a store that resumes and keeps failures, and per-run results that do
 not depend on the number of workers or on a resumed campaign."""
 import json
@@ -7,9 +7,9 @@ import os
 import numpy as np
 import pytest
 
-from bench.campaign import records
-from bench.campaign.runner import Campaign, MissingRuns, failures, results
-from bench.campaign.store import RunStore
+from bench.runner import records
+from bench.runner.runner import Campaign, MissingRuns, failures, results
+from bench.runner.store import RunStore
 
 # Wall-clock fields: the only parts of a run's result that differ between two runs of it.
 TIMING = ("t_sim_s", "t_diagnose_s", "elapsed_s")

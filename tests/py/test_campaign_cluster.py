@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from bench.campaign import records
-from bench.campaign.runner import Campaign
-from bench.campaign.store import RunStore
+from bench.runner import records
+from bench.runner.runner import Campaign
+from bench.runner.store import RunStore
 from bench.gap import validate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -59,7 +59,7 @@ def hand_started_cluster(tmp_path):
         _wait_for_workers(address, 2)
         yield address, workers
     finally:
-        from bench.campaign import cluster
+        from bench.runner import cluster
 
         cluster.close_all()
         for p in procs:  # every process this test started, and their children

@@ -1,5 +1,5 @@
 """The detector's centroid sigma against the measured scatter of its
-centroids on rendered spots (bench/centroid_calibration.py, docs/VISION.md
+centroids on rendered spots (bench/campaigns/centroid_calibration.py, docs/VISION.md
 "Centroid error model"): seeded, a few images of 130 spots each."""
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "LedPoseEstimator"):
     pytest.skip("fsw_bindings built without OpenCV (no vision)", allow_module_level=True)
 
-from bench import centroid_calibration as cc  # noqa: E402
+from bench.campaigns import centroid_calibration as cc  # noqa: E402
 
 
 @pytest.fixture(scope="module")

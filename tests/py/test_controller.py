@@ -3,11 +3,11 @@ navigation, so the controller is tested alone)."""
 import numpy as np
 from scipy.optimize import linprog
 
-from bench.controller import DOCK_HILL_M, ControllerParams, DockingController
-from bench.plant import N_RADPS
+from bench.sim.controller import DOCK_HILL_M, ControllerParams, DockingController
+from bench.sim.plant import N_RADPS
 from bench.so3 import rotmat
-from bench.scenario_docking import ScenarioConfig, run_docking
-from bench.vehicle import ALL_VALVES, Vehicle, config_valves
+from bench.sim.scenario_docking import ScenarioConfig, run_docking
+from bench.sim.vehicle import ALL_VALVES, Vehicle, config_valves
 
 
 def test_thruster_wrenches_positively_span_six_dof():

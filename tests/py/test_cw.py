@@ -6,7 +6,8 @@ from scipy.integrate import solve_ivp
 
 import fsw_bindings as fb
 
-from bench import cw_check, orbit
+from bench.campaigns import cw_check
+from bench.sim import orbit
 
 RADIUS = fb.EARTH_RADIUS + 500e3
 N = fb.orbit_rate(RADIUS)

@@ -41,7 +41,7 @@ def _listed_distributions(extra=None) -> set:
 
 def test_every_third_party_import_is_a_listed_dependency():
     sources = sorted((ROOT / "hil_sim").glob("*.py")) + sorted((ROOT / "bench").rglob("*.py"))
-    # The comparison benchmarks (bench/perf_*.py) may use the dev extra, the
+    # The comparison benchmarks (bench/perf/perf_*.py) may use the dev extra, the
     # Basilisk engine (bench/basilisk_*.py) the basilisk extra.
     runtime = [p for p in sources if not p.name.startswith(("perf_", "basilisk_"))]
     perf = [p for p in sources if p.name.startswith("perf_")]

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from bench import orbit
-from bench.effects import EFFECTS, PENDING, EffectSet, canonical, realise, true_anomaly_after
-from bench.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantEffects, PlantState
+from bench.sim import orbit
+from bench.sim.effects import EFFECTS, PENDING, EffectSet, canonical, realise, true_anomaly_after
+from bench.sim.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantEffects, PlantState
 from bench.so3 import boxminus, qexp, rotmat
-from bench.scenario_docking import ScenarioConfig, run_docking
-from bench.sensors import Imu, NoiseProfile
-from bench.vehicle import DIRECTIONS_B, POSITIONS_B_M, Vehicle
+from bench.sim.scenario_docking import ScenarioConfig, run_docking
+from bench.sim.sensors import Imu, NoiseProfile
+from bench.sim.vehicle import DIRECTIONS_B, POSITIONS_B_M, Vehicle
 
 fb = pytest.importorskip("fsw_bindings")
 
@@ -396,8 +396,8 @@ def test_fuel_slosh_mean_specific_force_is_total_thrust_over_total_mass_and_osci
 # --- reality logs --------------------------------------------------------------
 
 def test_simulate_log_is_valid_and_hides_the_effects():
-    from bench.flight_log import validate_log
-    from bench.reality import simulate_log, simulate_log_with_key
+    from bench.sim.flight_log import validate_log
+    from bench.sim.reality import simulate_log, simulate_log_with_key
 
     eff = {"gyro_bias": [1e-3, 0.0, -5e-4], "camera_latency": [0.2]}
     log, key = simulate_log_with_key(21, eff, duration_s=15.0)
@@ -413,8 +413,8 @@ def test_simulate_log_is_valid_and_hides_the_effects():
 
 
 def test_simulate_log_chains_runs_to_fill_the_duration_with_the_host_orbit_phase_carried_on():
-    from bench.flight_log import validate_log
-    from bench.reality import _effects_at, simulate_log_with_key
+    from bench.sim.flight_log import validate_log
+    from bench.sim.reality import _effects_at, simulate_log_with_key
 
     log, _ = simulate_log_with_key(22, {"clock_drift": [2e-3]}, duration_s=25.0,
                                    scenario=ScenarioConfig(t_max_s=10.0))

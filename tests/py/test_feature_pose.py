@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 fb = pytest.importorskip("fsw_bindings")
-from bench import feature_pose as fp  # noqa: E402
+from bench.campaigns import feature_pose as fp  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.flight_log import (FlightLog, FlightLogError, read_flight_log, validate_log,
+from bench.sim.flight_log import (FlightLog, FlightLogError, read_flight_log, validate_log,
                               write_flight_log)
 
 
@@ -107,7 +107,7 @@ def test_reader_names_problem_in_file_written_by_plain_h5py(tmp_path):
 # --- format version 2 ------------------------------------------------------
 
 def v2_log(n_thr=12):
-    from bench.vehicles import inspector_12kg
+    from bench.sim.vehicles import inspector_12kg
 
     log = minimal_log()
     log.description = inspector_12kg()

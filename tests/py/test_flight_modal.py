@@ -1,12 +1,12 @@
 """The flight app's modal estimator fed by the bench over the link: range
-images of the paper's plate (bench/structure.py: ray-cast, 3 % range noise),
+images of the paper's plate (bench/sim/structure.py: ray-cast, 3 % range noise),
 segmented by hil_sim.packets, into the flight app in-process; tm_modal back.
 Checked against the same decomposition and joint filter called directly."""
 import numpy as np
 import pytest
 
-from bench import structure as st
-from bench.modal_campaign import make_filter
+from bench.sim import structure as st
+from bench.campaigns.modal_campaign import make_filter
 from hil_sim import packets as P
 
 fb = pytest.importorskip("fsw_bindings")

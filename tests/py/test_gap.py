@@ -8,7 +8,7 @@ from bench.gap.diagnose import diagnose, public
 from bench.gap.replay import prepare, reference
 from bench.gap.validate import blind, run_campaign
 
-reality = pytest.importorskip("bench.reality")
+reality = pytest.importorskip("bench.sim.reality")
 
 DURATION_S = 120.0
 
@@ -84,7 +84,7 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
     drawn = [k for k in res["keys"] if k["effect"] is not None]
     for k in drawn:  # each effect drawn at scale x its run's minimum detectable size, or scored apart
         if k["detectable"]:
-            from bench.effects import EFFECTS
+            from bench.sim.effects import EFFECTS
 
             spec = EFFECTS[k["effect"]]
             assert spec.size(k["effects"][k["effect"]]) == pytest.approx(k["scale"] * k["min_detectable"], rel=1e-9)
@@ -122,7 +122,7 @@ def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
 
 
 def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(calibration):
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
     from bench.gap.detectable import min_detectable_size
 
     spec = EFFECTS["accel_bias"]
@@ -142,7 +142,7 @@ def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(ca
 
 
 def test_an_effect_no_sensible_size_shows_is_reported_not_detectable(calibration):
-    from bench.effects import EFFECTS
+    from bench.sim.effects import EFFECTS
     from bench.gap.detectable import min_detectable_size
 
     # A 0.75 m docking at mm/s holds range nearly still: host eccentricity up to
@@ -163,7 +163,7 @@ def test_gyro_unwhitening_inverts_the_whitening():
 
 
 def test_bundled_reality_run_is_diagnosed_blind(calibration):
-    from bench.flight_log import read_flight_log
+    from bench.sim.flight_log import read_flight_log
     from bench.gap import bundled
 
     log = read_flight_log(bundled.LOG)

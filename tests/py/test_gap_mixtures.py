@@ -8,7 +8,7 @@ from bench.gap import null as nullmod
 from bench.gap.diagnose import diagnose, public
 from bench.gap.validate import blind
 
-reality = pytest.importorskip("bench.reality")
+reality = pytest.importorskip("bench.sim.reality")
 
 
 def _answer(seed, effects, full=False):
@@ -99,7 +99,7 @@ def test_propellant_slosh_is_not_half_named_as_propellant_use():
     specific impulse, and the answer was "partly explained: mass_depletion"."""
     from bench.gap.candidates import candidates_for
     from bench.gap.plans import then_scripts
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     assert candidates_for(8, 0.35, resolve(None).max_mass_flow_kgps)["mass_depletion"].bound == pytest.approx(
         0.02 / (9.80665 * 20.0))

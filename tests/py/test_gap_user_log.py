@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.flight_log import read_flight_log
+from bench.sim.flight_log import read_flight_log
 from bench.gap import bundled, log_null
 from bench.gap import null as nullmod
 from bench.gap.answers import answer_lines
@@ -106,8 +106,8 @@ def test_defaults_taken_are_named(bundled_log, calibration):
 
 def test_a_calibration_for_another_vehicle_is_refused(calibration):
     from bench.gap.plans import characterisation_plan
-    from bench.vehicle_sim import simulate
-    from bench.vehicles import inspector_12kg
+    from bench.sim.vehicle_sim import simulate
+    from bench.sim.vehicles import inspector_12kg
 
     desc = inspector_12kg()
     log, _ = simulate(desc, characterisation_plan(desc, seed=4, per_run=12, fire_s=0.5, coast_s=1.0, passes=1), {}, seed=4,
@@ -128,8 +128,8 @@ def test_stated_manoeuvres_must_match_the_calibration(bundled_log, calibration):
 
 def test_a_calibration_made_for_the_log_is_cached(tmp_path):
     from bench.gap.plans import characterisation_plan
-    from bench.vehicle_sim import simulate
-    from bench.vehicles import inspector_12kg
+    from bench.sim.vehicle_sim import simulate
+    from bench.sim.vehicles import inspector_12kg
 
     desc = inspector_12kg()
     log, _ = simulate(desc, characterisation_plan(desc, seed=6, per_run=12, fire_s=0.5, coast_s=1.0, passes=1), {}, seed=6,

@@ -9,7 +9,7 @@ pytest.importorskip("serial")
 if not hasattr(fb, "NavUkf"):
     pytest.skip("fsw_bindings without NavUkf", allow_module_level=True)
 
-from bench.scenario_docking import ScenarioConfig, nav_config, run_docking  # noqa: E402
+from bench.sim.scenario_docking import ScenarioConfig, nav_config, run_docking  # noqa: E402
 from hil_sim.faults import FaultConfig  # noqa: E402
 from hil_sim.link_nav import LinkNav  # noqa: E402
 from hil_sim.pty_link import PtyLink  # noqa: E402

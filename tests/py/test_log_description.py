@@ -4,9 +4,9 @@ named when wrong, defaults named when taken, the vehicle built from it."""
 import numpy as np
 import pytest
 
-from bench.log_description import DescriptionError, resolve
-from bench.vehicle import Vehicle
-from bench.vehicles import inspector_12kg
+from bench.sim.log_description import DescriptionError, resolve
+from bench.sim.vehicle import Vehicle
+from bench.sim.vehicles import inspector_12kg
 
 
 def test_no_description_is_the_bench_inspector_and_says_so():
@@ -102,7 +102,7 @@ def test_envelope_defaults_to_the_described_points_and_bounds_the_lever_arm():
 
 
 def test_draws_stay_physical_on_the_vehicle():
-    from bench.effects import EFFECTS, max_size_for
+    from bench.sim.effects import EFFECTS, max_size_for
 
     v = resolve(inspector_12kg())
     assert max_size_for("camera_lever_arm", v) == pytest.approx(0.442, abs=1e-3)

@@ -44,9 +44,9 @@ def test_stated_bias_stability_puts_biases_into_the_null():
 
     from bench.gap.log_null import _bench_like, null_log_like, stated_biases
     from bench.gap.plans import characterisation_plan
-    from bench.log_description import resolve
-    from bench.vehicle_sim import simulate
-    from bench.vehicles import inspector_12kg
+    from bench.sim.log_description import resolve
+    from bench.sim.vehicle_sim import simulate
+    from bench.sim.vehicles import inspector_12kg
 
     base = inspector_12kg()
     assert stated_biases(base, 1) == {}

@@ -7,8 +7,8 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "ModalDecomposition3"):
     pytest.skip("fsw_bindings built without the modal estimator", allow_module_level=True)
 
-from bench import modal_campaign as mc  # noqa: E402
-from bench import structure as st  # noqa: E402
+from bench.campaigns import modal_campaign as mc  # noqa: E402
+from bench.sim import structure as st  # noqa: E402
 
 
 def _image(m, n, seed):

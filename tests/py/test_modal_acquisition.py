@@ -1,12 +1,12 @@
 """The flight frequency acquisition (fsw/include/fsw/modal/modal_acquisition.hpp)
 through the bindings: on a simulated plate it picks the same grid
-frequencies as the numpy RELAX of bench/modal_batch_ml.py, and its inputs are
+frequencies as the numpy RELAX of bench/campaigns/modal_batch_ml.py, and its inputs are
 checked."""
 import numpy as np
 import pytest
 
-from bench import modal_campaign as mc
-from bench import perf_modal_acquisition as perf
+from bench.campaigns import modal_campaign as mc
+from bench.perf import perf_modal_acquisition as perf
 
 
 @pytest.mark.parametrize("seed", [0, 3])

@@ -5,7 +5,7 @@ beside the flight filter."""
 import numpy as np
 import pytest
 
-from bench import modal_batch_ml
+from bench.campaigns import modal_batch_ml
 
 
 def _synthetic(seed, k=100, dt=60.0):
@@ -53,7 +53,7 @@ fb = pytest.importorskip("fsw_bindings")
 
 @pytest.mark.skipif(not hasattr(fb, "ModalDecomposition10"), reason="bindings built without the modal estimator")
 def test_plate_run_compares_filter_with_batch_ml():
-    from bench import modal_campaign as mc
+    from bench.campaigns import modal_campaign as mc
 
     tr = mc.plate_trial(0, n_modes=10, kind="joint", n_images=41, batch_ml_periods=(1.0,))
     (row,) = tr["batch_ml"]

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from bench import modal_crb
+from bench.campaigns import modal_crb
 
 
 def _model(theta, t, m):
@@ -96,7 +96,7 @@ def test_chance_within_the_band_agrees_with_the_sampled_joint_chance_for_one_mod
 
 
 def test_plate_run_sets_the_filter_beside_its_bounds():
-    from bench import modal_campaign as mc
+    from bench.campaigns import modal_campaign as mc
 
     tr = mc.plate_trial(0, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,))
     (row,) = tr["crb"]
@@ -131,7 +131,7 @@ def test_cli_structure_with_crb(tmp_path, capsys):
 @pytest.mark.parametrize("method", ["flight", "batch-ml"])
 def test_acquisition_is_scored_beside_the_filter(tmp_path, capsys, method):
     from bench import cli
-    from bench import modal_campaign as mc
+    from bench.campaigns import modal_campaign as mc
 
     tr = mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(0.5, 2.0), acquire_periods=1.0,
                         acquire_with=method)
@@ -163,7 +163,7 @@ def test_acquisition_is_scored_beside_the_filter(tmp_path, capsys, method):
 
 
 def test_unscented_spread_reaches_the_filters():
-    from bench import modal_campaign as mc
+    from bench.campaigns import modal_campaign as mc
 
     a = mc.plate_trial(2, n_modes=10, kind="joint", n_images=21, oracle=False)
     b = mc.plate_trial(2, n_modes=10, kind="joint", n_images=21, oracle=False, ut_alpha=0.5)

@@ -9,9 +9,9 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "NavUkf"):
     pytest.skip("fsw_bindings has no NavUkf (bindings not built with bind_nav)", allow_module_level=True)
 
-from bench.nav_campaign import chi2_mean_band, run_campaign  # noqa: E402
-from bench.scenario_docking import ScenarioConfig, nav_config  # noqa: E402
-from bench.sensors import NoiseProfile  # noqa: E402
+from bench.campaigns.nav_campaign import chi2_mean_band, run_campaign  # noqa: E402
+from bench.sim.scenario_docking import ScenarioConfig, nav_config  # noqa: E402
+from bench.sim.sensors import NoiseProfile  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +80,8 @@ def test_summary_has_the_issue_fields(campaign):
 
 
 def test_half_second_pose_latency_run_docks_within_bounds():
-    from bench.nav_campaign import run_metrics
-    from bench.scenario_docking import run_docking
+    from bench.campaigns.nav_campaign import run_metrics
+    from bench.sim.scenario_docking import run_docking
 
     cfg = ScenarioConfig(profile=NoiseProfile.paper().with_(pose_latency_s=0.5))
     m = run_metrics(run_docking(1000, cfg))
@@ -93,7 +93,7 @@ def test_half_second_pose_latency_run_docks_within_bounds():
 def test_ensemble_consistency_counts_epochs_against_exact_bands():
     # Two runs with NEES exactly at the mean at every epoch are inside the
     # band everywhere; a run far above puts its epochs above it.
-    from bench.nav_campaign import ensemble_consistency
+    from bench.campaigns.nav_campaign import ensemble_consistency
 
     keys = [np.arange(10), np.arange(10)]
     ok = ensemble_consistency([np.full(10, 9.0), np.full(10, 9.0)], keys, 9, min_runs=2)
@@ -105,7 +105,7 @@ def test_ensemble_consistency_counts_epochs_against_exact_bands():
 
 
 def test_blr_accel_source_learns_in_flight_and_stands_in_during_firings():
-    from bench.scenario_docking import run_docking
+    from bench.sim.scenario_docking import run_docking
 
     run = run_docking(1000, ScenarioConfig(accel_source="blr", t_max_s=60.0))
     s = run.summary

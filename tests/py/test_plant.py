@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from bench import orbit
-from bench.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantState
+from bench.sim import orbit
+from bench.sim.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantState
 from bench.so3 import boxminus, qexp, qmul, qnormalize, rotmat
-from bench.vehicle import Vehicle
+from bench.sim.vehicle import Vehicle
 
 N = N_RADPS
 

@@ -3,7 +3,7 @@ the body-frame attitude-noise convention and the reported covariance."""
 import numpy as np
 
 from bench.so3 import boxminus, qexp, qmul, qnormalize
-from bench.sensors import Imu, NoiseProfile, PoseSensor
+from bench.sim.sensors import Imu, NoiseProfile, PoseSensor
 
 
 def test_paper_profile_values():

@@ -1,10 +1,10 @@
-"""Small seeded checks of the thruster-learning bench (bench/thrusters.py)."""
+"""Small seeded checks of the thruster-learning bench (bench/campaigns/thrusters.py)."""
 import json
 
 import numpy as np
 import pytest
 
-from bench import thrusters as th
+from bench.campaigns import thrusters as th
 
 
 def _need_blr():

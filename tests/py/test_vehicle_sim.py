@@ -5,8 +5,8 @@ import numpy as np
 
 from bench.gap.plans import characterisation_plan
 from bench.gap.replay import open_fractions
-from bench.vehicle_sim import Clocks, PlanSegment, simulate
-from bench.vehicles import inspector_12kg
+from bench.sim.vehicle_sim import Clocks, PlanSegment, simulate
+from bench.sim.vehicles import inspector_12kg
 
 
 def test_open_fractions_against_brute_force():
@@ -53,7 +53,7 @@ def test_pwm_pulse_gives_its_duty_in_the_accelerometer():
     t = log["imu"]["t_s"]
     frac = open_fractions(log["valves"], t, 0.05, 12)[:, 4]
     assert 0.2 < frac.max() <= 0.6 + 1e-9 and frac.min() == 0.0
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     v = resolve(desc).vehicle()
     pred = frac[:, None] * v.thruster_forces_b_n()[4] / v.mass_kg

@@ -1,4 +1,4 @@
-"""LED pose pipeline through the bindings, on images rendered by bench/camera.py."""
+"""LED pose pipeline through the bindings, on images rendered by bench/sim/camera.py."""
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -7,8 +7,8 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "LedPoseEstimator"):
     pytest.skip("fsw_bindings built without OpenCV (no vision)", allow_module_level=True)
 
-from bench import camera as cm  # noqa: E402
-from bench import pose_campaign as pc  # noqa: E402
+from bench.sim import camera as cm  # noqa: E402
+from bench.campaigns import pose_campaign as pc  # noqa: E402
 from bench.so3 import qexp, qmul  # noqa: E402
 
 

@@ -1,4 +1,4 @@
-// PlateModes: the flight copy of the bench's plate model (bench/structure.py).
+// PlateModes: the flight copy of the bench's plate model (bench/sim/structure.py).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,7 +14,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 TEST(PlateModesTest, LowestModesInOrderOfWavenumber) {
   PlateModes<double, 10> m;  // 2000 m x 1732 m
-  // k = (p / 2000)^2 + (q / 1732)^2 sorted (as bench.structure.Plate(10).pq):
+  // k = (p / 2000)^2 + (q / 1732)^2 sorted (as bench.sim.structure.Plate(10).pq):
   const int p[10] = {1, 2, 1, 2, 3, 1, 3, 2, 4, 3};
   const int q[10] = {1, 1, 2, 2, 1, 3, 2, 3, 1, 3};
   for (int i = 0; i < 10; ++i) {

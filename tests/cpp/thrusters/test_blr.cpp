@@ -69,7 +69,7 @@ double theta_rel_err(Blr& blr) {
   return double((got - ref).norm() / ref.norm());
 }
 
-// Eight thrusters of bench/vehicle.py: 20 mN at the corners of a 0.2 m cube,
+// Eight thrusters of bench/sim/vehicle.py: 20 mN at the corners of a 0.2 m cube,
 // firing along face diagonals; 3 kg, J = diag(0.021, 0.019, 0.020) kg m^2.
 // Returns the true weights (9 x 6): row i = [dv (m/s), dw (rad/s)] of valve
 // i over one firing interval dt; row 8 (bias) = 0.

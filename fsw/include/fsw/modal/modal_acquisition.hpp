@@ -39,7 +39,7 @@
 // (replay_into): it ends at the last image with the information of every
 // image, as if it had started from those frequencies.
 //
-// The bench's numpy version (bench/modal_batch_ml.py: _grid_start,
+// The bench's numpy version (bench/campaigns/modal_batch_ml.py: _grid_start,
 // _relax_start) is the reference this is checked against.
 // Real-time core: fixed-size Eigen only, no heap, no exceptions, no I/O.
 #pragma once

@@ -1,6 +1,6 @@
 // Mode shapes and frequencies of a simply supported rectangular plate: the
 // structure model the flight modal estimator evaluates at each range-image
-// point (the same model as the bench's Plate, bench/structure.py).
+// point (the same model as the bench's Plate, bench/sim/structure.py).
 //
 //   Phi_pq(x, y) = s_pq sin(p pi x / Lx) sin(q pi y / Ly)        [m per unit coefficient]
 //   omega_pq     = omega_11 k_pq / k_11,  k_pq = (p / Lx)^2 + (q / Ly)^2

@@ -129,7 +129,7 @@ struct LedPoseConfig {
   // background plane. sigma^2 = centroid_noise_scale^2 sigma_noise^2
   // + (sat_sigma_px n_sat / max(width / 1 px, 1)^4)^2 (n_sat saturated pixels)
   // + centroid_floor_px^2; the three constants are fitted by
-  // `python -m bench.centroid_calibration`.
+  // `python -m bench.campaigns.centroid_calibration`.
   double read_noise_counts = 1.5;       // pixel noise: read noise [counts] (the refined centroid measures its own
   double shot_gain = 0.05;              //   from the ring) and shot-noise variance per count of signal [counts]
   double centroid_floor_px = 0.003;     // calibrated, added in quadrature to each blob's sigma [px]

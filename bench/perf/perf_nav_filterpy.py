@@ -10,7 +10,7 @@ carries the attitude as an absolute rotation vector (its sigma points and
 means are plain vector arithmetic); ours is the multiplicative quaternion
 filter. Medians of per-call wall times (time.perf_counter_ns).
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf_nav_filterpy [--predicts 3000] [--json OUT]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_nav_filterpy [--predicts 3000] [--json OUT]
 
 PROXOPS_BINDINGS_DIR=<cmake build>/python times a freshly built module
 instead of the installed one.
@@ -156,7 +156,7 @@ def run(predicts: int, seed: int) -> dict:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m bench.perf_nav_filterpy", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m bench.perf.perf_nav_filterpy", description=__doc__.splitlines()[0])
     p.add_argument("--predicts", type=int, default=3000, help="IMU predicts (a pose update every 10th)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--json", default=None, help="write the figures here")

@@ -11,7 +11,7 @@ gives effect-free logs for null calibration.
 
 ``gap_statistics`` and ``measure_min_detectable`` measure the smallest
 magnitude of each effect that shows as a gap (docs/EFFECTS.md):
-    python -m bench.reality detect --seeds 4 --json out.json
+    python -m bench.sim.reality detect --seeds 4 --json out.json
 """
 from __future__ import annotations
 
@@ -23,11 +23,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from bench.effects import EFFECTS, EffectSet, true_anomaly_after
-from bench.flight_log import FlightLog
-from bench.plant import N_RADPS
-from bench.scenario_docking import ScenarioConfig, run_docking
-from bench.vehicle import Vehicle
+from bench.sim.effects import EFFECTS, EffectSet, true_anomaly_after
+from bench.sim.flight_log import FlightLog
+from bench.sim.plant import N_RADPS
+from bench.sim.scenario_docking import ScenarioConfig, run_docking
+from bench.sim.vehicle import Vehicle
 
 DT_S = 0.1
 
@@ -87,7 +87,7 @@ def clock_rate(effects: EffectSet) -> float:
 def runs_to_log(runs: list, config: dict, clock_rate: float = 1.0, with_truth: bool = True) -> FlightLog:
     """Flight log of chained runs, with the valve stream. With a drifting
     IMU clock every stream is tagged by the flight (IMU) clock."""
-    from bench.flight_log import runs_to_flight_log
+    from bench.sim.flight_log import runs_to_flight_log
 
     if clock_rate != 1.0:
         runs = [replace(r, t=r.t * clock_rate) for r in runs]
@@ -305,7 +305,7 @@ def measure_min_detectable(name: str, seeds, null: dict, z_detect: float = 4.0, 
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m bench.reality")
+    ap = argparse.ArgumentParser(prog="python -m bench.sim.reality")
     sub = ap.add_subparsers(dest="cmd", required=True)
     d = sub.add_parser("detect", help="measure min_detectable of effects")
     d.add_argument("--effects", nargs="*", default=list(EFFECTS))

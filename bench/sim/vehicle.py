@@ -93,7 +93,7 @@ class Vehicle:
     ``thrust_scale`` (K,) multiplies each valve's thrust (1 = nominal): the
     truth plant can differ from the controller's nominal model through it and
     ``directions_b``. Any number of thrusters K (the bench's inspector has 8;
-    a flight log can describe another vehicle, bench/log_description.py)."""
+    a flight log can describe another vehicle, bench/sim/log_description.py)."""
 
     mass_kg: float = MASS_KG
     inertia_kgm2: np.ndarray = field(default_factory=lambda: INERTIA_KGM2.copy())

@@ -4,8 +4,8 @@ is known.
 
     log, key = simulate(description, plan, effects, seed, clocks)
 
-``description`` is a flight-log description (bench/log_description.py,
-bench/vehicles.py); ``plan`` a list of :class:`PlanSegment` (a run: its
+``description`` is a flight-log description (bench/sim/log_description.py,
+bench/sim/vehicles.py); ``plan`` a list of :class:`PlanSegment` (a run: its
 manoeuvre, start pose, length and valve commands, each thruster open from
 the command time for its own on-time: pulse-width modulation within a
 control cycle); ``effects`` the physical effects of docs/EFFECTS.md sized
@@ -14,7 +14,7 @@ for this vehicle (thrust_loss: K values or one; thruster_misalignment: 3 K);
 times (each still the mean over its own interval), dropped samples, pose
 captures anywhere between IMU samples, on a clock of their own.
 
-The truth plant is bench.plant.Plant (nonlinear relative orbit, rigid body,
+The truth plant is bench.sim.plant.Plant (nonlinear relative orbit, rigid body,
 the PlantEffects physics) for the described vehicle, stepped exactly between
 every valve switching time, IMU interval end and pose capture. The same
 command history with ``effects={}`` and a fresh seed is a null log of the
@@ -27,10 +27,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.effects import plant_effects
-from bench.flight_log import FlightLog
-from bench.log_description import resolve
-from bench.plant import Plant, PlantEffects, PlantState
+from bench.sim.effects import plant_effects
+from bench.sim.flight_log import FlightLog
+from bench.sim.log_description import resolve
+from bench.sim.plant import Plant, PlantEffects, PlantState
 from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
 @dataclass
 class PlanSegment:
@@ -59,7 +59,7 @@ POSE_ATT_SIGMA_RAD = 0.01
 
 
 def _vehicle_with_effects(desc, effects: dict):
-    """The true vehicle (bench.vehicle.Vehicle about the true centre of mass)
+    """The true vehicle (bench.sim.vehicle.Vehicle about the true centre of mass)
     and the plant effects."""
     veh = desc.vehicle()
     k = veh.n_thrusters

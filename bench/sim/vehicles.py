@@ -1,7 +1,7 @@
 """The vehicles the bench flies, as flight-log descriptions (format version
-2, bench/log_description.py).
+2, bench/sim/log_description.py).
 
-``inspector_3kg``: the bench's own 3 kg inspector (bench/vehicle.py), its
+``inspector_3kg``: the bench's own 3 kg inspector (bench/sim/vehicle.py), its
 10 Hz IMU at the centre of mass and a pose sensor on one clock with it.
 
 ``inspector_12kg``: a 12 kg, 6U-class inspector (0.10 x 0.226 x 0.366 m)
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.log_description import bench_description
+from bench.sim.log_description import bench_description
 
 
 def inspector_3kg() -> dict:

@@ -1,12 +1,12 @@
 """What running a campaign through Dask costs: per-run overhead beside a
 multiprocessing fork pool, and the speed-up from one to two local workers.
 
-    python -m bench.perf_campaign --json OUT
+    python -m bench.perf.perf_campaign --json OUT
 
 Overhead: a run that does nothing (returns its index), mapped over
 --noop-runs runs, --repeats times, median wall time per run: through the
 fork pool (multiprocessing.Pool.imap_unordered, the pool campaigns ran on
-before; started per campaign) and through bench.campaign (a warm local
+before; started per campaign) and through bench.runner (a warm local
 Dask cluster, each record written to a results store on disk, or kept in
 memory). Speed-up: a
 null calibration of --null-runs real runs (bench/gap/null.py, 120 s
@@ -56,9 +56,9 @@ def main(argv=None):
     ap.add_argument("--null-runs", type=int, default=24)
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
-    from bench.campaign import cluster
-    from bench.campaign.runner import Campaign
-    from bench.campaign.store import RunStore
+    from bench.runner import cluster
+    from bench.runner.runner import Campaign
+    from bench.runner.store import RunStore
 
     res = {"machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
                        "python": platform.python_version()}, "noop_runs": a.noop_runs, "repeats": a.repeats}

@@ -2,13 +2,13 @@
 (``ScenarioConfig(pose_source="images")``, docs/VISION.md, "Navigation on
 image poses").
 
-At each pose epoch the host's LED pattern is rendered (bench/camera.py,
+At each pose epoch the host's LED pattern is rendered (bench/sim/camera.py,
 nominal scene, the renderer's default pixel noise) from the true state, the
 flight vision pipeline (fsw_bindings.LedPoseEstimator) turns the image into
 a pose, and the filter gets that pose with the covariance the pipeline
 reports. The pipeline's R is already in the filter's convention (position in
 Hill m^2, body-frame attitude error rad^2, q_true = q_hb Exp(dtheta)), as in
-bench/pose_campaign.py, so it is handed over unchanged. A frame whose status
+bench/campaigns/pose_campaign.py, so it is handed over unchanged. A frame whose status
 is not Ok delivers no pose; the status is counted by reason.
 
 Docking geometry. The documented camera (docs/VISION.md) looks along the
@@ -41,8 +41,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bench import camera as cm
-from bench.sensors import NoiseProfile, PoseMeasurement
+from bench.sim import camera as cm
+from bench.sim.sensors import NoiseProfile, PoseMeasurement
 
 DOCK_FOV_DEG = 110.0
 DOCK_FOCAL_PX = 0.5 * cm.WIDTH / np.tan(np.radians(0.5 * DOCK_FOV_DEG))

@@ -5,9 +5,9 @@ An effect is named in ``EFFECTS`` (its ``EffectSpec``: kind, unit, number of
 parameters, a typical magnitude, the smallest magnitude that shows as a gap
 in a 120 s docking run, and a seeded draw). An ``EffectSet`` (name -> params)
 given to ``ScenarioConfig(effects=...)`` switches effects on; ``realise``
-turns it into the physical settings of the plant (bench/plant.py,
-``PlantEffects``), the truth vehicle (bench/vehicle.py), the sensors
-(bench/sensors.py) and the scenario loop (camera latency, IMU clock). The
+turns it into the physical settings of the plant (bench/sim/plant.py,
+``PlantEffects``), the truth vehicle (bench/sim/vehicle.py), the sensors
+(bench/sim/sensors.py) and the scenario loop (camera latency, IMU clock). The
 equations live there, not here: this module only maps parameters to physics.
 
 ``in_library`` marks the effects a diagnoser may use as candidates; the
@@ -23,11 +23,11 @@ from typing import Callable
 
 import numpy as np
 
-from bench.plant import PlantEffects
+from bench.sim.plant import PlantEffects
 
 from bench.so3 import qexp, rotmat
-from bench.sensors import NoiseProfile
-from bench.vehicle import DIRECTIONS_B, N_THRUSTERS, Vehicle
+from bench.sim.sensors import NoiseProfile
+from bench.sim.vehicle import DIRECTIONS_B, N_THRUSTERS, Vehicle
 
 
 def _unit(rng: np.random.Generator, n: int = 3) -> np.ndarray:
@@ -132,7 +132,7 @@ def _draw_drag(rng, size):
 # Parameters that do not scale with an effect's size (EffectSpec.at).
 _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": (1,)}
 
-# min_detectable: measured with `python -m bench.reality detect` (docs/EFFECTS.md);
+# min_detectable: measured with `python -m bench.sim.reality detect` (docs/EFFECTS.md);
 # lens distortion on image-pose docking runs (`--effects lens_distortion`).
 LENS_K1_MIN_DETECTABLE = 0.029
 EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
@@ -212,7 +212,7 @@ EFFECTS = {n: replace(s, max_size=_MAX_SIZE[n], needs_truth=n in _NEEDS_TRUTH, d
 
 def max_size_for(name: str, vehicle=None) -> float:
     """The largest sensible size of effect ``name`` on the described vehicle
-    (a bench.log_description.Resolved): a camera lever arm cannot reach past
+    (a bench.sim.log_description.Resolved): a camera lever arm cannot reach past
     the vehicle (``envelope_m``), and no valve expels propellant faster than
     its thrust allows at the lowest specific impulse of any thruster
     (``max_mass_flow_kgps``). Without a vehicle, the library's size."""

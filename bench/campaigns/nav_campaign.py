@@ -2,7 +2,7 @@
 (docs/perf/nav_campaign.md).
 
 Run i of a campaign with seed S uses the scenario seed S * 1000 + i; each
-run is a task on a Dask cluster (bench/campaign), kept in a results store
+run is a task on a Dask cluster (bench/runner), kept in a results store
 as it finishes.
 
 Metrics, every sample from the run's first pose update on:
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
-from bench.scenario_docking import (NAV_DOF, POSE_DOF, DockingRun, DockingSummary, ScenarioConfig,
+from bench.sim.scenario_docking import (NAV_DOF, POSE_DOF, DockingRun, DockingSummary, ScenarioConfig,
                                     errors_from_first_update, run_docking)
 
 
@@ -265,9 +265,9 @@ def _run_one(item: dict, cfg: ScenarioConfig) -> dict:
 def run_campaign(n_runs: int, seed: int, cfg: ScenarioConfig | None = None, progress: bool = False,
                  keep_runs: int = 0, campaign=None, workers: int | None = None):
     """Returns (summary dict, list of the first ``keep_runs`` raw runs). Each
-    run is a task of ``campaign`` (bench/campaign/runner.py; default a local
+    run is a task of ``campaign`` (bench/runner/runner.py; default a local
     Dask cluster of ``workers``, nothing kept)."""
-    from bench.campaign.runner import Campaign, all_failed, failures, missing, results
+    from bench.runner.runner import Campaign, all_failed, failures, missing, results
 
     cfg = cfg or ScenarioConfig()
     campaign = campaign if campaign is not None else Campaign(workers=workers, progress=progress)

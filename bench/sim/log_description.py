@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from bench import vehicle as bench_vehicle
+from bench.sim import vehicle as bench_vehicle
 
 EARTH_RADIUS_M = 6378137.0
 MU_EARTH = 3.986004418e14

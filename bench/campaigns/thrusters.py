@@ -2,7 +2,7 @@
 "Online Dynamic Modeling and Localization for Small-Spacecraft Proximity
 Operations" (Rogers-Marcovitz).
 
-Truth (unknown to the learners): the eight valves of bench/vehicle.py
+Truth (unknown to the learners): the eight valves of bench/sim/vehicle.py
 (20 mN at the corners of a 0.2 m cube, firing along face diagonals, 3 kg)
 with
   * per-thruster magnitude spread: scale_i ~ 1 + N(0, 0.10^2);
@@ -54,7 +54,7 @@ import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
 from scipy.optimize import minimize
 
-from bench import vehicle as veh
+from bench.sim import vehicle as veh
 
 G0 = 9.80665
 N_SAMPLES = 2400

@@ -13,7 +13,7 @@ Translation, with f the thrust acceleration in H:
         y'' = -2n x' + n^2 y      - mu y / rd^3       + f_y
         z'' =                     - mu z / rd^3       + f_z,
     rd = |(a + x, y, z)|, with n^2 a = mu / a^2 (checked against the inertial
-    two-body integration of bench/orbit.py in tests/py/test_plant.py).
+    two-body integration of bench/sim/orbit.py in tests/py/test_plant.py).
 Rotation (Euler): J w' = -w x (J w) + tau, w = omega_BI_B. The Hill frame
 turns at n about its z axis, so the rate of B relative to H is
 omega_BH_B = omega_BI_B - C_BH [0, 0, n] and q_hb' = 1/2 q_hb (x) [0, omega_BH_B].
@@ -35,9 +35,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench import orbit
+from bench.sim import orbit
 from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
-from bench.vehicle import Vehicle
+from bench.sim.vehicle import Vehicle
 
 ALTITUDE_M = 500e3
 ORBIT_RADIUS_M = orbit.EARTH_RADIUS + ALTITUDE_M

@@ -7,7 +7,7 @@ import numpy as np
 
 import fsw_bindings as fb
 
-from bench import orbit
+from bench.sim import orbit
 
 # Initial relative states [m, m/s] at 10 m separation in a 500 km orbit.
 def cases(n: float, sep_m: float = 10.0):

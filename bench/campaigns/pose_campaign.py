@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from bench import camera as cm
+from bench.sim import camera as cm
 from bench.so3 import boxminus
 STATUSES = ["Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "DegenerateGeometry", "SolverFailed",
             "BadInput"]

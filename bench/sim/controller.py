@@ -3,7 +3,7 @@
 Host geometry (Hill frame, host centre of mass at the origin): the host is a
 0.40 m cube; its docking port is the centre of its -y face (trailing side),
 ``PORT_HILL_M`` = (0, -0.20, 0). The inspector docks with its +y face
-(bench/vehicle.py) and body axes aligned with the Hill axes (q_hb = 1), so
+(bench/sim/vehicle.py) and body axes aligned with the Hill axes (q_hb = 1), so
 the docked centre of mass is ``DOCK_HILL_M`` = (0, -0.30, 0); the approach
 axis is +y.
 
@@ -35,10 +35,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.plant import N_RADPS
+from bench.sim.plant import N_RADPS
 
 from bench.so3 import boxminus, rotmat
-from bench.vehicle import Vehicle, ALL_VALVES
+from bench.sim.vehicle import Vehicle, ALL_VALVES
 
 HOST_HALF_SIZE_M = 0.20
 PORT_HILL_M = np.array([0.0, -HOST_HALF_SIZE_M, 0.0])

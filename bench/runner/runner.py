@@ -18,9 +18,9 @@ import sys
 import time
 import traceback
 
-from bench.campaign import cluster, records
-from bench.campaign.progress import ProgressBar
-from bench.campaign.store import MemoryStore
+from bench.runner import cluster, records
+from bench.runner.progress import ProgressBar
+from bench.runner.store import MemoryStore
 
 _NO_SHARED = "__no_shared__"
 
@@ -54,7 +54,7 @@ class Campaign:
 
     store: a RunStore (on disk) or None (in memory, nothing kept).
     scheduler / workers: an existing cluster's address, or the local
-    cluster's size (default: bench.campaign.cluster's defaults).
+    cluster's size (default: bench.runner.cluster's defaults).
     summarise_only: run nothing; missing runs come back as None.
     retry_failed: run again the runs stored as failed."""
 

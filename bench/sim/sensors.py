@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bench.so3 import qexp, qmul, qnormalize, rotmat
-from bench.vehicle import MASS_KG, THRUST_N
+from bench.sim.vehicle import MASS_KG, THRUST_N
 
 
 @dataclass(frozen=True)

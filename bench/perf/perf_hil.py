@@ -6,7 +6,7 @@ Each repetition runs `--duration` simulated seconds of chained docking runs
 both ways; the table gives the median and spread over repetitions, and the
 link's step latency (send to the step's last telemetry packet).
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf_hil [--duration 300] [--repeat 5] [--json OUT]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_hil [--duration 300] [--repeat 5] [--json OUT]
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from bench.scenario_docking import ScenarioConfig, run_docking  # noqa: E402
+from bench.sim.scenario_docking import ScenarioConfig, run_docking  # noqa: E402
 from hil_sim.run import HilConfig, run_hil  # noqa: E402
 
 

@@ -31,9 +31,9 @@ Filter initialisation (``init``):
     at t = 0 fused at once.
 
 Pose source (``pose_source``):
-  * "synthetic" (default): bench/sensors.py PoseSensor, the truth plus 5 % of
+  * "synthetic" (default): bench/sim/sensors.py PoseSensor, the truth plus 5 % of
     range per axis and 0.01 rad, with the covariance of ``pose_R_from``.
-  * "images": bench/image_pose.py ImagePoseSensor. Each 1 Hz frame is
+  * "images": bench/sim/image_pose.py ImagePoseSensor. Each 1 Hz frame is
     rendered from the true state and run through the flight vision pipeline
     (fsw_bindings.LedPoseEstimator); the filter gets that pose with the
     covariance the pipeline reports (``pose_R_from`` does not apply). A frame
@@ -42,7 +42,7 @@ Pose source (``pose_source``):
     pose, the inspector holds its valves closed and the filter is started
     from the first frame that does (``summary.t_nav_init_s``).
 
-Physical effects (``effects``: an EffectSet, bench/effects.py and
+Physical effects (``effects``: an EffectSet, bench/sim/effects.py and
 docs/EFFECTS.md) change the truth plant, the truth vehicle and the sensors;
 the controller and the filter keep their nominal models. Camera latency
 (the frame tagged t shows the truth at t - latency, interpolated between
@@ -57,11 +57,11 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from bench.controller import APPROACH_AXIS_HILL, ControlDecision, ControllerParams, DockingController, DOCK_HILL_M
-from bench.plant import N_RADPS, Plant, PlantState
+from bench.sim.controller import APPROACH_AXIS_HILL, ControlDecision, ControllerParams, DockingController, DOCK_HILL_M
+from bench.sim.plant import N_RADPS, Plant, PlantState
 from bench.so3 import boxminus, boxplus, qexp, qnormalize, rotmat
-from bench.sensors import Imu, NoiseProfile, PoseSensor
-from bench.vehicle import ALL_VALVES, Vehicle
+from bench.sim.sensors import Imu, NoiseProfile, PoseSensor
+from bench.sim.vehicle import ALL_VALVES, Vehicle
 
 P0_SIGMAS = np.array([0.05] * 3 + [0.01] * 3 + [0.05] * 3)  # [m, m/s, rad]
 NAV_DOF = 9
@@ -98,7 +98,7 @@ class ScenarioConfig:
     v0_sigma_mps: float = 0.003
     controller: ControllerParams = field(default_factory=ControllerParams)
     truth_vehicle: Vehicle = field(default_factory=Vehicle)
-    effects: dict | None = None  # EffectSet (bench/effects.py): physics the nominal model leaves out
+    effects: dict | None = None  # EffectSet (bench/sim/effects.py): physics the nominal model leaves out
     # What the filter's predict takes as the specific force during firings:
     # "imu" (the accelerometer) or "blr" (the flight BLR's prediction for the
     # valve configuration, Rogers-Marcovitz section 3's conclusion). The learner
@@ -114,8 +114,8 @@ class ScenarioConfig:
     # Replaying a closed-loop run's valves with an effect switched on gives
     # that effect's signature without the controller's feedback.
     valve_script: tuple | None = None
-    # "synthetic": PoseSensor (bench/sensors.py); "images": rendered images of
-    # the host's LED pattern through the flight vision pipeline (bench/image_pose.py).
+    # "synthetic": PoseSensor (bench/sim/sensors.py); "images": rendered images of
+    # the host's LED pattern through the flight vision pipeline (bench/sim/image_pose.py).
     pose_source: str = "synthetic"
 
 
@@ -179,7 +179,7 @@ class DockingRun:
     @classmethod
     def from_record(cls, d: dict) -> DockingRun:
         """A run as a results store gives it back (dataclasses as dicts,
-        bench/campaign/records.py)."""
+        bench/runner/records.py)."""
         return cls(**{**d, "updates": PoseUpdates(**d["updates"]), "summary": DockingSummary(**d["summary"])})
 
 
@@ -255,7 +255,7 @@ class _Truth:
 def _truth_and_sensors(cfg: ScenarioConfig, seed: int, images: bool, rng_imu, rng_pose, rng_init) -> _Truth:
     lens_k1 = 0.0
     if cfg.effects:
-        from bench.effects import realise
+        from bench.sim.effects import realise
 
         fx = realise(cfg.effects, cfg.truth_vehicle, cfg.profile, seed)
         plant = Plant(initial_truth(rng_init, cfg), vehicle=fx.vehicle, dynamics=cfg.dynamics,
@@ -273,7 +273,7 @@ def _truth_and_sensors(cfg: ScenarioConfig, seed: int, images: bool, rng_imu, rn
                       substep_s=cfg.substep_s)
         truth = _Truth(plant, Imu(cfg.profile, rng_imu), PoseSensor(cfg.profile, rng_pose))
     if images:
-        from bench.image_pose import ImagePoseSensor
+        from bench.sim.image_pose import ImagePoseSensor
 
         truth.pose = ImagePoseSensor(cfg.profile, rng_pose, lens_k1=lens_k1)
     return truth

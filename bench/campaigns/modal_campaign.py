@@ -11,7 +11,7 @@ from functools import partial
 
 import numpy as np
 
-from bench import structure as st
+from bench.sim import structure as st
 
 
 def _fb():
@@ -51,7 +51,7 @@ def _converged_index(est, truth, rel=None, abs_=None):
 
 
 def run_trial(item: dict, spec: dict) -> dict:
-    """One trial as a campaign task (bench/campaign/runner.py): ``spec`` names
+    """One trial as a campaign task (bench/runner/runner.py): ``spec`` names
     the scenario and its keyword arguments, ``item`` the trial's seed and
     whether it keeps its series for the plots."""
     fn = pendulum_trial if spec["scenario"] == "pendulum" else plate_trial
@@ -125,10 +125,10 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the paper assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
-    reference (bench.modal_batch_ml) is fitted to every coarse estimate so far
+    reference (bench.campaigns.modal_batch_ml) is fitted to every coarse estimate so far
     and its shape error compared with the filter's at the same image.
     crb_periods: times [lowest-mode periods] at which the Cramer-Rao bounds
-    of this run's coarse estimates (bench.modal_crb) are set beside the
+    of this run's coarse estimates (bench.campaigns.modal_crb) are set beside the
     filter's frequency and shape errors.
     acquire_periods: frequency acquisition set beside the one-pass filter:
     at that time a search over every image so far gives the frequencies; a
@@ -136,13 +136,13 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     replayed over those images and then runs on, scored at the crb_periods
     times. acquire_with "flight": the flight ModalAcquisition (RELAX on its
     stored history, fsw/include/fsw/modal/modal_acquisition.hpp) and its replay;
-    "batch-ml": the bench's batch ML fit (bench.modal_batch_ml), the
+    "batch-ml": the bench's batch ML fit (bench.campaigns.modal_batch_ml), the
     reference it is compared with. acquire_grid_sigmas: the flight search's
     frequency grid spans +- that many a priori sigmas (sigma 10 % here).
     ut_alpha: the unscented transform's spread parameter of the estimating
     filters (sigma points at ut_alpha sqrt(n) standard deviations).
     points_at: where the estimator evaluates the mode shapes
-    (bench.structure.plate_points). coarse_check: also compare every
+    (bench.sim.structure.plate_points). coarse_check: also compare every
     image's coarse amplitudes with the truth (normalised estimation error
     squared, per-mode bias in units of the reported sigma)."""
     rng = np.random.default_rng(seed)
@@ -348,7 +348,7 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
             filt.predict(float(t[k0 - 1] - t[stored[-1]]))
         score(filt, k0 - 1)
     elif method == "batch-ml":
-        from bench import modal_batch_ml
+        from bench.campaigns import modal_batch_ml
 
         if grid_sigmas != 3.0:
             raise ValueError("the batch ML searches +-3 sigma: acquire_grid_sigmas applies to the flight search only")
@@ -386,7 +386,7 @@ def _images_at(periods, omega1, dt_s, n_images, what):
 
 def _crb_row(k, cov, t, amp, phase, w_true, sigma_w, est, phi_grid, shape_rms, shape_rms_oracle, strong, period1):
     """The Cramer-Rao bounds of the first k images beside the filter at image k - 1."""
-    from bench import modal_crb
+    from bench.campaigns import modal_crb
 
     ok = np.all(np.isfinite(cov[:k]), axis=(1, 2))
     # a = amp sin(w t + phase) = c cos(w t) + s sin(w t)
@@ -410,7 +410,7 @@ def _crb_row(k, cov, t, amp, phase, w_true, sigma_w, est, phi_grid, shape_rms, s
 def _batch_ml_row(k, coarse, cov, t, w_prior, sigma_w, est, truth, phi_grid, shape_rms, shape_rms_oracle,
                   w_true, strong, period1):
     """The batch ML reference on the first k images beside the filter at image k - 1."""
-    from bench import modal_batch_ml
+    from bench.campaigns import modal_batch_ml
 
     ml = modal_batch_ml.fit(coarse[:k], cov[:k], t[:k], w_prior, sigma_w, extra_starts=[("filter", est[k - 1, :, 2])],
                             reference_starts=[("truth", w_true)])

@@ -1,7 +1,7 @@
 """Calibration of the LED centroid error model against rendered spots
 (docs/VISION.md, "Centroid error model").
 
-Single LED spots are rendered exactly as bench/camera.py renders the pattern
+Single LED spots are rendered exactly as bench/sim/camera.py renders the pattern
 (pixel-integrated Gaussian, background, optional Gaussian blur, read and shot
 noise, saturation at 255, 8-bit rounding), on a grid so that one image holds
 many spots, and passed through the flight detector
@@ -34,7 +34,7 @@ seed through the flight defaults. ``--legacy`` also measures the first
 estimate alone (component box + 2 px, weights clipped at zero, plain
 pixel-noise sigma), the detector before the refinement. Command:
 
-    OPENBLAS_NUM_THREADS=1 python -m bench.centroid_calibration --seed 1 --images 60 --legacy
+    OPENBLAS_NUM_THREADS=1 python -m bench.campaigns.centroid_calibration --seed 1 --images 60 --legacy
 
 It prints the table and the fitted constants; ``--json`` writes them.
 """
@@ -47,7 +47,7 @@ import time
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from bench import camera as cm
+from bench.sim import camera as cm
 
 SPACING_PX = 48
 MARGIN_PX = 24
@@ -240,7 +240,7 @@ def print_table(rows: list[dict]) -> None:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m bench.centroid_calibration", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m bench.campaigns.centroid_calibration", description=__doc__.split("\n")[0])
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--images", type=int, default=60, help="images per blur value (130 spots each)")
     p.add_argument("--json", default=None)

@@ -1,11 +1,11 @@
 """Timing of the modal frequency acquisition's search: the flight C++
 (ModalAcquisition through the bindings) beside the numpy RELAX it is checked
-against (bench/modal_batch_ml.py: _grid_start, _relax_start with the joint
+against (bench/campaigns/modal_batch_ml.py: _grid_start, _relax_start with the joint
 amplitude re-solve), on the same simulated plate histories, in one run; and
 the flight replay of the joint filter over that history. Also says whether
 the two searches picked the same grid frequencies.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf_modal_acquisition [--repeats N] [--json OUT]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_modal_acquisition [--repeats N] [--json OUT]
 """
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
-from bench import modal_batch_ml
-from bench import modal_campaign as mc
-from bench import structure as st
+from bench.campaigns import modal_batch_ml
+from bench.campaigns import modal_campaign as mc
+from bench.sim import structure as st
 from bench.report import write_json
 
 # (modes, images, image interval [s]): two lowest-mode periods of the bench's runs

@@ -1,14 +1,14 @@
 """Per-frame consistency of the image poses along the docking scenario: the
-docking runs flown on image poses (bench/scenario_docking.py, pose_source
+docking runs flown on image poses (bench/sim/scenario_docking.py, pose_source
 "images") give the true trajectory; the host's pattern is rendered from it
-and each pose from the flight vision pipeline (bench/image_pose.py) is
+and each pose from the flight vision pipeline (bench/sim/image_pose.py) is
 compared with the truth (docs/VISION.md, "Navigation on image poses")."""
 from __future__ import annotations
 
 import numpy as np
 
-from bench.image_pose import ImagePoseSensor
-from bench.sensors import NoiseProfile
+from bench.sim.image_pose import ImagePoseSensor
+from bench.sim.sensors import NoiseProfile
 
 
 def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: int = 3,
@@ -23,7 +23,7 @@ def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: i
     from scipy.stats import chi2
 
     from bench.so3 import boxminus
-    from bench.scenario_docking import ScenarioConfig, run_docking
+    from bench.sim.scenario_docking import ScenarioConfig, run_docking
 
     sensor = ImagePoseSensor(NoiseProfile.paper(), np.random.default_rng(render_seed))
     nees, npos, natt, rng_m = [], [], [], []
@@ -55,7 +55,7 @@ def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: i
 
 
 if __name__ == "__main__":
-    # OPENBLAS_NUM_THREADS=1 python -m bench.image_pose_consistency  (docs/VISION.md, "Navigation on image poses")
+    # OPENBLAS_NUM_THREADS=1 python -m bench.campaigns.image_pose_consistency  (docs/VISION.md, "Navigation on image poses")
     import json
 
     print(json.dumps(pose_nees_along_docking()))

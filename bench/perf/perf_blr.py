@@ -1,8 +1,8 @@
 """Timing of the thruster learner's step: C++ (Google Benchmark, bench_blr)
-beside the numpy implementation (bench/blr_numpy.py) and the bindings, in
+beside the numpy implementation (bench/perf/blr_numpy.py) and the bindings, in
 one run. 9 inputs (8 valves + bias), 6 outputs, window 30, double.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf_blr [--bench-exe PATH] [--json OUT]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_blr [--bench-exe PATH] [--json OUT]
 """
 from __future__ import annotations
 
@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.blr_numpy import NumpyBlr
+from bench.perf.blr_numpy import NumpyBlr
 from bench.report import write_json
 
 REPS = 9
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def find_exe(path=None):
@@ -117,7 +117,7 @@ def main(argv=None):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     cpu = subprocess.run("lscpu | grep 'Model name'", shell=True, capture_output=True, text=True).stdout.strip()
     out = {"cpu": cpu, "nproc": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__,
-           "command": " ".join([sys.executable, "-m", "bench.perf_blr"] + (argv or sys.argv[1:]))}
+           "command": " ".join([sys.executable, "-m", "bench.perf.perf_blr"] + (argv or sys.argv[1:]))}
     exe = find_exe(a.bench_exe)
     if exe:
         out["cpp_command"], out["cpp_median_ns"] = run_cpp(exe)
@@ -134,7 +134,7 @@ def main(argv=None):
     print(f"{cpu}; nproc {out['nproc']}; 1-min load average {out['loadavg_1min']:.1f}")
     print(f"{'':40s} {'wall [ns]':>12s} {'cpu [ns]':>12s}")
     for key, title in (("cpp_median_ns", f"C++ ({out.get('cpp_command', 'not found')})"),
-                       ("numpy_median_ns", "numpy (bench/blr_numpy.py), OPENBLAS_NUM_THREADS="
+                       ("numpy_median_ns", "numpy (bench/perf/blr_numpy.py), OPENBLAS_NUM_THREADS="
                         + os.environ["OPENBLAS_NUM_THREADS"]),
                        ("bindings_median_ns", "bindings (fsw_bindings.ThrusterBlr, Python call included)")):
         print(title + ":")

@@ -21,7 +21,7 @@ import os
 import socket
 from pathlib import Path
 
-from bench.campaign import records
+from bench.runner import records
 
 FORMAT = 1
 

@@ -114,7 +114,7 @@ class FlightLog:
     streams: dict = field(default_factory=dict)
     config: dict = field(default_factory=dict)
     # Format version 2: the vehicle, IMU, pose sensor, orbit and segments
-    # (bench/log_description.py); None: everything at the bench's defaults.
+    # (bench/sim/log_description.py); None: everything at the bench's defaults.
     description: dict | None = None
 
     def has(self, stream: str) -> bool:
@@ -214,7 +214,7 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
 
 def validate_log(log: FlightLog) -> list:
     """Every contract violation in an in-memory log (empty list: valid)."""
-    from bench.log_description import DescriptionError, resolve
+    from bench.sim.log_description import DescriptionError, resolve
 
     problems = []
     n_thr = 8
