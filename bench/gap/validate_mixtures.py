@@ -9,6 +9,8 @@ hashed before any diagnosis, as in bench/gap/validate.py.
 
 Scores:
   exact set        the named effects are exactly the run's in-library ones
+                   (and, reported beside it, the run's set is the answer or
+                   one of the sets an ambiguous answer names with it)
   named are real   every named effect is one of the run's
   remainder        (in + out runs) the out-of-library part is left as a
                    remainder: the verdict is not a plain "explained" with the
@@ -96,8 +98,12 @@ def _run_one(key, run_ctx):
     pub = public(res)
     named = [m["effect"] for m in pub["effects"]] if pub["gap_detected"] else []
     truth_in = sorted(e for e in key["members"] if EFFECTS[e].in_library)
+    # An ambiguous answer names the sets the data cannot tell apart: the first
+    # is the answer, the others its alternatives.
+    alternatives = [sorted(a["set"]) if "set" in a else [a["effect"]] for a in pub["ambiguous_with"]] \
+        if pub["verdict"] == "ambiguous" else []
     out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"], "named": named,
-           "t_diagnose_s": pub["elapsed_s"]}
+           "alternatives": alternatives, "t_diagnose_s": pub["elapsed_s"]}
     it = res["_internal"]
     ctx = it["ctx"]
     fits = {f.name: f for f in it["fits"]}
@@ -131,11 +137,12 @@ def _scores(sel: list, kind: str) -> dict:
     out-of-library part left as a remainder, over (key, answer) pairs."""
     from bench.effects import EFFECTS
 
-    exact, real, remainder = [], [], []
+    exact, among, real, remainder = [], [], [], []
     for k, a in sel:
         truth_in = {e for e in k["members"] if EFFECTS[e].in_library}
         named = set(a["named"])
         exact.append(named == truth_in and a["verdict"] != "unexplained")
+        among.append(exact[-1] or any(set(alt) == truth_in for alt in a.get("alternatives", [])))
         real.append(named <= set(k["members"]))
         if k["kind"] == "in+out":
             # the out-of-library part left as a remainder, with or without
@@ -143,7 +150,8 @@ def _scores(sel: list, kind: str) -> dict:
             remainder.append(a["gap_detected"] and a["verdict"] in ("unexplained", "partly_explained"))
     if not sel:
         return {"n": 0}
-    return {"n": len(sel), "exact_set": float(np.mean(exact)), "named_are_real": float(np.mean(real)),
+    return {"n": len(sel), "exact_set": float(np.mean(exact)), "exact_set_among_named": float(np.mean(among)),
+            "named_are_real": float(np.mean(real)),
             **({"out_of_library_left_unexplained": float(np.mean(remainder)), "n_in_out": len(remainder)}
                if remainder else {})}
 
@@ -204,7 +212,8 @@ def summary_lines(res: dict) -> list:
         if not a or not a.get("n"):
             continue
         sep = a["separable"]
-        lines.append(f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')}, named are real "
+        lines.append(f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')} (among the sets an ambiguous "
+                     f"answer names: {_pct(a, 'exact_set_among_named')}), named are real "
                      f"{_pct(a, 'named_are_real')}, remainder {_pct(a, 'out_of_library_left_unexplained')} "
                      f"(n = {a['n']}); where the data separate the set: {_pct(sep, 'exact_set')}, "
                      f"{_pct(sep, 'named_are_real')}, {_pct(sep, 'out_of_library_left_unexplained')} "

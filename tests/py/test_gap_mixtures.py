@@ -136,20 +136,23 @@ def test_mixture_scores_split_by_separability_and_kind():
     def key(run, kind, scale, members):
         return {"run": run, "kind": kind, "scale": scale, "members": members, "detectable": True}
 
-    def ans(run, named, verdict, sep=True, lib=True, shrink=None):
+    def ans(run, named, verdict, sep=True, lib=True, shrink=None, alternatives=()):
         return {"run": run, "named": named, "verdict": verdict, "gap_detected": True, "t_diagnose_s": 1.0,
+                "alternatives": [list(a) for a in alternatives],
                 "true_set_shrink": shrink, "true_set_measurable": shrink is not None,
                 "separability": {"separable": sep, "beyond_library_separable": lib}}
 
     keys = [key(0, "pair", 2.0, ["thrust_loss", "gyro_bias"]), key(1, "pair", 2.0, ["thruster_misalignment", "gyro_bias"]),
             key(2, "in+out", 2.0, ["accel_bias", "fuel_slosh"]), key(3, "in+out", 2.0, ["accel_bias", "clock_drift"])]
     answers = [ans(0, ["gyro_bias", "thrust_loss"], "explained", shrink=0.9),
-               ans(1, ["thrust_loss", "gyro_bias"], "ambiguous", sep=False, shrink=0.7),
+               ans(1, ["thrust_loss", "gyro_bias"], "ambiguous", sep=False, shrink=0.7,
+                   alternatives=[["gyro_bias", "thruster_misalignment"]]),
                ans(2, ["accel_bias"], "partly_explained", shrink=0.1),
                ans(3, ["accel_bias", "gyro_scale"], "explained", lib=False, shrink=0.2)]
     res = score_mixtures(keys, answers)
     at2 = res["at_2x"]
     assert at2["n"] == 4 and at2["exact_set"] == 0.5 and at2["named_are_real"] == 0.5
+    assert at2["exact_set_among_named"] == 0.75  # run 1's set is the alternative its ambiguous answer names
     assert at2["out_of_library_left_unexplained"] == 0.5
     # runs 1 (a look-alike set) and 3 (a clock drift the library reproduces) are scored apart
     assert at2["separable"]["n"] == 2 and at2["separable"]["exact_set"] == 1.0
