@@ -70,12 +70,8 @@ def main(args):
             write_json(args.json, res, strict=True)
         print(f"mixture runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {where})")
         report_campaign(res)
-        for k, v in res["by_kind_scale"].items():
-            extra = (f", out-of-library left as a remainder {v['out_of_library_left_unexplained']:.2f}"
-                     if "out_of_library_left_unexplained" in v else "")
-            print(f"{k}: exact set {v['exact_set']:.2f}, named are real {v['named_are_real']:.2f}{extra} (n = {v['n']})")
-        print(f"held-out shrink of the true set refitted jointly: median {res['true_set_shrink_median']} "
-              f"(n = {res['n_shrink_measurable']})")
+        for line in validate_mixtures.summary_lines(res):
+            print(line)
         return 0
     if args.engine == "basilisk":
         from bench.gap import validate_basilisk

@@ -106,73 +106,59 @@ def _next_size(probes: list, lam_req: float) -> float:
     return float(last["size"] * np.sqrt(lam_req / last["lambda"]))
 
 
-def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, calibration: dict,
-                        simulate=None, power: float = POWER, then_scripts: list | None = None,
-                        max_size: float | None = None) -> dict:
-    """The size of effect ``name`` along ``unit_params`` (a draw at size 1)
-    that the diagnoser's screen detects with probability ``power`` in the
-    run of ``seed`` with the effect at that size. Returns the size and how it
-    was found.
+def _bench_simulate(seed: int, duration_s: float, then_scripts: list | None):
+    """simulate(effects, scripts) -> (log, scripts) on the bench's docking runs."""
+    from bench.sim.effects import EffectSet
+    from bench.sim.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
-    ``simulate(effects, scripts)`` returns (log, scripts): the run closed loop
-    (scripts None) or replaying ``scripts`` open loop; ``then_scripts``: a
-    characterisation flown after the docking runs (bench.reality.simulate_runs);
-    ``max_size``: the largest sensible size on the vehicle flown (default the
-    effect library's, bench.effects.max_size_for)."""
-    from bench.sim.effects import EFFECTS
-    from bench.gap.attribute import numerical_rank, signature
-    from bench.gap.candidates import CANDIDATES
+    def simulate(eff, scripts=None):
+        runs = simulate_runs(seed, eff, duration_s, scripts=scripts, then_scripts=then_scripts)
+        log = runs_to_log(runs, log_config(seed, duration_s), clock_rate(EffectSet(eff)), with_truth=False)
+        return log, [r.config for r in runs]
 
-    if simulate is None:
-        from bench.sim.effects import EffectSet
-        from bench.sim.reality import clock_rate, log_config, runs_to_log, simulate_runs
+    return simulate
 
-        def simulate(eff, scripts=None):
-            runs = simulate_runs(seed, eff, duration_s, scripts=scripts, then_scripts=then_scripts)
-            log = runs_to_log(runs, log_config(seed, duration_s), clock_rate(EffectSet(eff)), with_truth=False)
-            return log, [r.config for r in runs]
 
-    spec = EFFECTS[name]
-    if max_size is not None:
-        spec = replace(spec, max_size=float(max_size))
-    thr = float(calibration.get("thresholds", {}).get("screen_logp", np.nan))
-    if not np.isfinite(thr):
-        raise ValueError("the null calibration has no screen_logp threshold (regenerate it: python -m bench.gap.null)")
+def _probe(simulate, name: str, params: list, size: float, with_candidate: bool, thr_logp: float, thr_map: float,
+           power: float, k_all: int) -> dict:
+    """The noncentrality the effect at ``params`` gives the diagnoser's test
+    in this run, and the noncentrality the test needs for ``power``."""
     from scipy.stats import chi2, norm
 
-    with_candidate = spec.in_library and name in CANDIDATES
-    thr_map = float(calibration["thresholds"]["map_max_abs_z"])
-    k_all = spec.n_params
+    from bench.gap.attribute import numerical_rank, signature
 
-    def probe(size: float) -> dict:
-        # The run with the effect, closed loop: the manoeuvres the campaign's
-        # run at this size will fly. Its valves replayed open loop without the
-        # effect give the same manoeuvres' effect-free residuals, so the
-        # difference is the effect's physics on those manoeuvres.
-        log1, scripts = simulate({name: spec.at(unit_params, size).tolist()})
-        log0, _ = simulate({}, scripts)
-        ctx0, e0, rows_ok = residuals_of(log0)
-        ctx1, w, e_dyn = residuals_of(log1, ctx0)
-        s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
-        if with_candidate:
-            J, _ = signature(ctx0, name, rows_ok)
-            k = max(numerical_rank(J), 1)
-            U, sv, _ = np.linalg.svd(J, full_matrices=False)
-            U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
-            lam = float(np.sum((U.T @ s) ** 2))
-            c = float(chi2.isf(10.0 ** -thr, k))
-            lam_req = required_noncentrality(k, c, power)
-        else:
-            # No candidate: the gap map is the test. A cell's z moves by dz with the
-            # effect (about N(dz, 1)): detected with `power` when the largest |dz|
-            # reaches the map threshold plus the normal quantile of the power.
-            z0, z1 = _cells(ctx0), _cells(ctx1)
-            lam = float(max((abs(z1[key] - z0[key]) for key in z0.keys() & z1.keys()), default=0.0) ** 2)
-            k, c = k_all, thr_map
-            lam_req = float((thr_map + norm.isf(1.0 - power)) ** 2)
-        return {"size": float(size), "lambda": lam, "lambda_required": lam_req, "k": int(k), "threshold": c,
-                "n_obs": int(e0.size)}
+    # The run with the effect, closed loop: the manoeuvres the campaign's
+    # run at this size will fly. Its valves replayed open loop without the
+    # effect give the same manoeuvres' effect-free residuals, so the
+    # difference is the effect's physics on those manoeuvres.
+    log1, scripts = simulate({name: params})
+    log0, _ = simulate({}, scripts)
+    ctx0, e0, rows_ok = residuals_of(log0)
+    ctx1, w, e_dyn = residuals_of(log1, ctx0)
+    s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
+    if with_candidate:
+        J, _ = signature(ctx0, name, rows_ok)
+        k = max(numerical_rank(J), 1)
+        U, sv, _ = np.linalg.svd(J, full_matrices=False)
+        U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
+        lam = float(np.sum((U.T @ s) ** 2))
+        c = float(chi2.isf(10.0 ** -thr_logp, k))
+        lam_req = required_noncentrality(k, c, power)
+    else:
+        # No candidate: the gap map is the test. A cell's z moves by dz with the
+        # effect (about N(dz, 1)): detected with `power` when the largest |dz|
+        # reaches the map threshold plus the normal quantile of the power.
+        z0, z1 = _cells(ctx0), _cells(ctx1)
+        lam = float(max((abs(z1[key] - z0[key]) for key in z0.keys() & z1.keys()), default=0.0) ** 2)
+        k, c = k_all, thr_map
+        lam_req = float((thr_map + norm.isf(1.0 - power)) ** 2)
+    return {"size": float(size), "lambda": lam, "lambda_required": lam_req, "k": int(k), "threshold": c,
+            "n_obs": int(e0.size)}
 
+
+def _search(probe, spec) -> tuple:
+    """(answer, probes): probe sizes until the noncentrality's trend in size
+    settles on the required one, up to the effect's largest sensible size."""
     size = float(spec.min_detectable)
     probes = []
     shrinks = 0
@@ -213,6 +199,42 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
             break
         tries += 1
         answer = _answer(probes, spec.max_size)
+    return answer, probes
+
+
+def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, calibration: dict,
+                        simulate=None, power: float = POWER, then_scripts: list | None = None,
+                        max_size: float | None = None) -> dict:
+    """The size of effect ``name`` along ``unit_params`` (a draw at size 1)
+    that the diagnoser's screen detects with probability ``power`` in the
+    run of ``seed`` with the effect at that size. Returns the size and how it
+    was found.
+
+    ``simulate(effects, scripts)`` returns (log, scripts): the run closed loop
+    (scripts None) or replaying ``scripts`` open loop; ``then_scripts``: a
+    characterisation flown after the docking runs (bench.reality.simulate_runs);
+    ``max_size``: the largest sensible size on the vehicle flown (default the
+    effect library's, bench.effects.max_size_for)."""
+    from bench.sim.effects import EFFECTS
+    from bench.gap.candidates import CANDIDATES
+
+    if simulate is None:
+        simulate = _bench_simulate(seed, duration_s, then_scripts)
+    spec = EFFECTS[name]
+    if max_size is not None:
+        spec = replace(spec, max_size=float(max_size))
+    thr = float(calibration.get("thresholds", {}).get("screen_logp", np.nan))
+    if not np.isfinite(thr):
+        raise ValueError("the null calibration has no screen_logp threshold (regenerate it: python -m bench.gap.null)")
+    with_candidate = spec.in_library and name in CANDIDATES
+    thr_map = float(calibration["thresholds"]["map_max_abs_z"])
+    k_all = spec.n_params
+
+    def probe(size: float) -> dict:
+        return _probe(simulate, name, spec.at(unit_params, size).tolist(), size, with_candidate, thr, thr_map,
+                      power, k_all)
+
+    answer, probes = _search(probe, spec)
     last = next((q for q in reversed(probes) if q.get("lambda") is not None), {})
     return {"effect": name, "size": answer["size"] if answer else float("nan"), "detectable": answer is not None,
             "test": "screen" if with_candidate else "gap map", "k": int(last.get("k", k_all)),

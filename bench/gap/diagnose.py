@@ -152,6 +152,45 @@ def heldout_runs_shrink(ctx: Context, name: str) -> dict:
             "parameters": {p: float(v) for p, v in zip(candidates_of(d)[name].params, f.theta)}}
 
 
+class HeldOut:
+    """The scores every answer is judged by: the held-out shrink and
+    log-likelihood gain, and each channel's gain on the training rows, of a
+    replay with the candidate's corrections (after_nav, after_dyn) against
+    the nominal one. The shrink counts the gap's cells only (_gap_cells)."""
+
+    def __init__(self, ctx: Context):
+        self.ctx = ctx
+        self.cells, self.lab_dyn = _gap_cells(ctx)
+
+    def shrink(self, after_nav: Pass, after_dyn) -> dict:
+        ctx, ch, hd = self.ctx, self.ctx.ch, self.ctx.held_dyn
+        q0 = q1 = td = None
+        if ch is not None:
+            td = ch.t[hd]
+            q0 = np.sum(ch.e0[hd] ** 2, axis=1)
+            q1 = np.sum((after_dyn if after_dyn is not None else ch.e0)[hd] ** 2, axis=1)
+        held = ctx.held_nav
+        return quantify.shrink_combined(ctx.d.pose_tc[held], ctx.nominal.nis[held], after_nav.nis[held], td, q0, q1,
+                                        cells=self.cells, lab_dyn=None if self.lab_dyn is None else self.lab_dyn[hd])
+
+    def train_channels(self, after_nav: Pass, after_dyn) -> dict:
+        ctx, ch, train = self.ctx, self.ctx.ch, self.ctx.train_nav
+        out = {"pose": channel_gain(ctx.nominal.white[train].ravel(), after_nav.white[train].ravel())}
+        if ch is not None and after_dyn is not None:
+            for name, kind in (("accelerometer", 0), ("gyro", 1)):
+                m = ctx.train_dyn & (ch.kind == kind)
+                out[name] = channel_gain(ch.e0[m].ravel(), after_dyn[m].ravel())
+        return out
+
+    def dll(self, after_nav: Pass, after_dyn) -> float:
+        ctx, ch, held = self.ctx, self.ctx.ch, self.ctx.held_nav
+        v = float(np.nansum(after_nav.loglik[held]) - np.nansum(ctx.nominal.loglik[held]))
+        if ch is not None and after_dyn is not None:
+            e0, e1 = ch.e0[ctx.held_dyn].ravel(), after_dyn[ctx.held_dyn].ravel()
+            v += 0.5 * float(e0 @ e0 - e1 @ e1)
+        return v
+
+
 def diagnose(log, calibration: dict | None = None, progress: bool = False, n_confirm: int = N_CONFIRM,
              confirm_always: bool = False, make_calibration: bool = True, calibration_source: str | None = None,
              calibration_runs: int | None = None) -> dict:
@@ -163,169 +202,182 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     thresholds (the null runs themselves), or None: the committed one when
     the log is the bench's vehicle and manoeuvres, else one made for the log
     (``make_calibration``; bench/gap/log_null.py)."""
-    from bench.gap import log_null
-
     t_start = time.time()
     d = prepare(log)
-    if calibration == {}:
-        cal, cal_info = {}, {"source": "none (no thresholds)", "runs": 0, "note": None}
-    elif calibration is None and not make_calibration:
-        cal, cal_info = nullmod.load(), {"source": "committed (docking logs of the bench inspector)", "note": None}
-    else:
-        cal, cal_info = log_null.choose(log, d, calibration, calibration_source,
-                                        runs=calibration_runs or log_null.DEFAULT_RUNS, progress=progress)
+    cal, cal_info = _calibration(log, d, calibration, make_calibration, calibration_source, calibration_runs,
+                                 progress)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
     prog = _Progress(1 + n_screen, progress)
     det = detect(d, progress=prog)
-    ctx, cells, fits, t_map, t_glr = det.ctx, det.cells, det.fits, det.map_max_abs_z, det.screen_logp_max
-    nominal, ch, train, held, held_dyn = ctx.nominal, ctx.ch, ctx.train_nav, ctx.held_nav, ctx.held_dyn
+    ctx, fits = det.ctx, det.fits
     thr = cal.get("thresholds", {})
     thr_map, thr_glr = float(thr.get("map_max_abs_z", np.inf)), float(thr.get("screen_logp", np.inf))
-    detected = bool(t_map > thr_map or t_glr > thr_glr)
-
-    gap_cells, lab_dyn = _gap_cells(ctx)
-
-    def held_shrink(after_nav: Pass, after_dyn):
-        q0 = q1 = td = None
-        if ch is not None:
-            td = ch.t[held_dyn]
-            q0 = np.sum(ch.e0[held_dyn] ** 2, axis=1)
-            q1 = np.sum((after_dyn if after_dyn is not None else ch.e0)[held_dyn] ** 2, axis=1)
-        return quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], after_nav.nis[held], td, q0, q1,
-                                        cells=gap_cells, lab_dyn=None if lab_dyn is None else lab_dyn[held_dyn])
-
-    def train_channels(after_nav: Pass, after_dyn) -> dict:
-        out = {"pose": channel_gain(nominal.white[train].ravel(), after_nav.white[train].ravel())}
-        if ch is not None and after_dyn is not None:
-            for name, kind in (("accelerometer", 0), ("gyro", 1)):
-                m = ctx.train_dyn & (ch.kind == kind)
-                out[name] = channel_gain(ch.e0[m].ravel(), after_dyn[m].ravel())
-        return out
-
-    def held_dll(after_nav: Pass, after_dyn):
-        v = float(np.nansum(after_nav.loglik[held]) - np.nansum(nominal.loglik[held]))
-        if ch is not None and after_dyn is not None:
-            e0, e1 = ch.e0[held_dyn].ravel(), after_dyn[held_dyn].ravel()
-            v += 0.5 * float(e0 @ e0 - e1 @ e1)
-        return v
-
+    detected = bool(det.map_max_abs_z > thr_map or det.screen_logp_max > thr_glr)
+    scores = HeldOut(ctx)
     ranking = []
     if detected or confirm_always:
         prog.total += n_confirm * 10
-        for f in fits[:n_confirm]:
-            if not np.isfinite(f.screen_bic):
-                continue
-            confirm(ctx, f)
-            prog(10)
-            sh = held_shrink(f.after_nav, f.after_dyn)
-            dll_held = held_dll(f.after_nav, f.after_dyn)
-            cells_after = map_cells(d, f.after_nav) + localise.dyn_cells(d, ch, f.after_dyn)
-            map_after = localise.map_statistic(cells_after)
-            # What is left must look like the null, or be a small remainder of a
-            # large gap (a first-order candidate model of a large effect).
-            # A shrink is required only where the held-out deficit stands out of its noise.
-            # What is left may also simply be the null's own noise: a deficit
-            # within twice its null spread.
-            # Or a shrink whose bootstrap interval reaches SHRINK_MIN: the held-out
-            # deficit is a sum of squares over many rows, and near the detection
-            # limit its noise alone can hold the point estimate under the bar.
-            shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
-                         or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"]
-                         or (np.isfinite(sh["ci95"][1]) and sh["ci95"][1] >= SHRINK_MIN))
-            contra = train_channels(f.after_nav, f.after_dyn)
-            consistent = all(c["z"] >= -Z_CONTRADICT for c in contra.values())
-            explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok and consistent
-                            and map_after <= max(thr_map, MAP_REMAINDER * t_map))
-            c = candidates_of(d)[f.name]
-            ranking.append({
-                "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
-                                                              "screen_bic": f.screen_bic, "dll_heldout": dll_held},
-                "parameters": {p: {"value": float(v), "sigma": float(s)} for p, v, s in zip(c.params, f.theta, f.sigma)},
-                "unconstrained_fit_beyond_bound_sigma": f.bound_excess_sigma,
-                "shrink_heldout": sh, "map_max_abs_z_after": map_after, "explains_heldout": explains,
-                "training_channels": contra, "shrink_ok": bool(shrink_ok),
-                "separate_by": c.separate_by,
-                "replay_rms_heldout_after": quantify.channel_rms(f.after_nav.innovation[held]),
-            })
-        ranking.sort(key=lambda r: -r["evidence"]["ln_bf"])
+        ranking = _rank(ctx, fits, scores, n_confirm, prog, thr_map, det.map_max_abs_z)
     prog.close()
-
-    verdict = "no_gap"
-    ambiguous_with = []
-    if detected:
-        verdict = "unexplained"
-        # The answer is the most probable candidate that explains the held-out
-        # data; one that does not is no explanation, however well it fits the
-        # training blocks (a small candidate fitting noise there can outrank the
-        # right one near the detection limit).
-        explainers = [r for r in ranking if r["explains_heldout"]]
-        if explainers:
-            ranking = explainers + [r for r in ranking if not r["explains_heldout"]]
-            verdict = "explained"
-            best = ranking[0]
-            fit_of = {f.name: f for f in fits}
-            for r in ranking[1:]:
-                if not r["explains_heldout"]:
-                    continue
-                dbf = best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"]
-                # Two ways the data fail to tell them apart: the evidence is close,
-                # or the best one's fitted signature is one the other reproduces
-                # to within DELTA2_95 (then the Bayes factor between them is only
-                # their priors' Occam factors, not the data).
-                d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]], candidates_of(d))
-                if dbf < BF_AMBIGUOUS or d2 < DELTA2_95:
-                    ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": dbf, "signature_distance2": d2,
-                                           "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
-            if ambiguous_with:
-                verdict = "ambiguous"
-
-    # Several effects at once (bench/gap/select.py): the set forward selection
-    # supports replaces the single answer only when its joint fit explains the
-    # held-out data and beats the best single explanation there.
+    verdict, ambiguous_with, ranking = _single_answer(d, fits, ranking) if detected else ("no_gap", [], ranking)
     effect_set = None
     if detected:
-        effect_set = _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels,
-                                 ranking if verdict in ("explained", "ambiguous") else [],
-                                 one_ok=verdict == "unexplained", null_map=cal.get("null_map_max_abs_z"))
-        if effect_set is not None and effect_set["explains_heldout"]:
-            from bench.gap.select import look_alike_sets
+        verdict, effect_set, ambiguous_with = _set_answer(ctx, fits, scores, cal, thr_glr, thr_map, det.map_max_abs_z,
+                                                          verdict, ranking, ambiguous_with)
+    out = _answer(d, ctx, det, cal, cal_info, fits, ranking, verdict, ambiguous_with, effect_set, detected)
+    out["elapsed_s"] = time.time() - t_start
+    out["_internal"] = {"d": d, "nominal": ctx.nominal, "fits": fits, "train": ctx.train_nav, "held": ctx.held_nav,
+                        "cells": det.cells, "ctx": ctx, "held_shrink": scores.shrink}
+    return out
 
-            verdict = "explained"
-            names = [m["effect"] for m in effect_set["members"]]
-            cands = candidates_of(d)
-            # A set the data cannot tell from this one (one member swapped for
-            # a look-alike that reproduces the set's signature): ambiguous.
-            ambiguous_with = [{"set": [a["with"] if n == a["replace"] else n for n in names], **a,
-                               "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}"}
-                              for a in look_alike_sets(ctx, fits, names, DELTA2_95)]
-            if ambiguous_with:
-                verdict = "ambiguous"
-        elif verdict == "unexplained" and effect_set is not None:
-            effect_set = _partial_set(effect_set, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll,
-                                      train_channels, cal.get("null_map_max_abs_z"))
-            if effect_set is not None and effect_set["partly_explains"]:
-                verdict = "partly_explained"
 
-    summ = localise.summarise(cells, cal.get("null_map_max_abs_z"))
+def _calibration(log, d: LogData, calibration, make_calibration: bool, source, runs, progress) -> tuple:
+    """(calibration, its description) for diagnose()."""
+    from bench.gap import log_null
+
+    if calibration == {}:
+        return {}, {"source": "none (no thresholds)", "runs": 0, "note": None}
+    if calibration is None and not make_calibration:
+        return nullmod.load(), {"source": "committed (docking logs of the bench inspector)", "note": None}
+    return log_null.choose(log, d, calibration, source, runs=runs or log_null.DEFAULT_RUNS, progress=progress)
+
+
+def _judge(ctx: Context, f, scores: HeldOut, thr_map: float, t_map: float) -> dict:
+    """One confirmed candidate's entry in the ranking: its evidence, its
+    parameters and whether it explains the held-out data."""
+    d, ch = ctx.d, ctx.ch
+    sh = scores.shrink(f.after_nav, f.after_dyn)
+    dll_held = scores.dll(f.after_nav, f.after_dyn)
+    map_after = localise.map_statistic(map_cells(d, f.after_nav) + localise.dyn_cells(d, ch, f.after_dyn))
+    # What is left must look like the null, or be a small remainder of a
+    # large gap (a first-order candidate model of a large effect).
+    # A shrink is required only where the held-out deficit stands out of its noise.
+    # What is left may also simply be the null's own noise: a deficit
+    # within twice its null spread.
+    # Or a shrink whose bootstrap interval reaches SHRINK_MIN: the held-out
+    # deficit is a sum of squares over many rows, and near the detection
+    # limit its noise alone can hold the point estimate under the bar.
+    shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
+                 or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"]
+                 or (np.isfinite(sh["ci95"][1]) and sh["ci95"][1] >= SHRINK_MIN))
+    contra = scores.train_channels(f.after_nav, f.after_dyn)
+    consistent = all(c["z"] >= -Z_CONTRADICT for c in contra.values())
+    explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok and consistent
+                    and map_after <= max(thr_map, MAP_REMAINDER * t_map))
+    c = candidates_of(d)[f.name]
+    return {
+        "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
+                                                      "screen_bic": f.screen_bic, "dll_heldout": dll_held},
+        "parameters": {p: {"value": float(v), "sigma": float(s)} for p, v, s in zip(c.params, f.theta, f.sigma)},
+        "unconstrained_fit_beyond_bound_sigma": f.bound_excess_sigma,
+        "shrink_heldout": sh, "map_max_abs_z_after": map_after, "explains_heldout": explains,
+        "training_channels": contra, "shrink_ok": bool(shrink_ok),
+        "separate_by": c.separate_by,
+        "replay_rms_heldout_after": quantify.channel_rms(f.after_nav.innovation[ctx.held_nav]),
+    }
+
+
+def _rank(ctx: Context, fits: list, scores: HeldOut, n_confirm: int, prog, thr_map: float, t_map: float) -> list:
+    """The first ``n_confirm`` screened candidates refitted with the full
+    filter and judged, by Bayes factor."""
+    ranking = []
+    for f in fits[:n_confirm]:
+        if not np.isfinite(f.screen_bic):
+            continue
+        confirm(ctx, f)
+        prog(10)
+        ranking.append(_judge(ctx, f, scores, thr_map, t_map))
+    ranking.sort(key=lambda r: -r["evidence"]["ln_bf"])
+    return ranking
+
+
+def _single_answer(d: LogData, fits: list, ranking: list) -> tuple:
+    """(verdict, ambiguous_with, ranking) of a detected gap with one effect.
+
+    The answer is the most probable candidate that explains the held-out
+    data; one that does not is no explanation, however well it fits the
+    training blocks (a small candidate fitting noise there can outrank the
+    right one near the detection limit)."""
+    explainers = [r for r in ranking if r["explains_heldout"]]
+    if not explainers:
+        return "unexplained", [], ranking
+    ranking = explainers + [r for r in ranking if not r["explains_heldout"]]
+    best = ranking[0]
+    fit_of = {f.name: f for f in fits}
+    ambiguous_with = []
+    for r in ranking[1:]:
+        if not r["explains_heldout"]:
+            continue
+        dbf = best["evidence"]["ln_bf"] - r["evidence"]["ln_bf"]
+        # Two ways the data fail to tell them apart: the evidence is close,
+        # or the best one's fitted signature is one the other reproduces
+        # to within DELTA2_95 (then the Bayes factor between them is only
+        # their priors' Occam factors, not the data).
+        d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]], candidates_of(d))
+        if dbf < BF_AMBIGUOUS or d2 < DELTA2_95:
+            ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": dbf, "signature_distance2": d2,
+                                   "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
+    return ("ambiguous" if ambiguous_with else "explained"), ambiguous_with, ranking
+
+
+def _set_answer(ctx: Context, fits: list, scores: HeldOut, cal: dict, thr_glr: float, thr_map: float, t_map: float,
+                verdict: str, ranking: list, ambiguous_with: list) -> tuple:
+    """(verdict, effect_set, ambiguous_with) once several effects at once are
+    considered (bench/gap/select.py): the set forward selection supports
+    replaces the single answer only when its joint fit explains the held-out
+    data and beats the best single explanation there; with no explanation,
+    the members that each earn their place make a partial answer."""
+    effect_set = _effect_set(ctx, fits, thr_glr, thr_map, t_map, scores.shrink, scores.dll, scores.train_channels,
+                             ranking if verdict in ("explained", "ambiguous") else [],
+                             one_ok=verdict == "unexplained", null_map=cal.get("null_map_max_abs_z"))
+    if effect_set is not None and effect_set["explains_heldout"]:
+        from bench.gap.select import look_alike_sets
+
+        names = [m["effect"] for m in effect_set["members"]]
+        cands = candidates_of(ctx.d)
+        # A set the data cannot tell from this one (one member swapped for
+        # a look-alike that reproduces the set's signature): ambiguous.
+        ambiguous_with = [{"set": [a["with"] if n == a["replace"] else n for n in names], **a,
+                           "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}"}
+                          for a in look_alike_sets(ctx, fits, names, DELTA2_95)]
+        return ("ambiguous" if ambiguous_with else "explained"), effect_set, ambiguous_with
+    if verdict == "unexplained" and effect_set is not None:
+        effect_set = _partial_set(effect_set, ctx, fits, thr_glr, thr_map, t_map, scores.shrink, scores.dll,
+                                  scores.train_channels, cal.get("null_map_max_abs_z"))
+        if effect_set is not None and effect_set["partly_explains"]:
+            verdict = "partly_explained"
+    return verdict, effect_set, ambiguous_with
+
+
+def _dynamics_or_sensor(where, verdict: str, ranking: list, effect_set) -> str | None:
+    """Whether the gap is in the vehicle's dynamics or in a sensor: the
+    answer's kind, or where the gap map puts it when nothing explains it."""
+    set_kinds = ({m["kind"] for m in effect_set["members"]}
+                 if effect_set is not None and effect_set["explains_heldout"] else None)
+    if set_kinds:
+        return set_kinds.pop() if len(set_kinds) == 1 else "dynamics and sensor"
+    if verdict in ("explained", "ambiguous"):
+        return ranking[0]["kind"]
+    if where is None:
+        return None
+    # The IMU disagreeing with the valve model while firing, or by a
+    # slow drift or swing at any time (the body moving as no thrust
+    # explains: a flexible panel, slosh), and position-only slow
+    # gaps point at the dynamics; attitude, broadband or IMU-scatter
+    # gaps at a sensor.
+    s, st = where["stream"], where["stat"]
+    return "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques")
+                          and (where["regime_peak"] == "firing" or st in ("mean", "lowfreq"))) \
+        or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
+
+
+def _answer(d: LogData, ctx: Context, det, cal: dict, cal_info: dict, fits: list, ranking: list, verdict: str,
+            ambiguous_with: list, effect_set, detected: bool) -> dict:
+    """The JSON-ready answer of diagnose()."""
+    nominal, ch, held = ctx.nominal, ctx.ch, ctx.held_nav
+    summ = localise.summarise(det.cells, cal.get("null_map_max_abs_z"))
     where = summ["where"]
-    dyn_or_sensor = None
-    if detected:
-        set_kinds = ({m["kind"] for m in effect_set["members"]}
-                     if effect_set is not None and effect_set["explains_heldout"] else None)
-        if set_kinds:
-            dyn_or_sensor = set_kinds.pop() if len(set_kinds) == 1 else "dynamics and sensor"
-        elif verdict in ("explained", "ambiguous"):
-            dyn_or_sensor = ranking[0]["kind"]
-        elif where is not None:
-            # The IMU disagreeing with the valve model while firing, or by a
-            # slow drift or swing at any time (the body moving as no thrust
-            # explains: a flexible panel, slosh), and position-only slow
-            # gaps point at the dynamics; attitude, broadband or IMU-scatter
-            # gaps at a sensor.
-            s, st = where["stream"], where["stat"]
-            dyn_or_sensor = "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques")
-                                           and (where["regime_peak"] == "firing" or st in ("mean", "lowfreq"))) \
-                or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
+    dyn_or_sensor = _dynamics_or_sensor(where, verdict, ranking, effect_set) if detected else None
     best = ranking[0] if ranking else None
     acts = None
     # The set is the answer when it explains the held-out data, or when it
@@ -347,10 +399,13 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "rank": f.rank,
                      "screen_logp": f.screen_logp, "screen_ln_bf": f.screen_ln_bf, "screen_bic": f.screen_bic}
                     for f in fits]
-    out = {
+    thr = cal.get("thresholds", {})
+    return {
         "gap_detected": detected,
-        "statistics": {"map_max_abs_z": t_map, "map_threshold": thr_map, "screen_logp_max": t_glr,
-                       "screen_logp_threshold": thr_glr, "screen_bic_max": max(f.screen_bic for f in fits), "false_alarm_rate": cal.get("false_alarm_rate"),
+        "statistics": {"map_max_abs_z": det.map_max_abs_z, "map_threshold": float(thr.get("map_max_abs_z", np.inf)),
+                       "screen_logp_max": det.screen_logp_max,
+                       "screen_logp_threshold": float(thr.get("screen_logp", np.inf)),
+                       "screen_bic_max": max(f.screen_bic for f in fits), "false_alarm_rate": cal.get("false_alarm_rate"),
                        "calibration_runs": cal.get("runs")},
         "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"],
                      "effect_acts_while": acts},
@@ -373,12 +428,8 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
                 "segments": int(d.pose_start.sum()), "valves": d.valves is not None,
                 "thrusters": int(d.desc.n_thrusters), "manoeuvres": d.desc.manoeuvres() or None,
                 "defaults_used": list(d.desc.defaults), "dropped": dict(d.dropped),
-                "train_updates": int(train.sum()), "heldout_updates": int(held.sum())},
-        "elapsed_s": time.time() - t_start,
+                "train_updates": int(ctx.train_nav.sum()), "heldout_updates": int(held.sum())},
     }
-    out["_internal"] = {"d": d, "nominal": nominal, "fits": fits, "train": train, "held": held, "cells": cells,
-                        "ctx": ctx, "held_shrink": held_shrink}
-    return out
 
 
 def _partial_set(es: dict, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, null_map):

@@ -2,9 +2,12 @@
 (its characterisation flown again and again, time stamps as real logs have
 them), with the committed calibration of its flight family:
 
-    python -m bench.gap.perf_diagnose [--minutes 10] [--repeats 3]
+    python -m bench.gap.perf_diagnose [--minutes 10] [--repeats 3] [--effects JSON]
 
-Prints the log's size and the median wall time of the repeats.
+``--effects`` flies the log with effects (bench/effects.py names and
+parameters), so the timing covers the attribution and, with two or more,
+the selection of a set. Prints the log's size, the answer and the median
+wall time of the repeats.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ import time
 import numpy as np
 
 
-def long_log(minutes: float, seed: int = 5):
+def long_log(minutes: float, seed: int = 5, effects: dict | None = None):
     from bench.gap import validate_vehicle as vv
     from bench.gap.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
@@ -25,7 +28,7 @@ def long_log(minutes: float, seed: int = 5):
     while sum(p.duration_s + 2.0 for p in plan) < 60.0 * minutes:
         plan += characterisation_plan(desc, seed=s)
         s += 1
-    log, _ = simulate(desc, plan, {}, seed=seed, clocks=vv.clocks_for(seed), with_truth=False)
+    log, _ = simulate(desc, plan, effects or {}, seed=seed, clocks=vv.clocks_for(seed), with_truth=False)
     log.config = {}
     return log
 
@@ -34,11 +37,15 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--effects", default="{}", help='effects in the log, e.g. \'{"gyro_bias": [1e-3, 0, 0]}\'')
     a = ap.parse_args(argv)
+    import json
+
+    effects = json.loads(a.effects)
     from bench.gap import validate_vehicle as vv
     from bench.gap.diagnose import diagnose
 
-    log = long_log(a.minutes)
+    log = long_log(a.minutes, effects=effects)
     cal = vv.load_calibration()
     t = log["imu"]["t_s"]
     times = []
@@ -47,7 +54,8 @@ def main(argv=None):
         r = diagnose(log, calibration=cal, calibration_source="12 kg calibration")
         times.append(time.perf_counter() - t0)
     print(f"log: {t[-1] - t[0]:.0f} s, {t.size} IMU samples, {log['pose']['t_capture_s'].size} poses, "
-          f"{log['valves']['t_s'].size} valve commands; verdict {r['verdict']}")
+          f"{log['valves']['t_s'].size} valve commands; verdict {r['verdict']}"
+          + (f" ({' + '.join(m['effect'] for m in r['effects'])})" if r["effects"] else ""))
     print(f"diagnosis wall time: median {np.median(times):.1f} s over {a.repeats} (min {min(times):.1f}, "
           f"max {max(times):.1f})")
 

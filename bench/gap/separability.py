@@ -36,15 +36,23 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
     ``scripts``: fly these valve scripts (bench.reality.simulate_runs) instead
     of the closed-loop docking runs; ``then_scripts``: fly these after the
     docking runs (bench.reality.simulate_runs)."""
+    log0, log1 = twin_logs(seed, effects, duration_s, scripts, then_scripts)
+    return separability_of_logs(log0, log1, name, in_library)
+
+
+def twin_logs(seed: int, effects: dict, duration_s: float, scripts: list | None = None,
+              then_scripts: list | None = None) -> tuple:
+    """(log without the effects, log with them): the run of ``seed`` flown
+    with ``effects``, and its valve commands replayed open loop without them
+    (common random numbers), so the two differ by the effects alone."""
     from bench.sim.effects import EffectSet
     from bench.sim.reality import clock_rate, log_config, runs_to_log, simulate_runs
 
     runs1 = simulate_runs(seed, effects, duration_s, scripts=scripts, then_scripts=then_scripts)
-    scripts = [r.config for r in runs1]
-    runs0 = simulate_runs(seed, {}, duration_s, scripts=scripts, then_scripts=then_scripts)
+    runs0 = simulate_runs(seed, {}, duration_s, scripts=[r.config for r in runs1], then_scripts=then_scripts)
     log1 = runs_to_log(runs1, log_config(seed, duration_s), clock_rate(EffectSet(effects)), with_truth=False)
     log0 = runs_to_log(runs0, log_config(seed, duration_s), 1.0, with_truth=False)
-    return separability_of_logs(log0, log1, name, in_library)
+    return log0, log1
 
 
 def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
@@ -79,3 +87,81 @@ def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
     closest = min(d2, key=d2.get) if d2 else None
     return {"lambda": lam, "delta2": d2, "closest": closest, "delta2_min": d2[closest] if closest else float("nan"),
             "separable": bool(closest is None or d2[closest] >= DELTA2_95)}
+
+
+def _stacked_fit(jac: dict, d, names: list, v: np.ndarray) -> np.ndarray:
+    """The part of ``v`` the names' candidates reproduce together (-J theta,
+    every parameter inside its physical bounds)."""
+    from scipy.optimize import lsq_linear
+
+    from bench.gap.attribute import candidate
+
+    J = np.hstack([-jac[n] for n in names])
+    lo = np.concatenate([np.full(jac[n].shape[1], candidate(d, n).lower) for n in names])
+    hi = np.concatenate([np.full(jac[n].shape[1], candidate(d, n).bound) for n in names])
+    norm = np.linalg.norm(J, axis=0)
+    keep = norm > 0
+    if not np.any(keep):
+        return np.zeros_like(v)
+    Js = J[:, keep] / norm[keep]
+    lo, hi = lo[keep] * norm[keep], hi[keep] * norm[keep]
+    if np.all(np.isinf(lo)) and np.all(np.isinf(hi)):
+        x, *_ = np.linalg.lstsq(Js, v, rcond=None)
+    else:
+        x = lsq_linear(Js, v, bounds=(lo, hi), method="bvls").x
+    return Js @ x
+
+
+def set_separability_of_logs(log0, log1, true_in: list) -> dict:
+    """Can the run's data tell its set of in-library effects ``true_in``
+    apart from every set one step away: one member replaced by another
+    candidate, or one member left out (its part reproduced by the others)?
+
+    As for one effect: s the whitened signature of everything in ``log1``
+    that ``log0`` lacks, P_true s what the true set fits jointly, and for
+    each competing set A, delta2_A = |(I - P_A) P_true s|^2. A larger set
+    always fits at least as well, so supersets are a question of parsimony
+    (the selection's threshold), not of separability, and are not tried.
+
+    The out-of-library part (in + out runs): |(I - P_lib) s|^2 with P_lib the
+    whole library fitted jointly, the largest set the diagnosis could name;
+    below DELTA2_95 no answer could show that part as a remainder."""
+    from bench.gap.attribute import signature
+    from bench.gap.detectable import residuals_of
+
+    ctx0, e0, rows_ok = residuals_of(log0)
+    try:
+        _, w, e_dyn = residuals_of(log1, ctx0)
+    except ValueError:
+        return {"delta2": {}, "closest": None, "delta2_min": float("nan"), "note": "run length changed"}
+    s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
+    d = ctx0.d
+    jac = {c: signature(ctx0, c, rows_ok)[0] for c in candidates_of(d)}
+    true_in = [n for n in true_in if n in jac]
+    p_true = _stacked_fit(jac, d, true_in, s) if true_in else np.zeros_like(s)
+    d2 = {}
+    for m in true_in:
+        rest = [n for n in true_in if n != m]
+        if rest:
+            r = p_true - _stacked_fit(jac, d, rest, p_true)
+            d2[f"without {m}"] = float(r @ r)
+        for c in jac:
+            if c in true_in:
+                continue
+            r = p_true - _stacked_fit(jac, d, rest + [c], p_true)
+            d2[f"{m} -> {c}"] = float(r @ r)
+    closest = min(d2, key=d2.get) if d2 else None
+    r_lib = s - _stacked_fit(jac, d, list(jac), s)
+    out_part = float(r_lib @ r_lib)
+    return {"lambda": float(p_true @ p_true), "delta2": d2, "closest": closest,
+            "delta2_min": d2[closest] if closest else float("nan"),
+            "separable": bool(closest is None or d2[closest] >= DELTA2_95),
+            "beyond_library_delta2": out_part, "beyond_library_separable": bool(out_part >= DELTA2_95)}
+
+
+def set_separability(seed: int, effects: dict, true_in: list, duration_s: float,
+                     then_scripts: list | None = None) -> dict:
+    """set_separability_of_logs on the run of ``seed`` with ``effects`` and
+    the same flight without them (common random numbers)."""
+    log0, log1 = twin_logs(seed, effects, duration_s, then_scripts=then_scripts)
+    return set_separability_of_logs(log0, log1, true_in)

@@ -237,23 +237,29 @@ def _run_one(key, run_ctx):
     return out
 
 
+def _label_truth(k: dict) -> str:
+    if k["category"] == "null":
+        return "null"
+    lab = k["effect"] if k["category"] == "in_library" else f"out:{k['effect']}"
+    return lab if k.get("detectable", True) else f"{lab} (beyond limit)"
+
+
+def _label_answer(a: dict) -> str:
+    if not a["gap_detected"]:
+        return "no_gap"
+    return a["verdict"] if a["verdict"] in ("unexplained", "partly_explained") else a["top1"]
+
+
+def _top1(k: dict, a: dict) -> bool:
+    return bool(a["gap_detected"] and a["verdict"] in ("explained", "ambiguous") and a["top1"] == k["effect"])
+
+
 def score(keys: list, answers: list) -> dict:
+    """The campaign's scores against its targets, from the frozen answers."""
     by = {a["run"]: a for a in answers}
-
-    def label_truth(k):
-        if k["category"] == "null":
-            return "null"
-        lab = k["effect"] if k["category"] == "in_library" else f"out:{k['effect']}"
-        return lab if k.get("detectable", True) else f"{lab} (beyond limit)"
-
-    def label_answer(a):
-        if not a["gap_detected"]:
-            return "no_gap"
-        return a["verdict"] if a["verdict"] in ("unexplained", "partly_explained") else a["top1"]
-
     confusion = {}
     for k in keys:
-        t, a = label_truth(k), label_answer(by[k["run"]])
+        t, a = _label_truth(k), _label_answer(by[k["run"]])
         confusion.setdefault(t, {}).setdefault(a, 0)
         confusion[t][a] += 1
     null = [by[k["run"]] for k in keys if k["category"] == "null"]
@@ -264,61 +270,18 @@ def score(keys: list, answers: list) -> dict:
     inl = [(k, by[k["run"]]) for k in keys if k["category"] == "in_library" and k.get("detectable", True)]
     res = {"runs": len(keys), "confusion": confusion,
            "false_alarm_rate": float(np.mean([a["gap_detected"] for a in null])) if null else None,
-           "n_null": len(null)}
-    by_eff = {}
-    for k, a in beyond:
-        e = by_eff.setdefault(k["effect"], {"n": 0, "detected": 0, "answers": {}})
-        e["n"] += 1
-        e["detected"] += int(a["gap_detected"])
-        lab = label_answer(a)
-        e["answers"][lab] = e["answers"].get(lab, 0) + 1
-    res["beyond_detection_limit"] = {"n": len(beyond), "by_effect": by_eff}
+           "n_null": len(null), "beyond_detection_limit": _beyond_limit(beyond)}
     if outl:
-        res["out_of_library"] = {
-            "n": len(outl),
-            "unexplained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "unexplained" for a in outl])),
-            "not_detected_rate": float(np.mean([not a["gap_detected"] for a in outl])),
-            "confident_misattribution_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "explained" for a in outl])),
-            "partly_explained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "partly_explained"
-                                                    for a in outl])),
-        }
-    by_scale = {}
-    for s in SCALES:
-        sel = [(k, a) for k, a in inl if k["scale"] == s]
-        if sel:
-            by_scale[f"{s:g}x"] = {
-                "n": len(sel),
-                "detection": float(np.mean([a["gap_detected"] for _, a in sel])),
-                "top1": float(np.mean([a["gap_detected"] and a["verdict"] in ("explained", "ambiguous") and a["top1"] == k["effect"]
-                                       for k, a in sel])),
-            }
-    res["in_library_by_scale"] = by_scale
-    # The same, over the runs whose data can tell the true effect from every
-    # other candidate (bench/gap/separability.py: delta2 >= 10.8, where a
-    # perfect two-way decision is right 95 % of the time); the runs it leaves
-    # out are ones no diagnoser can attribute reliably.
-    sep_scale = {}
-    for s in SCALES:
-        sel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable")]
-        nsel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable") is False]
-        if sel or nsel:
-            sep_scale[f"{s:g}x"] = {
-                "n_separable": len(sel), "n_not_separable": len(nsel),
-                "top1_separable": float(np.mean([a["gap_detected"] and a["verdict"] in ("explained", "ambiguous")
-                                                 and a["top1"] == k["effect"] for k, a in sel])) if sel else None,
-                "not_separable_by_effect": {e: sum(1 for k, _ in nsel if k["effect"] == e)
-                                            for e in sorted({k["effect"] for k, _ in nsel})},
-                "closest_when_not_separable": {c: sum(1 for _, a in nsel if a["separability"]["closest"] == c)
-                                               for c in sorted({a["separability"]["closest"] for _, a in nsel})},
-            }
-    res["in_library_by_scale_separable"] = sep_scale
+        res["out_of_library"] = _out_of_library(outl)
+    res["in_library_by_scale"] = _by_scale(inl)
+    res["in_library_by_scale_separable"] = _by_scale_separable(inl)
     per_effect = {}
     for k, a in inl:
         e = per_effect.setdefault(k["effect"], {})
         c = e.setdefault(f"{k['scale']:g}x", {"n": 0, "detected": 0, "top1": 0})
         c["n"] += 1
         c["detected"] += int(a["gap_detected"])
-        c["top1"] += int(a["gap_detected"] and a["verdict"] in ("explained", "ambiguous") and a["top1"] == k["effect"])
+        c["top1"] += int(_top1(k, a))
     res["in_library_by_effect"] = per_effect
     # Shrink is scored where the held-out deficit stands out of its null spread.
     true_sh = [a["true_fit"]["shrink"] for _, a in inl if "true_fit" in a and a["true_fit"].get("measurable")]
@@ -326,6 +289,69 @@ def score(keys: list, answers: list) -> dict:
     res["shrink_heldout"] = {"true_effect_median": float(np.median(true_sh)) if true_sh else None, "n_true": len(true_sh),
                              "wrong_effect_median": float(np.median(wrong_sh)) if wrong_sh else None, "n_wrong": len(wrong_sh),
                              "n_in_library": len(inl)}
+    res["interval_coverage_95"] = _coverage(inl)
+    res["timing_s"] = {"simulate_median": float(np.median([a["t_sim_s"] for a in answers])),
+                       "diagnose_median": float(np.median([a["t_diagnose_s"] for a in answers])),
+                       "diagnose_max": float(np.max([a["t_diagnose_s"] for a in answers]))}
+    return res
+
+
+def _beyond_limit(beyond: list) -> dict:
+    by_eff = {}
+    for k, a in beyond:
+        e = by_eff.setdefault(k["effect"], {"n": 0, "detected": 0, "answers": {}})
+        e["n"] += 1
+        e["detected"] += int(a["gap_detected"])
+        lab = _label_answer(a)
+        e["answers"][lab] = e["answers"].get(lab, 0) + 1
+    return {"n": len(beyond), "by_effect": by_eff}
+
+
+def _out_of_library(outl: list) -> dict:
+    return {
+        "n": len(outl),
+        "unexplained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "unexplained" for a in outl])),
+        "not_detected_rate": float(np.mean([not a["gap_detected"] for a in outl])),
+        "confident_misattribution_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "explained" for a in outl])),
+        "partly_explained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "partly_explained"
+                                                for a in outl])),
+    }
+
+
+def _by_scale(inl: list) -> dict:
+    by_scale = {}
+    for s in SCALES:
+        sel = [(k, a) for k, a in inl if k["scale"] == s]
+        if sel:
+            by_scale[f"{s:g}x"] = {"n": len(sel), "detection": float(np.mean([a["gap_detected"] for _, a in sel])),
+                                   "top1": float(np.mean([_top1(k, a) for k, a in sel]))}
+    return by_scale
+
+
+def _by_scale_separable(inl: list) -> dict:
+    """The top-1 rate over the runs whose data can tell the true effect from
+    every other candidate (bench/gap/separability.py: delta2 >= 10.8, where a
+    perfect two-way decision is right 95 % of the time); the runs it leaves
+    out are ones no diagnoser can attribute reliably."""
+    sep_scale = {}
+    for s in SCALES:
+        sel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable")]
+        nsel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable") is False]
+        if sel or nsel:
+            sep_scale[f"{s:g}x"] = {
+                "n_separable": len(sel), "n_not_separable": len(nsel),
+                "top1_separable": float(np.mean([_top1(k, a) for k, a in sel])) if sel else None,
+                "not_separable_by_effect": {e: sum(1 for k, _ in nsel if k["effect"] == e)
+                                            for e in sorted({k["effect"] for k, _ in nsel})},
+                "closest_when_not_separable": {c: sum(1 for _, a in nsel if a["separability"]["closest"] == c)
+                                               for c in sorted({a["separability"]["closest"] for _, a in nsel})},
+            }
+    return sep_scale
+
+
+def _coverage(inl: list) -> dict:
+    """How often the 95 % intervals of the true effect's fit hold the drawn
+    parameters, compared in the axes the diagnosis fits."""
     inside, total = 0, 0
     for k, a in inl:
         if k["effect"] in SAME_PARAMETERS and "true_fit" in a:
@@ -335,12 +361,7 @@ def score(keys: list, answers: list) -> dict:
                 ok = np.abs(th - truth) <= 1.96 * sg
                 inside += int(ok.sum())
                 total += ok.size
-    res["interval_coverage_95"] = {"fraction": inside / total if total else None, "n_parameters": total,
-                                   "effects": list(SAME_PARAMETERS)}
-    res["timing_s"] = {"simulate_median": float(np.median([a["t_sim_s"] for a in answers])),
-                       "diagnose_median": float(np.median([a["t_diagnose_s"] for a in answers])),
-                       "diagnose_max": float(np.max([a["t_diagnose_s"] for a in answers]))}
-    return res
+    return {"fraction": inside / total if total else None, "n_parameters": total, "effects": list(SAME_PARAMETERS)}
 
 
 def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, duration_s: float = 120.0,

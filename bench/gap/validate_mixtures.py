@@ -9,6 +9,8 @@ hashed before any diagnosis, as in bench/gap/validate.py.
 
 Scores:
   exact set        the named effects are exactly the run's in-library ones
+                   (and, reported beside it, the run's set is the answer or
+                   one of the sets an ambiguous answer names with it)
   named are real   every named effect is one of the run's
   remainder        (in + out runs) the out-of-library part is left as a
                    remainder: the verdict is not a plain "explained" with the
@@ -96,8 +98,12 @@ def _run_one(key, run_ctx):
     pub = public(res)
     named = [m["effect"] for m in pub["effects"]] if pub["gap_detected"] else []
     truth_in = sorted(e for e in key["members"] if EFFECTS[e].in_library)
+    # An ambiguous answer names the sets the data cannot tell apart: the first
+    # is the answer, the others its alternatives.
+    alternatives = [sorted(a["set"]) if "set" in a else [a["effect"]] for a in pub["ambiguous_with"]] \
+        if pub["verdict"] == "ambiguous" else []
     out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"], "named": named,
-           "t_diagnose_s": pub["elapsed_s"]}
+           "alternatives": alternatives, "t_diagnose_s": pub["elapsed_s"]}
     it = res["_internal"]
     ctx = it["ctx"]
     fits = {f.name: f for f in it["fits"]}
@@ -107,12 +113,50 @@ def _run_one(key, run_ctx):
         out["true_set_shrink"], out["true_set_measurable"] = sh["fraction"], sh["measurable"]
     except Exception as exc:  # scored as not measured, with the reason
         out["true_set_shrink"], out["true_set_measurable"], out["true_set_error"] = None, False, str(exc)
+    # After the answer is frozen: can this run's data tell its set from the
+    # sets one step away (bench/gap/separability.py)?
+    from bench.gap.separability import set_separability
+
+    sep = set_separability(key["seed"], key["effects"], truth_in, duration_s, then_scripts=then_scripts(key))
+    out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable",
+                                                    "beyond_library_delta2", "beyond_library_separable")}
     return out
 
 
-def score_mixtures(keys: list, answers: list) -> dict:
+def _separable(key: dict, answer: dict) -> bool:
+    """The run's data tell its in-library set from every set one step away
+    and, in an in + out run, its out-of-library part from the whole library
+    (answers scored before separability was measured count as separable)."""
+    sep = answer.get("separability") or {}
+    return bool(sep.get("separable", True)) and (
+        key["kind"] != "in+out" or bool(sep.get("beyond_library_separable", True)))
+
+
+def _scores(sel: list, kind: str) -> dict:
+    """Exact set, every named effect real and (in + out runs) the
+    out-of-library part left as a remainder, over (key, answer) pairs."""
     from bench.sim.effects import EFFECTS
 
+    exact, among, real, remainder = [], [], [], []
+    for k, a in sel:
+        truth_in = {e for e in k["members"] if EFFECTS[e].in_library}
+        named = set(a["named"])
+        exact.append(named == truth_in and a["verdict"] != "unexplained")
+        among.append(exact[-1] or any(set(alt) == truth_in for alt in a.get("alternatives", [])))
+        real.append(named <= set(k["members"]))
+        if k["kind"] == "in+out":
+            # the out-of-library part left as a remainder, with or without
+            # the in-library part named beside it
+            remainder.append(a["gap_detected"] and a["verdict"] in ("unexplained", "partly_explained"))
+    if not sel:
+        return {"n": 0}
+    return {"n": len(sel), "exact_set": float(np.mean(exact)), "exact_set_among_named": float(np.mean(among)),
+            "named_are_real": float(np.mean(real)),
+            **({"out_of_library_left_unexplained": float(np.mean(remainder)), "n_in_out": len(remainder)}
+               if remainder else {})}
+
+
+def score_mixtures(keys: list, answers: list) -> dict:
     by = {a["run"]: a for a in answers}
     apart = [k for k in keys if not k.get("detectable", True)]
     keys = [k for k in keys if k.get("detectable", True)]
@@ -122,25 +166,62 @@ def score_mixtures(keys: list, answers: list) -> dict:
             sel = [(k, by[k["run"]]) for k in keys if k["kind"] == kind and k["scale"] == s]
             if not sel:
                 continue
-            exact, real, remainder = [], [], []
-            for k, a in sel:
-                truth_in = {e for e in k["members"] if EFFECTS[e].in_library}
-                named = set(a["named"])
-                exact.append(named == truth_in and a["verdict"] != "unexplained")
-                real.append(named <= set(k["members"]))
-                if kind == "in+out":
-                    # the out-of-library part left as a remainder, with or
-                    # without the in-library part named beside it
-                    remainder.append(a["gap_detected"] and a["verdict"] in ("unexplained", "partly_explained"))
-            res["by_kind_scale"][f"{kind} {s:g}x"] = {
-                "n": len(sel), "exact_set": float(np.mean(exact)), "named_are_real": float(np.mean(real)),
-                **({"out_of_library_left_unexplained": float(np.mean(remainder))} if remainder else {})}
-    scored = {k["run"] for k in keys}
+            row = _scores(sel, kind)
+            row.update({f"{m}_separable": v for m, v in _scores(
+                [(k, a) for k, a in sel if _separable(k, a)], kind).items()})
+            res["by_kind_scale"][f"{kind} {s:g}x"] = row
+    for s in SCALES:
+        res[f"at_{s:g}x"] = _scores([(k, by[k["run"]]) for k in keys if k["scale"] == s], "all")
+        res[f"at_{s:g}x"]["separable"] = _scores(
+            [(k, by[k["run"]]) for k in keys if k["scale"] == s and _separable(k, by[k["run"]])], "all")
+    # The joint shrink of the true set measures how much of the gap the set
+    # explains; in an in + out run the out-of-library part is not the set's
+    # to explain, so those runs are reported apart.
+    scored = {k["run"]: k for k in keys}
+    res["true_set_shrink"] = {}
+    for label, kinds in (("in-library sets", ("pair", "triple")), ("in + out", ("in+out",))):
+        for s in SCALES:
+            sh = [a["true_set_shrink"] for a in answers if a.get("true_set_measurable") and a["run"] in scored
+                  and scored[a["run"]]["kind"] in kinds and scored[a["run"]]["scale"] == s]
+            res["true_set_shrink"][f"{label} {s:g}x"] = {"median": float(np.median(sh)) if sh else None,
+                                                         "n": len(sh)}
     sh = [a["true_set_shrink"] for a in answers if a.get("true_set_measurable") and a["run"] in scored]
     res["true_set_shrink_median"] = float(np.median(sh)) if sh else None
     res["n_shrink_measurable"] = len(sh)
     res["diagnose_s_median"] = float(np.median([a["t_diagnose_s"] for a in answers]))
     return res
+
+
+def _pct(v: dict, key: str) -> str:
+    return f"{100 * v[key]:.0f} %" if v.get("n") and key in v else "-"
+
+
+def summary_lines(res: dict) -> list:
+    """The campaign's scores as a GNC engineer reads them: per kind and
+    size, then at each size over all kinds, all runs and the runs whose data
+    separate their set (bench/gap/separability.py set_separability)."""
+    lines = []
+    for k, v in res["by_kind_scale"].items():
+        extra = (f", out-of-library part left as a remainder {_pct(v, 'out_of_library_left_unexplained')}"
+                 if "out_of_library_left_unexplained" in v else "")
+        lines.append(f"{k}: exact set {_pct(v, 'exact_set')}, named are real {_pct(v, 'named_are_real')}{extra} "
+                     f"(n = {v['n']}; separable: exact {_pct(v, 'exact_set_separable')} of "
+                     f"{v.get('n_separable', 0)})")
+    for s in SCALES:
+        a = res.get(f"at_{s:g}x")
+        if not a or not a.get("n"):
+            continue
+        sep = a["separable"]
+        lines.append(f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')} (among the sets an ambiguous "
+                     f"answer names: {_pct(a, 'exact_set_among_named')}), named are real "
+                     f"{_pct(a, 'named_are_real')}, remainder {_pct(a, 'out_of_library_left_unexplained')} "
+                     f"(n = {a['n']}); where the data separate the set: {_pct(sep, 'exact_set')}, "
+                     f"{_pct(sep, 'named_are_real')}, {_pct(sep, 'out_of_library_left_unexplained')} "
+                     f"(n = {sep.get('n', 0)})")
+    for k, v in res.get("true_set_shrink", {}).items():
+        med = "-" if v["median"] is None else f"{v['median']:.2f}"
+        lines.append(f"held-out shrink of the true set refitted jointly, {k}: median {med} (n = {v['n']})")
+    return lines
 
 
 def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, duration_s: float = 120.0,

@@ -108,3 +108,55 @@ def test_propellant_slosh_is_not_half_named_as_propellant_use():
                                            with_truth=False, then_scripts=then)
     r = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres="docking+characterisation")))
     assert r["gap_detected"] and r["verdict"] == "unexplained" and r["effects"] == []
+
+
+def test_set_separability_tells_a_separable_pair_from_a_look_alike():
+    """Two effects whose signatures differ are separable from every set one
+    step away; replacing the tilt by a thrust loss reproduces a docking
+    log's tilt, so that pair is not (docs/GAP.md)."""
+    from bench.gap.separability import set_separability
+
+    sep = set_separability(7, {"thrust_loss": [0.0, 0, 0, 0.06, 0, 0, 0.05, 0],
+                               "gyro_bias": [2e-3, -1.5e-3, 1e-3]}, ["gyro_bias", "thrust_loss"], 120.0)
+    assert sep["separable"] and sep["delta2_min"] > 10.8
+    assert set(sep["delta2"]) >= {"without gyro_bias", "without thrust_loss", "thrust_loss -> thruster_misalignment"}
+    # an in-library set leaves (nearly) nothing beyond the library
+    assert sep["beyond_library_delta2"] < 0.1 * sep["lambda"]
+    rng = np.random.default_rng(3)
+    tilt = (0.004 * rng.normal(size=24)).tolist()
+    sep2 = set_separability(7, {"thruster_misalignment": tilt, "gyro_bias": [2e-3, -1.5e-3, 1e-3]},
+                            ["gyro_bias", "thruster_misalignment"], 120.0)
+    assert not sep2["separable"]
+    assert sep2["closest"].startswith("thruster_misalignment -> ")
+
+
+def test_mixture_scores_split_by_separability_and_kind():
+    from bench.gap.validate_mixtures import score_mixtures, summary_lines
+
+    def key(run, kind, scale, members):
+        return {"run": run, "kind": kind, "scale": scale, "members": members, "detectable": True}
+
+    def ans(run, named, verdict, sep=True, lib=True, shrink=None, alternatives=()):
+        return {"run": run, "named": named, "verdict": verdict, "gap_detected": True, "t_diagnose_s": 1.0,
+                "alternatives": [list(a) for a in alternatives],
+                "true_set_shrink": shrink, "true_set_measurable": shrink is not None,
+                "separability": {"separable": sep, "beyond_library_separable": lib}}
+
+    keys = [key(0, "pair", 2.0, ["thrust_loss", "gyro_bias"]), key(1, "pair", 2.0, ["thruster_misalignment", "gyro_bias"]),
+            key(2, "in+out", 2.0, ["accel_bias", "fuel_slosh"]), key(3, "in+out", 2.0, ["accel_bias", "clock_drift"])]
+    answers = [ans(0, ["gyro_bias", "thrust_loss"], "explained", shrink=0.9),
+               ans(1, ["thrust_loss", "gyro_bias"], "ambiguous", sep=False, shrink=0.7,
+                   alternatives=[["gyro_bias", "thruster_misalignment"]]),
+               ans(2, ["accel_bias"], "partly_explained", shrink=0.1),
+               ans(3, ["accel_bias", "gyro_scale"], "explained", lib=False, shrink=0.2)]
+    res = score_mixtures(keys, answers)
+    at2 = res["at_2x"]
+    assert at2["n"] == 4 and at2["exact_set"] == 0.5 and at2["named_are_real"] == 0.5
+    assert at2["exact_set_among_named"] == 0.75  # run 1's set is the alternative its ambiguous answer names
+    assert at2["out_of_library_left_unexplained"] == 0.5
+    # runs 1 (a look-alike set) and 3 (a clock drift the library reproduces) are scored apart
+    assert at2["separable"]["n"] == 2 and at2["separable"]["exact_set"] == 1.0
+    assert at2["separable"]["out_of_library_left_unexplained"] == 1.0
+    assert res["true_set_shrink"]["in-library sets 2x"] == {"median": 0.8, "n": 2}
+    assert res["true_set_shrink"]["in + out 2x"]["n"] == 2
+    assert any(line.startswith("at 2x, all kinds: exact set 50 %") for line in summary_lines(res))

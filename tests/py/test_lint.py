@@ -40,9 +40,6 @@ MAX_FUNCTION_LINES = 80
 LONG_FUNCTIONS = {
     "bench/basilisk_sim.py:_fly_segment": 257,
     "bench/basilisk_sim.py:simulate": 94,
-    "bench/gap/detectable.py:min_detectable_size": 114,
-    "bench/gap/diagnose.py:diagnose": 227,
-    "bench/gap/validate.py:score": 104,
 }
 
 
