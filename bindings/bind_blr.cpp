@@ -32,7 +32,7 @@ py::dict add_record_dict(const typename Blr::AddRecord& r) {
 }
 
 template <typename Blr>
-py::tuple prediction_tuple(const typename Blr::Prediction& p) {
+auto prediction_tuple(const typename Blr::Prediction& p) {
   if (p.status == fsw::StepStatus::BadInput) throw py::value_error("x: not finite");
   return py::make_tuple(to_numpy(p.mean), to_numpy(p.variance), fsw::to_string(p.status));
 }
