@@ -26,9 +26,9 @@ TEXT_NAMES = {"Makefile", "run", ".clang-format", ".gitignore"}
 SKIP_DIRS = {".git", ".venv", "build", "report", "__pycache__", ".pytest_cache", ".ruff_cache"}
 
 LINK = re.compile(r"!?\[[^\]\n]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
-DOC_PATH = re.compile(r"(?<![\w./-])(docs/[\w./-]*?\.md)\b")
+DOC_PATH = re.compile(r"(?<![\w./-])(docs/\w[\w./-]*?\.md)\b")
 # a section quoted right after a document's path: docs/X.md, "Heading" or `docs/X.md` "Heading"
-DOC_SECTION = re.compile(r"(?<![\w./-])(docs/[\w./-]*?\.md)`?,?[ \t]*(?:\n[ \t]*(?:#|//)?[ \t]*)?\"([^\"]{1,120})\"")
+DOC_SECTION = re.compile(r"(?<![\w./-])(docs/\w[\w./-]*?\.md)`?,?[ \t]*(?:\n[ \t]*(?:#|//)?[ \t]*)?\"([^\"]{1,120})\"")
 FENCE = re.compile(r"^[ \t]*```.*?^[ \t]*```[ \t]*$", re.M | re.S)
 INLINE_CODE = re.compile(r"`[^`\n]*`")
 OUTSIDE = {
