@@ -16,10 +16,10 @@ from bench.commands.args import number, one_line_errors
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 
-# Seed 000, experiment: 20 trials converged to these (value, +- spread).
+# The paper's experiment: 20 trials converged to these (value, +- spread).
 PAPER_OMEGA = [(4.31, 0.01), (8.68, 0.02)]
 PAPER_ALPHA = [(0.049, 0.007), (0.143, 0.008)]
-# Seed 000 Table I, seconds per sample on a 1 GHz Pentium III (None: not given).
+# The paper's Table I, seconds per sample on a 1 GHz Pentium III (None: not given).
 PAPER_TABLE = {
     10: [0.030, 0.038, 0.18, 1.4],
     20: [0.22, 0.24, 0.65, 4.4],

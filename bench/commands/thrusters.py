@@ -13,7 +13,7 @@ from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 
 LEARNERS = ("blr", "gpr", "gpr_tuned")
-# Seed 002 section 3.4: BLR window 30 and GPR window 100 (hand-tuned).
+# The paper's section 3.4: BLR window 30 and GPR window 100 (hand-tuned).
 PAPER = {"blr": {"corr_linear": 0.959, "corr_angular": 0.925},
          "gpr": {"corr_linear": 0.952, "corr_angular": 0.881}}
 TITLES = {"blr": "BLR, window 30", "gpr": "GPR, window 100, hand-tuned",

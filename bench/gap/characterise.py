@@ -1,7 +1,9 @@
 """Which manoeuvre tells thruster misalignment from thrust loss, measured.
 
-In docking the two are near-indistinguishable (docs/RESULTS.md: 36 of 46
-misalignment runs below the separability distance). The reason is in the
+In docking the two are near-indistinguishable (43 of 46 misalignment runs
+below the separability distance in the docking campaign of
+docs/results/2026-11-25-docking-seed2030.md; the manoeuvre's figures:
+docs/results/2026-11-24-separating-manoeuvre.md). The reason is in the
 dynamics channel (bench/gap/dyn.py): its gyro rows carry the accumulated
 torque impulse error, and a rate change persists until the run ends. A
 nozzle tilt turns valve i's torque across its nominal direction (for this

@@ -1,5 +1,6 @@
 """Markdown tables of a blind campaign (the full JSON `proxops validate-gap
---json OUT` writes, with its keys and answers), as docs/RESULTS.md shows them:
+--json OUT` writes, with its keys and answers), as the campaign records in
+docs/results/ show them:
 
     python -m bench.gap.results_tables OUT.json
 """

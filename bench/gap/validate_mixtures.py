@@ -245,7 +245,7 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = 
 
 # Pairs of effects on one docking-then-characterisation log, each effect at a
 # size the diagnosis names when it is alone in the log (python -m
-# bench.gap.validate_mixtures pairs; docs/RESULTS.md).
+# bench.gap.validate_mixtures pairs; docs/results/2026-11-26-several-effects.md).
 _RNG_TILT = np.random.default_rng(5)
 PAIRS = {
     "thrust loss on one valve + gyro bias": {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],

@@ -91,7 +91,7 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
             assert k["lambda_at_min_detectable"] >= k["lambda_required"]
     for k, a in zip(res["keys"], res["answers"]):  # scored for separability after the answer
         assert ("separability" in a) == (k["effect"] is not None)
-    # The RESULTS.md tables render from the full JSON.
+    # The campaign records' tables (docs/results/) render from the full JSON.
     from bench.gap import results_tables
     from bench.report import write_json
 

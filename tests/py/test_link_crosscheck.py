@@ -240,7 +240,7 @@ def _corrupt(stream: bytes, rng: random.Random, ber: float, drop: float) -> byte
 
 
 def test_seeded_corruption_campaign_never_delivers_a_corrupted_packet():
-    """Bit errors (BER 1e-3, ten times the issue's 1e-4), 1% dropped bytes,
+    """Bit errors (BER 1e-3, ten times the faulty-link soak's 1e-4), 1% dropped bytes,
     duplicated and reordered packets, fed in random chunk sizes: every packet
     the C++ delivers is byte-identical to one the bench sent, and the C++ and
     the PyPI deframers agree on every verdict."""

@@ -1,6 +1,7 @@
 """A small seeded docking campaign through the flight filter (fsw_bindings.NavUkf):
-errors within the issue-3 bounds and the filter consistent with the bench's
-sensors. The 50-run campaign is the `proxops nav` command (docs/perf/nav_campaign.md)."""
+errors within the required bounds and the filter consistent with the bench's
+sensors. The 50-run campaign is the `proxops nav` command (docs/perf/nav_campaign.md,
+"Result")."""
 import numpy as np
 import pytest
 from scipy.stats import chi2
