@@ -36,6 +36,8 @@ step). Effects: ``EFFECTS_HERE`` (docs/BASILISK.md maps each to its module).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from bench.sim.flight_log import FlightLog
@@ -48,6 +50,7 @@ J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/p
 AIR_DENSITY_KGPM3 = 5e-13  # as the bench's differential drag
 SLOSH_FREQ_HZ, SLOSH_DAMPING = 0.3, 0.05  # as the bench's fuel slosh
 PANEL_MASS_FRACTION, PANEL_ARM_M = 0.02, 0.15  # the hinged panel (out of library): 2 % of the mass, 15 cm arm
+PANEL_DAMPING = 0.005  # the panel mode's damping ratio, as the bench's flexible mode
 EFFECTS_HERE = ("thrust_loss", "thruster_misalignment", "com_offset", "mass_depletion", "host_eccentricity",
                 "differential_j2", "differential_drag", "flex_mode", "fuel_slosh", "accel_bias", "gyro_bias",
                 "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm")
@@ -147,6 +150,81 @@ def imu_dv_error(accum_dv_b, sigma_bn) -> np.ndarray:
     return err
 
 
+# --- the hinged panel ------------------------------------------------------------
+
+class PanelLayout(NamedTuple):
+    mass_kg: float
+    arm_m: float  # hinge to the panel's centre of mass, along -x
+    inertia_s: np.ndarray  # about the panel's centre of mass, panel axes (arm, hinge, normal)
+    hinge_b_m: np.ndarray
+    hub_mass_kg: float
+    hub_com_b_m: np.ndarray
+    hub_inertia: np.ndarray  # about the hub's centre of mass
+    stiffness: float  # N m / rad
+    damping: float  # N m s / rad
+    theta0_rad: float  # the hinge angle the run starts at
+    coupled_freq_hz: float
+
+
+def _planar_mode(hub_kg: float, hub_jz: float, arm_hub_m: float, panel_kg: float, panel_jz: float, arm_m: float,
+                 k: float):
+    """The panel's mode with the hub free in the plane of the hinge: (omega^2,
+    hub angle / hinge angle). Coordinates: the hub's sideways translation,
+    its angle, the panel's angle; the hinge sits arm_hub_m behind the hub's
+    centre of mass and the panel's centre of mass arm_m behind the hinge."""
+    a, d = arm_hub_m, arm_m
+    m = np.array([[hub_kg + panel_kg, -panel_kg * a, -panel_kg * d],
+                  [-panel_kg * a, hub_jz + panel_kg * a * a, panel_kg * a * d],
+                  [-panel_kg * d, panel_kg * a * d, panel_jz + panel_kg * d * d]])
+    kk = k * np.array([[0.0, 0.0, 0.0], [0.0, 1.0, -1.0], [0.0, -1.0, 1.0]])
+    w2, v = np.linalg.eig(np.linalg.solve(m, kk))
+    i = int(np.argmax(w2.real))
+    y, phi, psi = v[:, i].real
+    return float(w2[i].real), float(phi / (psi - phi))
+
+
+def panel_layout(hub_mass_kg: float, com_b_m, inertia_kgm2, vehicle_mass_kg: float, freq_hz: float,
+                 amplitude_rad: float) -> PanelLayout:
+    """The hinged panel of ``flex_mode`` [frequency, amplitude] as a part of
+    the described vehicle: ``PANEL_MASS_FRACTION`` of its mass on a
+    ``PANEL_ARM_M`` arm from a hinge about body z at the centre of mass. The
+    hub (``hub_mass_kg`` with the panel, at ``com_b_m``, ``inertia_kgm2``
+    about it) gives the panel its mass and inertia and moves its own centre
+    of mass forward, so that hub and panel at rest have the described mass,
+    centre of mass and inertia; the panel adds only its flexibility, as the
+    bench's mode. The stiffness puts the mode of the panel on the free hub
+    (the observed frequency) at ``freq_hz``; the run starts with the panel
+    deflected so that the hub swings by ``amplitude_rad``."""
+    com = np.asarray(com_b_m, float)
+    j = np.asarray(inertia_kgm2, float)
+    mp = PANEL_MASS_FRACTION * float(vehicle_mass_kg)
+    d = PANEL_ARM_M
+    ip = mp * d * d / 3.0  # a uniform rod of length 2d about its middle
+    inertia_s = np.diag([ip / 10.0, ip, ip])
+    r_s = np.array([-d, 0.0, 0.0])  # the panel's centre of mass from the hinge
+    # Panel axes in B: arm along x, hinge along z, normal along -y (the H frame of dcm_HB below).
+    c_bs = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    m_hub = float(hub_mass_kg) - mp
+    if m_hub <= 0.0:
+        raise ValueError(f"flex_mode: the panel ({mp:.3g} kg) is heavier than the hub ({hub_mass_kg:.3g} kg)")
+    r_h = -mp * r_s / m_hub  # the hub's centre of mass from the vehicle's: the two balance about it
+
+    def parallel(m, r):
+        return m * (r @ r * np.eye(3) - np.outer(r, r))
+
+    j_hub = j - (c_bs @ inertia_s @ c_bs.T + parallel(mp, r_s)) - parallel(m_hub, r_h)
+    ev = np.linalg.eigvalsh(j_hub)
+    if ev[0] <= 0.0 or 2.0 * ev.max() >= ev.sum():
+        raise ValueError(f"flex_mode: the vehicle's inertia {np.diag(j).round(4).tolist()} cannot hold the panel "
+                         f"({mp:.3g} kg on a {d} m arm)")
+    w2, phi_per_theta = _planar_mode(float(vehicle_mass_kg) - mp, float(j_hub[2, 2]), float(np.linalg.norm(r_h)), mp,
+                                     ip, d, 1.0)
+    k = (2.0 * np.pi * float(freq_hz)) ** 2 / w2
+    om = 2.0 * np.pi * float(freq_hz)
+    return PanelLayout(mp, d, inertia_s, com.copy(), m_hub, com + r_h, j_hub, k, 2.0 * PANEL_DAMPING * k / om,
+                       float(amplitude_rad) / abs(phi_per_theta), float(freq_hz))
+
+
 # --- one run --------------------------------------------------------------------
 
 def _host_orbit(desc, effects: dict, t0: float, mu: float):
@@ -199,57 +277,27 @@ def _valve_events(seg, k: int, h: float):
     return events
 
 
-def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap, h: float):
-    """Fly one run in Basilisk. ``imu_t``, ``pose_cap`` are step indices from
-    the run's start. Returns the IMU's summed outputs per log sample (mean
-    specific force, mean rate; IMU axes, without noise) and the truth at the
-    IMU ticks and pose captures."""
+def _add_inspector(sim, desc, effects: dict, duration_s: float):
+    """The inspector in ``sim``'s task "step": its hub, thrusters and the
+    effects' state effectors (fuel tank, slosh, hinged panel). Returns
+    (spacecraft, thrusters, their command message, the centre of mass in B,
+    the Basilisk objects that must outlive the run)."""
     from Basilisk.architecture import messaging
-    from Basilisk.simulation import imuSensor, spacecraft, thrusterDynamicEffector
-    from Basilisk.utilities import SimulationBaseClass, simIncludeGravBody
+    from Basilisk.simulation import spacecraft, thrusterDynamicEffector
 
     k = desc.n_thrusters
-    sim = SimulationBaseClass.SimBaseClass()
-    sim.SetProgressBar(False) if hasattr(sim, "SetProgressBar") else None
-    proc = sim.CreateNewProcess("dynamics")
-    step_ns = int(round(h * 1e9))
-    proc.addTask(sim.CreateNewTask("step", step_ns))
-
-    grav = simIncludeGravBody.gravBodyFactory()
-    earth = grav.createEarth()
-    earth.isCentralBody = True
-    mu = earth.mu
-    if "differential_j2" in effects:
-        from Basilisk.simulation.sphericalHarmonicsGravityModel import SphericalHarmonicsGravityModel
-
-        j2 = float(np.atleast_1d(effects["differential_j2"])[0])
-        sh = SphericalHarmonicsGravityModel()
-        sh.muBody, sh.radEquator, sh.maxDeg = mu, earth.radEquator, 2
-        # Fully normalised C20 = -J2 / sqrt(5); all else zero.
-        sh.cBar = [[1.0], [0.0, 0.0], [-j2 / np.sqrt(5.0), 0.0, 0.0]]
-        sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
-        earth.gravityModel = sh
-
     veh = desc.vehicle()  # positions relative to the described centre of mass
     com = np.asarray(desc.com_b_m, float) + np.asarray(effects.get("com_offset", np.zeros(3)), float)
     mdot = float(np.atleast_1d(effects.get("mass_depletion", [0.0]))[0])
     slosh_m = float(np.atleast_1d(effects.get("fuel_slosh", [0.0]))[0])
     flex = np.atleast_1d(effects.get("flex_mode", [0.0, 0.0])).astype(float)
-
-    host = spacecraft.Spacecraft()
-    host.ModelTag = "host"
-    host.hub.mHub = 100.0
-    host.hub.IHubPntBc_B = np.eye(3).tolist()
-    grav.addBodiesTo(host)
-
     insp = spacecraft.Spacecraft()
     insp.ModelTag = "inspector"
-    grav.addBodiesTo(insp)
     m_total = float(desc.mass_kg)
-    m_hub = m_total - slosh_m - (PANEL_MASS_FRACTION * m_total if flex[1] != 0.0 else 0.0)
-    j_total = np.asarray(desc.inertia_kgm2, float)
+    m_hub = m_total - slosh_m
+    j_hub = np.asarray(desc.inertia_kgm2, float)
     insp.hub.r_BcB_B = com.reshape(3, 1).tolist()
-    insp.hub.IHubPntBc_B = j_total.tolist()
+    insp.hub.IHubPntBc_B = j_hub.tolist()
     keep = []  # Basilisk objects must outlive the run
 
     thr = thrusterDynamicEffector.ThrusterDynamicEffector()
@@ -284,7 +332,7 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
 
         # All the propellant the run can use, in a tank at the centre of mass
         # (a point: the bench's inertia stays fixed as mass is used).
-        fuel = min(0.2 * m_hub, 2.0 * mdot * k * seg.duration_s + 1e-3)
+        fuel = min(0.2 * m_hub, 2.0 * mdot * k * duration_s + 1e-3)
         tank = fuelTank.FuelTank()
         model = fuelTank.FuelTankModelConstantVolume()
         model.propMassInit = fuel
@@ -322,29 +370,95 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
     if flex[1] != 0.0:
         from Basilisk.simulation import hingedRigidBodyStateEffector
 
-        # A panel on a hinge about body z, its own frequency flex_mode[0],
-        # started at the deflection that swings the body by ~flex_mode[1].
-        mp = PANEL_MASS_FRACTION * m_total
-        d = PANEL_ARM_M
-        ip = mp * d * d / 3.0
+        # The panel is part of the described vehicle: the hub is what is left
+        # of its mass, centre of mass and inertia (panel_layout).
+        lay = panel_layout(m_hub, com, j_hub, m_total, flex[0], flex[1])
         panel = hingedRigidBodyStateEffector.HingedRigidBodyStateEffector()
-        panel.mass = mp
-        panel.IPntS_S = np.diag([ip / 10.0, ip, ip]).tolist()
-        panel.d = d
-        i_hinge = ip + mp * d * d
-        panel.k = i_hinge * (2.0 * np.pi * flex[0]) ** 2
-        panel.c = 2.0 * 0.005 * np.sqrt(panel.k * i_hinge)
-        panel.r_HB_B = (com + np.array([0.0, 0.0, 0.0])).reshape(3, 1).tolist()
-        # Hinge axis (the H frame's y) along body z: the panel swings in the body x-y plane.
+        panel.mass, panel.d, panel.k, panel.c = lay.mass_kg, lay.arm_m, lay.stiffness, lay.damping
+        panel.IPntS_S = lay.inertia_s.tolist()
+        panel.r_HB_B = lay.hinge_b_m.reshape(3, 1).tolist()
+        # Hinge axis (the H frame's y) along body z: the panel swings in the body x-y plane, its arm along -x.
         panel.dcm_HB = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
-        panel.thetaInit = float(flex[1]) * float(j_total[2, 2]) / i_hinge
+        panel.thetaInit = lay.theta0_rad
         panel.thetaDotInit = 0.0
         panel.nameOfThetaState = "panelTheta"
         panel.nameOfThetaDotState = "panelThetaDot"
         insp.addStateEffector(panel)
         sim.AddModelToTask("step", panel, 95)
         keep.append(panel)
+        m_hub, j_hub = lay.hub_mass_kg, lay.hub_inertia
+        insp.hub.r_BcB_B = lay.hub_com_b_m.reshape(3, 1).tolist()
+        insp.hub.IHubPntBc_B = j_hub.tolist()
     insp.hub.mHub = m_hub
+    return insp, thr, cmd, com, keep
+
+
+def flown_mass_properties(description: dict, effects: dict | None = None) -> dict:
+    """The inspector's mass properties as Basilisk assembles them from the
+    hub and the effects' bodies at the start of a run: mass, centre of mass
+    in B and inertia about it (to check against the description)."""
+    _require_basilisk()
+    from Basilisk.utilities import SimulationBaseClass
+
+    desc = resolve(description)
+    sim = SimulationBaseClass.SimBaseClass()
+    proc = sim.CreateNewProcess("dynamics")
+    step_ns = int(round(STEP_S * 1e9))
+    proc.addTask(sim.CreateNewTask("step", step_ns))
+    insp, thr, _cmd, _com, _keep = _add_inspector(sim, desc, dict(effects or {}), 1.0)
+    sim.AddModelToTask("step", thr, 100)
+    sim.AddModelToTask("step", insp, 90)
+    rec = insp.scMassOutMsg.recorder()
+    sim.AddModelToTask("step", rec, 10)
+    sim.InitializeSimulation()
+    sim.ConfigureStopTime(0)
+    sim.ExecuteSimulation()
+    m = float(np.asarray(rec.massSC)[0])
+    c = np.asarray(rec.c_B, float)[0]
+    i_b = np.asarray(rec.ISC_PntB_B, float)[0].reshape(3, 3)
+    return {"mass_kg": m, "com_b_m": c, "inertia_kgm2": i_b - m * (c @ c * np.eye(3) - np.outer(c, c))}
+
+
+def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap, h: float):
+    """Fly one run in Basilisk. ``imu_t``, ``pose_cap`` are step indices from
+    the run's start. Returns the IMU's summed outputs per log sample (mean
+    specific force, mean rate; IMU axes, without noise) and the truth at the
+    IMU ticks and pose captures."""
+    from Basilisk.architecture import messaging
+    from Basilisk.simulation import imuSensor, spacecraft
+    from Basilisk.utilities import SimulationBaseClass, simIncludeGravBody
+
+    k = desc.n_thrusters
+    sim = SimulationBaseClass.SimBaseClass()
+    sim.SetProgressBar(False) if hasattr(sim, "SetProgressBar") else None
+    proc = sim.CreateNewProcess("dynamics")
+    step_ns = int(round(h * 1e9))
+    proc.addTask(sim.CreateNewTask("step", step_ns))
+
+    grav = simIncludeGravBody.gravBodyFactory()
+    earth = grav.createEarth()
+    earth.isCentralBody = True
+    mu = earth.mu
+    if "differential_j2" in effects:
+        from Basilisk.simulation.sphericalHarmonicsGravityModel import SphericalHarmonicsGravityModel
+
+        j2 = float(np.atleast_1d(effects["differential_j2"])[0])
+        sh = SphericalHarmonicsGravityModel()
+        sh.muBody, sh.radEquator, sh.maxDeg = mu, earth.radEquator, 2
+        # Fully normalised C20 = -J2 / sqrt(5); all else zero.
+        sh.cBar = [[1.0], [0.0, 0.0], [-j2 / np.sqrt(5.0), 0.0, 0.0]]
+        sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
+        earth.gravityModel = sh
+
+    host = spacecraft.Spacecraft()
+    host.ModelTag = "host"
+    host.hub.mHub = 100.0
+    host.hub.IHubPntBc_B = np.eye(3).tolist()
+    grav.addBodiesTo(host)
+
+    insp, thr, cmd, com, keep = _add_inspector(sim, desc, effects, seg.duration_s)
+    grav.addBodiesTo(insp)
+    m_total = float(desc.mass_kg)
 
     if "differential_drag" in effects:
         from Basilisk.simulation import dragDynamicEffector, exponentialAtmosphere

@@ -67,3 +67,73 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = 
                 "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
                 "command": f"proxops validate-gap --engine basilisk --runs {n_runs} --seed {seed}"})
     return res
+
+
+def refly(campaign_result: dict, effect: str, calibration: dict | None = None, progress: bool = True) -> dict:
+    """The runs of ``effect`` in a finished campaign (its result with keys and
+    answers: the ``--json`` file, or its ``.full.json.gz``), flown again by
+    the current engine and diagnosed with the same calibration: the answers
+    before and after a change to the engine, run by run."""
+    cal = calibration if calibration is not None else vv.load_calibration()
+    pairs = [(k, a) for k, a in zip(campaign_result["keys"], campaign_result["answers"]) if k.get("effect") == effect]
+    if not pairs:
+        raise ValueError(f"no {effect!r} run in the campaign (seed {campaign_result.get('seed')})")
+    rows = []
+    for i, (key, before) in enumerate(pairs):
+        t0 = time.time()
+        after = run_one(key, cal)
+        rows.append({"run": key["run"], "effects": key["effects"], "scale": key["scale"],
+                     "before": {f: before.get(f) for f in ("verdict", "gap_detected", "top1", "map_max_abs_z")},
+                     "after": {f: after.get(f) for f in ("verdict", "gap_detected", "top1", "map_max_abs_z")},
+                     "answer": after})
+        if progress:
+            import sys
+
+            print(f"  run {key['run']} ({i + 1} of {len(pairs)}): {_said(before)} -> {_said(after)}, "
+                  f"{time.time() - t0:.0f} s", file=sys.stderr, flush=True)
+
+    def counts(which):
+        out = {}
+        for r in rows:
+            s = _said(r[which])
+            out[s] = out.get(s, 0) + 1
+        return out
+
+    return {"effect": effect, "seed": campaign_result.get("seed"), "n": len(rows), "before": counts("before"),
+            "after": counts("after"), "runs": rows}
+
+
+def _said(answer: dict) -> str:
+    return answer["verdict"] if answer.get("gap_detected") else "no_gap"
+
+
+def main(argv=None):
+    import argparse
+    import gzip
+    import json
+
+    from bench.basilisk_sim import basilisk_version
+
+    ap = argparse.ArgumentParser(description="Fly one effect's runs of a finished Basilisk campaign again with the "
+                                             "current engine: the answers before and after")
+    ap.add_argument("what", choices=("refly",))
+    ap.add_argument("campaign", help="the campaign's result with keys and answers (--json OUT, or its .full.json.gz)")
+    ap.add_argument("--effect", required=True)
+    ap.add_argument("--json", default=None, help="write the answers here")
+    a = ap.parse_args(argv)
+    opener = gzip.open if a.campaign.endswith(".gz") else open
+    with opener(a.campaign, "rt") as f:
+        src = json.load(f)
+    t0 = time.time()
+    res = refly(src, a.effect)
+    res.update({"source": a.campaign, "basilisk_version": basilisk_version(), "elapsed_s": time.time() - t0})
+    print(f"{a.effect}, {res['n']} runs of seed {res['seed']}: before {res['before']}, after {res['after']}; "
+          f"{res['elapsed_s']:.0f} s")
+    if a.json:
+        from bench.report import write_json
+
+        write_json(a.json, res, strict=True)
+
+
+if __name__ == "__main__":
+    main()
