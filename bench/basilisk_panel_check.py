@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from bench.vehicle_sim import Clocks
+from bench.sim.vehicle_sim import Clocks
 
 AT_REST = 1e-12  # a start amplitude that leaves the mode to the thrusters
 
@@ -57,7 +57,8 @@ def panel_added_on_top(description: dict) -> dict:
 
 
 def _imu(engine: str, description: dict, plan: list, effects: dict) -> np.ndarray:
-    from bench import basilisk_sim, vehicle_sim
+    from bench import basilisk_sim
+    from bench.sim import vehicle_sim
 
     if engine == "bench":
         log, _ = vehicle_sim.simulate(description, plan, effects, seed=0, clocks=Clocks(), with_truth=False)
@@ -74,7 +75,7 @@ def panel_projection(description: dict, plan: list, freq_hz: float, amplitude_ra
     from scipy.optimize import nnls
 
     from bench.basilisk_crosscheck import quiet
-    from bench.log_description import resolve
+    from bench.sim.log_description import resolve
 
     desc = resolve(description)
     k = desc.n_thrusters
@@ -115,7 +116,7 @@ def main(argv=None):
     from bench.basilisk_crosscheck import short_plan
     from bench.basilisk_sim import basilisk_version
     from bench.gap.plans import characterisation_plan
-    from bench.vehicles import VEHICLES
+    from bench.sim.vehicles import VEHICLES
 
     ap = argparse.ArgumentParser(description="flex_mode in each engine against a thrust loss")
     ap.add_argument("--freq", type=float, required=True, help="flex_mode frequency (Hz)")

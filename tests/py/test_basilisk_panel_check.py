@@ -8,7 +8,7 @@ import pytest
 
 from bench import basilisk_crosscheck as xc
 from bench.basilisk_panel_check import panel_added_on_top, panel_projection
-from bench.vehicles import VEHICLES
+from bench.sim.vehicles import VEHICLES
 
 DESC = VEHICLES["12kg"]()
 

@@ -71,7 +71,7 @@ def test_the_hinged_panel_is_part_of_the_described_vehicle_not_added_to_it():
 
 
 def test_the_hinged_panel_swings_the_hub_at_the_stated_frequency_and_amplitude(monkeypatch):
-    from bench.vehicle_sim import Clocks, PlanSegment
+    from bench.sim.vehicle_sim import Clocks, PlanSegment
 
     monkeypatch.setattr(basilisk_sim, "PANEL_DAMPING", 0.0)
     f, amp = 0.5, 0.004
