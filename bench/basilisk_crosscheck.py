@@ -1,4 +1,4 @@
-"""The bench's plant (bench/vehicle_sim.py) against Basilisk
+"""The bench's plant (bench/sim/vehicle_sim.py) against Basilisk
 (bench/basilisk_sim.py): the same described vehicle, the same valve
 commands and time stamps, the sensors without noise.
 

@@ -1,6 +1,6 @@
 """Is a flexible appendage a thrust loss? The signature of ``flex_mode`` in
 each engine (Basilisk's hinged panel, bench/basilisk_sim.py; the bench's
-mode, bench/plant.py) and the share of it that the best non-negative
+mode, bench/sim/plant.py) and the share of it that the best non-negative
 per-thruster thrust loss reproduces.
 
 The signature is the IMU's samples (gyro and accelerometer, noise-free) with

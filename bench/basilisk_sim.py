@@ -1,11 +1,11 @@
 """Flight logs (format version 2) from Basilisk, the AVS Lab's astrodynamics
 framework (PyPI ``bsk``, the optional extra ``pip install .[basilisk]``): a
-second truth engine beside bench/vehicle_sim.py, written elsewhere, so a
+second truth engine beside bench/sim/vehicle_sim.py, written elsewhere, so a
 mistake the bench's plant shares with the diagnosis shows up beside it.
 
     log, key = simulate(description, plan, effects, seed, clocks)
 
-The same call as ``bench.vehicle_sim.simulate``, flown by Basilisk:
+The same call as ``bench.sim.vehicle_sim.simulate``, flown by Basilisk:
 
 - two spacecraft in a real Earth orbit, the host (a point mass) and the
   inspector (hub, thrusters, IMU), both under Basilisk's gravity; the
@@ -46,7 +46,7 @@ from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
 from bench.sim.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
 
 STEP_S = 1e-3
-J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/plant.py)
+J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/sim/plant.py)
 AIR_DENSITY_KGPM3 = 5e-13  # as the bench's differential drag
 SLOSH_FREQ_HZ, SLOSH_DAMPING = 0.3, 0.05  # as the bench's fuel slosh
 PANEL_MASS_FRACTION, PANEL_ARM_M = 0.02, 0.15  # the hinged panel (out of library): 2 % of the mass, 15 cm arm

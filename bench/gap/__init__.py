@@ -15,7 +15,7 @@ null calibrations
   null        the committed thresholds (seeded Monte Carlo of simulated-on-simulated logs)
   log_null    a calibration made for a log (parametric bootstrap of its own flight)
   plans       manoeuvre plans the simulated flights fly
-  simlogs     simulated logs of the docking scenario (runs go through bench/campaign)
+  simlogs     simulated logs of the docking scenario (runs go through bench/runner)
 the model
   detection   the two detection statistics under the nominal model
   select      several effects at once: forward selection and joint refit

@@ -1,7 +1,7 @@
 """The diagnoser's own parametric model of each in-library effect: a map from
 a small parameter vector to corrections of the filter's inputs
 (bench/gap/replay.py). These are written independently of the plant's
-physics (bench/effects.py): the diagnoser sees an effect only through what
+physics (bench/sim/effects.py): the diagnoser sees an effect only through what
 it does to the IMU and pose streams and to the relative dynamics.
 
 Effects that change the thrust (thrust loss, thruster misalignment, mass

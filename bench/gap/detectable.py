@@ -212,9 +212,9 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
 
     ``simulate(effects, scripts)`` returns (log, scripts): the run closed loop
     (scripts None) or replaying ``scripts`` open loop; ``then_scripts``: a
-    characterisation flown after the docking runs (bench.reality.simulate_runs);
+    characterisation flown after the docking runs (bench.sim.reality.simulate_runs);
     ``max_size``: the largest sensible size on the vehicle flown (default the
-    effect library's, bench.effects.max_size_for)."""
+    effect library's, bench.sim.effects.max_size_for)."""
     from bench.sim.effects import EFFECTS
     from bench.gap.candidates import CANDIDATES
 

@@ -85,7 +85,7 @@ class DynChannel:
 
 def build(d: LogData) -> DynChannel | None:
     """The channel for a log with a valve stream (None without one), for the
-    vehicle the log describes (bench/log_description.py)."""
+    vehicle the log describes (bench/sim/log_description.py)."""
     if d.valves is None:
         return None
     from bench.sim.log_description import resolve

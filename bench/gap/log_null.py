@@ -4,7 +4,7 @@ The committed null calibrations (bench/gap/null.py) hold for the bench's
 3 kg inspector flying the bench's manoeuvres. Any other log (another
 vehicle, other sensors, other time stamps or valve commands) gets its own:
 the log's own flight is flown again by the truth plant with nothing
-unmodelled (bench/vehicle_sim.py): the vehicle, IMU and pose sensor its
+unmodelled (bench/sim/vehicle_sim.py): the vehicle, IMU and pose sensor its
 description states, every run from its first pose at rest, the log's own
 valve commands, IMU time stamps and pose capture times, fresh sensor noise
 per run. Each such null log is diagnosed without thresholds, and each
@@ -150,7 +150,7 @@ def default_cache_dir() -> Path:
 def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: int | None = None,
                       cache_dir=None, progress: bool = True) -> dict:
     """The null calibration for ``log`` (from the cache when it was made before).
-    Its runs are a campaign (bench/campaign/runner.py) on the cluster the
+    Its runs are a campaign (bench/runner/runner.py) on the cluster the
     process was configured with, each kept as it finishes next to the cache
     entry, so an interrupted calibration resumes."""
     from bench.runner.runner import Campaign, results

@@ -42,7 +42,7 @@ def load(path=DATA, manoeuvres: str | None = None) -> dict:
 
 
 def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
-    """One simulated-on-simulated log: bench.reality without effects when
+    """One simulated-on-simulated log: bench.sim.reality without effects when
     available, else the bench's docking scenario."""
     from bench.gap.simlogs import docking_log, reality_available
     from bench.gap.plans import then_scripts
@@ -54,7 +54,7 @@ def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
         log, _ = simulate_log_with_key(seed, {}, duration_s=duration_s, with_truth=True, then_scripts=then)
         return log
     if then is not None:
-        raise ValueError("a characterisation needs bench.reality")
+        raise ValueError("a characterisation needs bench.sim.reality")
     return docking_log(seed, t_max_s=duration_s)
 
 

@@ -4,7 +4,7 @@ them), with the committed calibration of its flight family:
 
     python -m bench.gap.perf_diagnose [--minutes 10] [--repeats 3] [--effects JSON]
 
-``--effects`` flies the log with effects (bench/effects.py names and
+``--effects`` flies the log with effects (bench/sim/effects.py names and
 parameters), so the timing covers the attribution and, with two or more,
 the selection of a set. Prints the log's size, the answer and the median
 wall time of the repeats.

@@ -1,4 +1,4 @@
-"""Manoeuvre plans for any described vehicle (bench/vehicle_sim.py), flown
+"""Manoeuvre plans for any described vehicle (bench/sim/vehicle_sim.py), flown
 open loop: what a team would fly to characterise its vehicle.
 
 ``characterisation_plan``: every thruster alone, pulse-width modulated
@@ -26,7 +26,7 @@ from bench.sim.vehicle_sim import PlanSegment
 # python -m bench.gap.characterise compares the two on it).
 MANOEUVRES = ("docking", "docking+characterisation")
 CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S = 3.0, 20.0
-DT_S = 0.1  # control interval of the docking scenario (bench/scenario_docking.py)
+DT_S = 0.1  # control interval of the docking scenario (bench/sim/scenario_docking.py)
 LEAD_S = 2.0  # valves closed until the first pose has initialised navigation
 
 

@@ -58,7 +58,7 @@ class LogData:
     ref_q: np.ndarray | None = None
     truth: dict | None = None
     config: dict = field(default_factory=dict)
-    desc: object = None  # bench.log_description.Resolved
+    desc: object = None  # bench.sim.log_description.Resolved
     imu_seg: np.ndarray | None = None  # (N,) run (segment) of each IMU sample
     pose_align_s: np.ndarray | None = None  # (M,) IMU tick minus the pose's capture time
     pose_v0_sigma: np.ndarray | None = None  # (M,) initial velocity sigma where a pose starts a run

@@ -33,9 +33,9 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
                  scripts: list | None = None, then_scripts: list | None = None) -> dict:
     """delta2 of effect ``name`` (parameters ``effects``) in the run of
     ``seed`` against every library candidate; the closest competitor.
-    ``scripts``: fly these valve scripts (bench.reality.simulate_runs) instead
+    ``scripts``: fly these valve scripts (bench.sim.reality.simulate_runs) instead
     of the closed-loop docking runs; ``then_scripts``: fly these after the
-    docking runs (bench.reality.simulate_runs)."""
+    docking runs (bench.sim.reality.simulate_runs)."""
     log0, log1 = twin_logs(seed, effects, duration_s, scripts, then_scripts)
     return separability_of_logs(log0, log1, name, in_library)
 

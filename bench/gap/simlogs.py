@@ -1,6 +1,6 @@
 """Simulated flight logs for the diagnoser: the bench's docking scenario
 written as a flight log (with the valve stream), optionally with the effect
-library of bench/reality.py when it is available."""
+library of bench/sim/reality.py when it is available."""
 from __future__ import annotations
 
 import numpy as np

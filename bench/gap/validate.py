@@ -9,7 +9,7 @@ an effect that no sensible size makes detectable in its run is simulated at
 its largest sensible size and scored apart. Every run's key (simulation
 seed, effect, parameters) is hashed and the hashes are written to
 ``<OUT>.prereg.json`` before any diagnosis runs. Each run (a Dask task,
-bench/campaign/runner.py) simulates the log, strips it to what a user's
+bench/runner/runner.py) simulates the log, strips it to what a user's
 log would hold (the streams, orbit and sensor settings; no key, no truth),
 and diagnoses it. Only then are the keys re-hashed, checked against the
 pre-registered hashes, and compared with the answers.
@@ -47,7 +47,7 @@ SAME_PARAMETERS = ("accel_bias", "gyro_bias", "gyro_scale", "imu_misalignment", 
 def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str | None, prereg: dict,
                         label: str) -> tuple:
     """The two stages of a blind validation through ``campaign``
-    (bench/campaign/runner.py): each drawn run's size, the key hashes
+    (bench/runner/runner.py): each drawn run's size, the key hashes
     written to ``<out>.prereg.json``, then each run's diagnosis. Returns
     (keys, answers) of the runs that finished both, the hashes of every
     drawn run (None where its sizing failed) and what the campaign did."""
@@ -148,15 +148,15 @@ def simulate(key: dict, duration_s: float):
                                        then_scripts=then_scripts(key))
         return log
     if then_scripts(key) is not None:
-        raise ValueError("a characterisation needs bench.reality")
-    # Fallback without bench.reality: the sensor-profile effects only.
+        raise ValueError("a characterisation needs bench.sim.reality")
+    # Fallback without bench.sim.reality: the sensor-profile effects only.
     from bench.sim.sensors import NoiseProfile
 
     prof = NoiseProfile.paper()
     for name, p in key["effects"].items():
         field = {"accel_bias": "accel_bias_mps2", "gyro_bias": "gyro_bias_rps", "gyro_scale": "gyro_scale"}.get(name)
         if field is None:
-            raise ValueError(f"effect {name!r} needs bench.reality")
+            raise ValueError(f"effect {name!r} needs bench.sim.reality")
         prof = prof.with_(**{field: tuple(p)})
     return docking_log(key["seed"], prof, t_max_s=duration_s)
 

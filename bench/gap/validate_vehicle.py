@@ -2,7 +2,7 @@
 ``proxops validate-gap --vehicle 12kg``.
 
 The logs are flown by the 12 kg, twelve-thruster inspector of
-bench/vehicles.py through its characterisation (bench/gap/plans.py: every
+bench/sim/vehicles.py through its characterisation (bench/gap/plans.py: every
 thruster alone, pulse-width modulated, then a coast; three runs), with time
 stamps as real logs have them: IMU samples 20 Hz with 5 % jitter and 2 %
 dropped, pose captures anywhere between IMU samples on a clock 0.25 s off
