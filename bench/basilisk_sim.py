@@ -42,8 +42,8 @@ import numpy as np
 
 from bench.sim.flight_log import FlightLog
 from bench.sim.log_description import resolve
-from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
 from bench.sim.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
+from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
 
 STEP_S = 1e-3
 J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/sim/plant.py)

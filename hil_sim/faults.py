@@ -16,7 +16,7 @@ Everything is drawn from one seeded generator, so a faulty run replays.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, asdict
+from dataclasses import asdict, dataclass
 
 import numpy as np
 

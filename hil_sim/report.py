@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.sim.flight_log import runs_to_flight_log, write_flight_log
 from bench.report import matplotlib_agg
+from bench.sim.flight_log import runs_to_flight_log, write_flight_log
 from bench.sim.scenario_docking import DockingRun, errors_from_first_update
 
 

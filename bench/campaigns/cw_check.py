@@ -3,11 +3,11 @@ against exact two-body relative motion, with the error bound linearisation
 predicts."""
 from __future__ import annotations
 
+import fsw_bindings as fb
 import numpy as np
 
-import fsw_bindings as fb
-
 from bench.sim import orbit
+
 
 # Initial relative states [m, m/s] at 10 m separation in a 500 km orbit.
 def cases(n: float, sep_m: float = 10.0):

@@ -22,8 +22,8 @@ def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: i
     and its mean per range bin (camera to pattern centre)."""
     from scipy.stats import chi2
 
-    from bench.so3 import boxminus
     from bench.sim.scenario_docking import ScenarioConfig, run_docking
+    from bench.so3 import boxminus
 
     sensor = ImagePoseSensor(NoiseProfile.paper(), np.random.default_rng(render_seed))
     nees, npos, natt, rng_m = [], [], [], []

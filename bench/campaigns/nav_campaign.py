@@ -34,9 +34,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
-from bench.sim.scenario_docking import (NAV_DOF, POSE_DOF, DockingRun, DockingSummary, ScenarioConfig,
-                                    errors_from_first_update, run_docking)
-
+from bench.sim.scenario_docking import (
+    NAV_DOF,
+    POSE_DOF,
+    DockingRun,
+    DockingSummary,
+    ScenarioConfig,
+    errors_from_first_update,
+    run_docking,
+)
 
 # Every THIN_EVERY-th post-update NEES (10 s apart) is nearly independent of
 # the previous one, so the chi-square band of the mean holds for the thinned set.

@@ -21,6 +21,7 @@ from scipy.stats import chi2
 
 from bench.sim import camera as cm
 from bench.so3 import boxminus
+
 STATUSES = ["Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "DegenerateGeometry", "SolverFailed",
             "BadInput"]
 GROSS_NEES = float(chi2.ppf(0.9999, 6))  # beyond this an "Ok" pose is a gross error

@@ -4,9 +4,9 @@ from __future__ import annotations
 import argparse
 
 from bench.campaigns import cw_check
-from bench.sim import orbit
 from bench.commands.args import number, one_line_errors
 from bench.report import write_json
+from bench.sim import orbit
 
 
 def register(sub):

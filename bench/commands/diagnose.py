@@ -59,12 +59,11 @@ def _load_calibration(path: str) -> dict:
 
 
 def main(args):
-    from bench.sim.flight_log import read_flight_log
     from bench.gap.diagnose import diagnose, public
     from bench.gap.log_null import CalibrationMismatch
     from bench.report import write_json
-
     from bench.runner import cluster
+    from bench.sim.flight_log import read_flight_log
 
     _check_output(args.json, "json")
     _check_output(args.report, "report")

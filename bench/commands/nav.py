@@ -7,9 +7,9 @@ import sys
 
 import numpy as np
 
+from bench.campaigns.nav_campaign import run_campaign
 from bench.commands.args import number, one_line_errors
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
-from bench.campaigns.nav_campaign import run_campaign
 from bench.report import matplotlib_agg, report_dir, write_json
 from bench.sim.scenario_docking import ScenarioConfig, errors_from_first_update
 from bench.sim.sensors import NoiseProfile

@@ -47,11 +47,11 @@ def main(args):
 def diagnose_bundled(report_dir: Path) -> int:
     """Diagnose the bundled reality run, blind, then open its sealed key."""
     from bench.commands.diagnose import print_answers
-    from bench.sim.flight_log import read_flight_log
     from bench.gap import bundled
     from bench.gap.diagnose import diagnose, public
     from bench.gap.report import write_report
     from bench.report import write_json
+    from bench.sim.flight_log import read_flight_log
 
     print(f"\nproxops run: sim-to-real gap diagnosis of the bundled reality run ({bundled.LOG.name}, "
           f"effect sealed in {bundled.KEY.name})")

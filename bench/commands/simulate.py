@@ -57,8 +57,8 @@ def _effects(text: str) -> dict:
 
 
 def main(args):
-    from bench.sim.flight_log import validate_log, write_flight_log
     from bench.gap.plans import characterisation_plan
+    from bench.sim.flight_log import validate_log, write_flight_log
     from bench.sim.vehicle_sim import Clocks
 
     if args.description:

@@ -29,8 +29,8 @@ EFFECTS = {"thrust_loss": [0.0, 0.0, 0.0, 0.06, 0.0, 0.0, 0.04, 0.0]}
 
 
 def generate(log_path=LOG, key_path=KEY, duration_s: float = DURATION_S) -> dict:
-    from bench.sim.flight_log import write_flight_log
     from bench.gap.validate import blind
+    from bench.sim.flight_log import write_flight_log
     from bench.sim.reality import simulate_log_with_key
 
     log, key = simulate_log_with_key(SEED, EFFECTS, duration_s=duration_s, with_truth=False)

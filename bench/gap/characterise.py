@@ -42,8 +42,8 @@ RIVAL = {"thruster_misalignment": "thrust_loss", "thrust_loss": "thruster_misali
 def compare(seed: int, effect: str, size: float, fire_s: float, coast_s: float, docking_s: float = 120.0) -> dict:
     """delta2 of ``effect`` at ``size`` (a random direction from ``seed``) in
     the docking run of ``seed`` and in the single-valve characterisation."""
-    from bench.sim.effects import EFFECTS
     from bench.gap.separability import separability
+    from bench.sim.effects import EFFECTS
 
     spec = EFFECTS[effect]
     params = [float(x) for x in spec.draw_fn(np.random.default_rng(seed), size)]

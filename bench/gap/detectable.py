@@ -215,8 +215,8 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
     characterisation flown after the docking runs (bench.sim.reality.simulate_runs);
     ``max_size``: the largest sensible size on the vehicle flown (default the
     effect library's, bench.sim.effects.max_size_for)."""
-    from bench.sim.effects import EFFECTS
     from bench.gap.candidates import CANDIDATES
+    from bench.sim.effects import EFFECTS
 
     if simulate is None:
         simulate = _bench_simulate(seed, duration_s, then_scripts)

@@ -42,12 +42,14 @@ import time
 
 import numpy as np
 
-from bench.gap import localise, null as nullmod, quantify
+from bench.gap import localise, quantify
+from bench.gap import null as nullmod
 from bench.gap.attribute import BF_AMBIGUOUS, DELTA2_95, Context, Pass, bounded_fit, confirm, screen
 from bench.gap.candidates import CANDIDATES, NOT_MODELLED, candidates_of
 from bench.gap.detection import detect, map_cells
 from bench.gap.replay import LogData, prepare
 from bench.so3 import rotmats
+
 HELDOUT_DLL_MIN = 3.0
 SHRINK_MIN = 0.5
 MAP_REMAINDER = 0.1

@@ -22,8 +22,9 @@ import numpy as np
 from scipy.linalg import cholesky_banded, solve_banded
 
 from bench.gap.replay import LogData
-
 from bench.so3 import rotmats
+
+
 def _skew_rows(v: np.ndarray) -> np.ndarray:
     """(N, 3) -> (N, 3, 3) cross-product matrices [v]x."""
     z = np.zeros(v.shape[0])

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from bench.gap.replay import LogData, ReplayResult
-
 from bench.so3 import rotmats
+
 STREAMS = (("pose position", 0, "xyz (Hill)"), ("pose attitude", 3, "xyz (body)"))
 REGIMES = ("all", "coasting", "firing", "slewing")
 STATS = ("mean", "variance", "lag", "lowfreq")

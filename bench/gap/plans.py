@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from bench.sim.log_description import resolve
-from bench.so3 import qexp, qnormalize
 from bench.sim.vehicle_sim import PlanSegment
+from bench.so3 import qexp, qnormalize
 
 # What a bench-inspector campaign run flies: the docking runs alone, or the
 # docking runs then the thruster characterisation the diagnoser names to

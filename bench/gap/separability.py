@@ -58,7 +58,7 @@ def twin_logs(seed: int, effects: dict, duration_s: float, scripts: list | None 
 def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
     """delta2 of the effect that makes ``log1`` differ from ``log0`` (the same
     flight and noise without it) against every library candidate."""
-    from bench.gap.attribute import candidate, bounded_fit, signature
+    from bench.gap.attribute import bounded_fit, candidate, signature
     from bench.gap.detectable import residuals_of
 
     ctx0, e0, rows_ok = residuals_of(log0)

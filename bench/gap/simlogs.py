@@ -35,8 +35,8 @@ def docking_log(seed: int, profile=None, t_max_s: float = 120.0) -> FlightLog:
 
 def reality_available() -> bool:
     try:
-        import bench.sim.reality  # noqa: F401
         import bench.sim.effects  # noqa: F401
+        import bench.sim.reality  # noqa: F401
     except Exception:
         return False
     return True

@@ -22,17 +22,16 @@ wrong one, and the coverage of the fitted parameters' 95 % intervals.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import replace
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from bench.runner.runner import new_campaign  # noqa: F401  (re-exported for the validations)
-
 # What each campaign run flies: bench/gap/plans.py.
 from bench.gap.plans import MANOEUVRES, then_scripts
+from bench.runner.runner import new_campaign  # noqa: F401  (re-exported for the validations)
 
 FRACTIONS = {"null": 0.2, "in_library": 0.6, "out_of_library": 0.2}
 SCALES = (1.0, 2.0)
@@ -114,8 +113,8 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
 def _size_one(key, run_ctx):
     """The drawn run's minimum detectable size, and its effect at scale x that."""
     duration_s, calibration = run_ctx
-    from bench.sim.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
+    from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 
     key = dict(key)
@@ -181,8 +180,8 @@ def truth_in_body_axes(effect: str, params, vehicle: str | None = None) -> np.nd
     if vehicle is None or effect not in IMU_AXIS_EFFECTS:
         return truth
     from bench.sim.log_description import resolve
-    from bench.so3 import rotmat
     from bench.sim.vehicles import VEHICLES
+    from bench.so3 import rotmat
 
     c_bi = rotmat(resolve(VEHICLES[vehicle]()).imu_q_body_imu)  # IMU axes -> body axes
     return (c_bi**2) @ truth if effect == "gyro_scale" else c_bi @ truth

@@ -65,8 +65,8 @@ def _size_one(key, run_ctx):
     duration_s, calibration = run_ctx
     from dataclasses import replace
 
-    from bench.sim.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
+    from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 
     key = dict(key)
@@ -87,9 +87,9 @@ def _size_one(key, run_ctx):
 
 def _run_one(key, run_ctx):
     duration_s, calibration = run_ctx
-    from bench.sim.effects import EFFECTS
     from bench.gap import select
     from bench.gap.diagnose import diagnose, public
+    from bench.sim.effects import EFFECTS
     from bench.sim.reality import simulate_log_with_key
 
     log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,

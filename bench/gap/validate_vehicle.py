@@ -103,8 +103,8 @@ def draw_campaign(n_runs: int, seed: int) -> list:
 
 
 def _size_one(key, calibration):
-    from bench.sim.effects import EFFECTS, max_size_for
     from bench.gap.detectable import min_detectable_size
+    from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 
     key = dict(key)
@@ -199,8 +199,8 @@ def _null_stats(seed: int) -> dict:
 
 def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool = True, campaign=None) -> dict:
     """The null calibration of this vehicle's flight family."""
-    from bench.runner.runner import all_failed, failures, results
     from bench.gap.log_null import FA_EACH, frechet_threshold
+    from bench.runner.runner import all_failed, failures, results
     from bench.sim.log_description import resolve
 
     campaign = new_campaign(campaign, workers, progress)

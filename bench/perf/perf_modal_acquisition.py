@@ -20,8 +20,8 @@ import numpy as np
 
 from bench.campaigns import modal_batch_ml
 from bench.campaigns import modal_campaign as mc
-from bench.sim import structure as st
 from bench.report import write_json
+from bench.sim import structure as st
 
 # (modes, images, image interval [s]): two lowest-mode periods of the bench's runs
 CASES = ((10, 80, 60.0), (50, 241, 20.0))

@@ -35,6 +35,7 @@ from scipy.ndimage import gaussian_filter
 from scipy.special import erf
 
 from bench.so3 import qexp, qnormalize, quat_from_rotmat, rotmat
+
 WIDTH, HEIGHT = 640, 480
 FOCAL_PX = 320.0 / np.tan(np.radians(30.0))
 R_BC_DEFAULT = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])

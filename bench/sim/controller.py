@@ -36,9 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.sim.plant import N_RADPS
-
+from bench.sim.vehicle import ALL_VALVES, Vehicle
 from bench.so3 import boxminus, rotmat
-from bench.sim.vehicle import Vehicle, ALL_VALVES
 
 HOST_HALF_SIZE_M = 0.20
 PORT_HILL_M = np.array([0.0, -HOST_HALF_SIZE_M, 0.0])

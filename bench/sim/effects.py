@@ -24,10 +24,9 @@ from typing import Callable
 import numpy as np
 
 from bench.sim.plant import PlantEffects
-
-from bench.so3 import qexp, rotmat
 from bench.sim.sensors import NoiseProfile
 from bench.sim.vehicle import DIRECTIONS_B, N_THRUSTERS, Vehicle
+from bench.so3 import qexp, rotmat
 
 
 def _unit(rng: np.random.Generator, n: int = 3) -> np.ndarray:

@@ -7,9 +7,9 @@ names the stream, the field, the row and what is wrong.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
-import json
 
 import numpy as np
 

@@ -12,8 +12,8 @@ form (:class:`Resolved`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 

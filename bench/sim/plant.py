@@ -30,14 +30,13 @@ the plant runs the rigid-body equations above, unchanged.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bench.sim import orbit
-from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
 from bench.sim.vehicle import Vehicle
+from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
 
 ALTITUDE_M = 500e3
 ORBIT_RADIUS_M = orbit.EARTH_RADIUS + ALTITUDE_M

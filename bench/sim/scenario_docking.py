@@ -57,11 +57,11 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from bench.sim.controller import APPROACH_AXIS_HILL, ControlDecision, ControllerParams, DockingController, DOCK_HILL_M
+from bench.sim.controller import APPROACH_AXIS_HILL, DOCK_HILL_M, ControlDecision, ControllerParams, DockingController
 from bench.sim.plant import N_RADPS, Plant, PlantState
-from bench.so3 import boxminus, boxplus, qexp, qnormalize, rotmat
 from bench.sim.sensors import Imu, NoiseProfile, PoseSensor
 from bench.sim.vehicle import ALL_VALVES, Vehicle
+from bench.so3 import boxminus, boxplus, qexp, qnormalize, rotmat
 
 P0_SIGMAS = np.array([0.05] * 3 + [0.01] * 3 + [0.05] * 3)  # [m, m/s, rad]
 NAV_DOF = 9

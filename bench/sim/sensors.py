@@ -34,8 +34,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bench.so3 import qexp, qmul, qnormalize, rotmat
 from bench.sim.vehicle import MASS_KG, THRUST_N
+from bench.so3 import qexp, qmul, qnormalize, rotmat
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,8 @@ from bench.sim.flight_log import FlightLog
 from bench.sim.log_description import resolve
 from bench.sim.plant import Plant, PlantEffects, PlantState
 from bench.so3 import qconj, qexp, qlog, qmul, qnormalize, rotmat
+
+
 @dataclass
 class PlanSegment:
     manoeuvre: str

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
+from bench.gap import validate
 from bench.runner import records
 from bench.runner.runner import Campaign
 from bench.runner.store import RunStore
-from bench.gap import validate
 
 ROOT = Path(__file__).resolve().parents[2]
 RUNS, DURATION_S, SEED = 6, 40.0, 3

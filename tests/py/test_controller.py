@@ -5,9 +5,9 @@ from scipy.optimize import linprog
 
 from bench.sim.controller import DOCK_HILL_M, ControllerParams, DockingController
 from bench.sim.plant import N_RADPS
-from bench.so3 import rotmat
 from bench.sim.scenario_docking import ScenarioConfig, run_docking
 from bench.sim.vehicle import ALL_VALVES, Vehicle, config_valves
+from bench.so3 import rotmat
 
 
 def test_thruster_wrenches_positively_span_six_dof():

@@ -1,10 +1,9 @@
 """The CW closed forms against scipy integration, and the CW model against
 exact two-body motion at 10 m in a 500 km orbit."""
+import fsw_bindings as fb
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-
-import fsw_bindings as fb
 
 from bench.campaigns import cw_check
 from bench.sim import orbit

@@ -11,10 +11,10 @@ from scipy.integrate import solve_ivp
 from bench.sim import orbit
 from bench.sim.effects import EFFECTS, PENDING, EffectSet, canonical, realise, true_anomaly_after
 from bench.sim.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantEffects, PlantState
-from bench.so3 import boxminus, qexp, rotmat
 from bench.sim.scenario_docking import ScenarioConfig, run_docking
 from bench.sim.sensors import Imu, NoiseProfile
 from bench.sim.vehicle import DIRECTIONS_B, POSITIONS_B_M, Vehicle
+from bench.so3 import boxminus, qexp, rotmat
 
 fb = pytest.importorskip("fsw_bindings")
 

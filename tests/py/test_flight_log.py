@@ -4,8 +4,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.sim.flight_log import (FlightLog, FlightLogError, read_flight_log, validate_log,
-                              write_flight_log)
+from bench.sim.flight_log import FlightLog, FlightLogError, read_flight_log, validate_log, write_flight_log
 
 
 def minimal_log(n=50, m=5):

@@ -5,8 +5,8 @@ Checked against the same decomposition and joint filter called directly."""
 import numpy as np
 import pytest
 
-from bench.sim import structure as st
 from bench.campaigns.modal_campaign import make_filter
+from bench.sim import structure as st
 from hil_sim import packets as P
 
 fb = pytest.importorskip("fsw_bindings")

@@ -92,10 +92,10 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
     for k, a in zip(res["keys"], res["answers"]):  # scored for separability after the answer
         assert ("separability" in a) == (k["effect"] is not None)
     # The campaign records' tables (docs/results/) render from the full JSON.
+    import json
+
     from bench.gap import results_tables
     from bench.report import write_json
-
-    import json
 
     write_json(str(out), res, strict=True)  # what validate-gap writes: strict JSON
     json.loads(out.read_text(), parse_constant=lambda c: pytest.fail(f"bare {c} in the JSON"))
@@ -122,8 +122,8 @@ def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
 
 
 def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(calibration):
-    from bench.sim.effects import EFFECTS
     from bench.gap.detectable import min_detectable_size
+    from bench.sim.effects import EFFECTS
 
     spec = EFFECTS["accel_bias"]
     unit = spec.draw_fn(np.random.default_rng(2), 1.0)
@@ -142,8 +142,8 @@ def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(ca
 
 
 def test_an_effect_no_sensible_size_shows_is_reported_not_detectable(calibration):
-    from bench.sim.effects import EFFECTS
     from bench.gap.detectable import min_detectable_size
+    from bench.sim.effects import EFFECTS
 
     # A 0.75 m docking at mm/s holds range nearly still: host eccentricity up to
     # 0.05 moves the relative orbit by far less than the pose noise in 60 s.
@@ -163,8 +163,8 @@ def test_gyro_unwhitening_inverts_the_whitening():
 
 
 def test_bundled_reality_run_is_diagnosed_blind(calibration):
-    from bench.sim.flight_log import read_flight_log
     from bench.gap import bundled
+    from bench.sim.flight_log import read_flight_log
 
     log = read_flight_log(bundled.LOG)
     assert "truth" not in log.streams and "effects" not in (log.config or {})
@@ -384,8 +384,8 @@ def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
     # Each single-valve run ends spinning; the next starts at rest. The
     # candidate must turn a run's last pose by that run's rate.
     from bench.gap.attribute import signature
-    from bench.gap.plans import single_valve_scripts
     from bench.gap.detectable import residuals_of
+    from bench.gap.plans import single_valve_scripts
 
     then = single_valve_scripts(fire_s=3.0, coast_s=6.0)
     tau = 0.1

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.sim.flight_log import read_flight_log
 from bench.gap import bundled, log_null
 from bench.gap import null as nullmod
 from bench.gap.answers import answer_lines
 from bench.gap.diagnose import diagnose, public
 from bench.gap.replay import prepare
+from bench.sim.flight_log import read_flight_log
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -1,9 +1,8 @@
 """The HIL loop: the flight executable behind a pseudo-terminal gives the
 same estimates as the filter in-process, and survives a faulty link."""
+import fsw_bindings as fb
 import numpy as np
 import pytest
-
-import fsw_bindings as fb
 
 pytest.importorskip("serial")
 if not hasattr(fb, "NavUkf"):

@@ -3,10 +3,9 @@ pseudo-terminal, tm_modal back; the same numbers as the flight app
 in-process, and a link that loses bytes loses only segments."""
 import json
 
+import fsw_bindings as fb
 import numpy as np
 import pytest
-
-import fsw_bindings as fb
 
 pytest.importorskip("serial")
 

@@ -1,10 +1,9 @@
 """The navigation filter through the bindings: the Python API contract
 (names, shapes, status strings), boundary validation, delayed poses and
 gating."""
+import fsw_bindings as fb
 import numpy as np
 import pytest
-
-import fsw_bindings as fb
 
 Q_ID = np.array([1.0, 0.0, 0.0, 0.0])
 R_POSE = np.diag([0.0375**2] * 3 + [0.01**2] * 3)

@@ -10,9 +10,9 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "NavUkf") or not hasattr(fb, "LedPoseEstimator"):
     pytest.skip("fsw_bindings lacks NavUkf or LedPoseEstimator", allow_module_level=True)
 
+from bench.campaigns.nav_campaign import run_campaign  # noqa: E402
 from bench.sim import camera as cm  # noqa: E402
 from bench.sim.image_pose import DOCK_FACE_OFFSET_M, Q_H_PATTERN, ImagePoseSensor, docking_camera  # noqa: E402
-from bench.campaigns.nav_campaign import run_campaign  # noqa: E402
 from bench.sim.scenario_docking import DOCK_HILL_M, ScenarioConfig, run_docking  # noqa: E402
 from bench.sim.sensors import NoiseProfile  # noqa: E402
 

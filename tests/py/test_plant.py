@@ -6,8 +6,8 @@ from scipy.linalg import expm
 
 from bench.sim import orbit
 from bench.sim.plant import N_RADPS, ORBIT_RADIUS_M, Plant, PlantState
-from bench.so3 import boxminus, qexp, qmul, qnormalize, rotmat
 from bench.sim.vehicle import Vehicle
+from bench.so3 import boxminus, qexp, qmul, qnormalize, rotmat
 
 N = N_RADPS
 

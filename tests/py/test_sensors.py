@@ -2,8 +2,8 @@
 the body-frame attitude-noise convention and the reported covariance."""
 import numpy as np
 
-from bench.so3 import boxminus, qexp, qmul, qnormalize
 from bench.sim.sensors import Imu, NoiseProfile, PoseSensor
+from bench.so3 import boxminus, qexp, qmul, qnormalize
 
 
 def test_paper_profile_values():

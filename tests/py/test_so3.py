@@ -1,9 +1,8 @@
 """SO(3) through the bindings: properties and boundary validation."""
+import fsw_bindings as fb
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-
-import fsw_bindings as fb
 
 RNG = np.random.default_rng(20261122)
 

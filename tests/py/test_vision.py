@@ -7,8 +7,8 @@ fb = pytest.importorskip("fsw_bindings")
 if not hasattr(fb, "LedPoseEstimator"):
     pytest.skip("fsw_bindings built without OpenCV (no vision)", allow_module_level=True)
 
-from bench.sim import camera as cm  # noqa: E402
 from bench.campaigns import pose_campaign as pc  # noqa: E402
+from bench.sim import camera as cm  # noqa: E402
 from bench.so3 import qexp, qmul  # noqa: E402
 
 
