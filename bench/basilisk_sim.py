@@ -282,11 +282,8 @@ def _add_inspector(sim, desc, effects: dict, duration_s: float):
     effects' state effectors (fuel tank, slosh, hinged panel). Returns
     (spacecraft, thrusters, their command message, the centre of mass in B,
     the Basilisk objects that must outlive the run)."""
-    from Basilisk.architecture import messaging
-    from Basilisk.simulation import spacecraft, thrusterDynamicEffector
+    from Basilisk.simulation import spacecraft
 
-    k = desc.n_thrusters
-    veh = desc.vehicle()  # positions relative to the described centre of mass
     com = np.asarray(desc.com_b_m, float) + np.asarray(effects.get("com_offset", np.zeros(3)), float)
     mdot = float(np.atleast_1d(effects.get("mass_depletion", [0.0]))[0])
     slosh_m = float(np.atleast_1d(effects.get("fuel_slosh", [0.0]))[0])
@@ -298,8 +295,31 @@ def _add_inspector(sim, desc, effects: dict, duration_s: float):
     j_hub = np.asarray(desc.inertia_kgm2, float)
     insp.hub.r_BcB_B = com.reshape(3, 1).tolist()
     insp.hub.IHubPntBc_B = j_hub.tolist()
-    keep = []  # Basilisk objects must outlive the run
+    thr, cmd, keep = _add_thrusters(insp, desc, effects, mdot)  # Basilisk objects must outlive the run
+    if mdot > 0.0:
+        m_hub -= _add_fuel_tank(sim, insp, thr, com, m_hub, mdot * desc.n_thrusters, duration_s, keep)
+    if slosh_m > 0.0:
+        _add_slosh(sim, insp, com, slosh_m, keep)
+    if flex[1] != 0.0:
+        # The panel is part of the described vehicle: the hub is what is left
+        # of its mass, centre of mass and inertia (panel_layout).
+        lay = panel_layout(m_hub, com, j_hub, m_total, flex[0], flex[1])
+        _add_panel(sim, insp, lay, keep)
+        m_hub, j_hub = lay.hub_mass_kg, lay.hub_inertia
+        insp.hub.r_BcB_B = lay.hub_com_b_m.reshape(3, 1).tolist()
+        insp.hub.IHubPntBc_B = j_hub.tolist()
+    insp.hub.mHub = m_hub
+    return insp, thr, cmd, com, keep
 
+
+def _add_thrusters(insp, desc, effects: dict, mdot: float) -> tuple:
+    """(thruster effector, its command message, objects to keep): the
+    described valves with the thrust effects (loss, tilt, flow per valve)."""
+    from Basilisk.architecture import messaging
+    from Basilisk.simulation import thrusterDynamicEffector
+
+    k = desc.n_thrusters
+    veh = desc.vehicle()  # positions relative to the described centre of mass
     thr = thrusterDynamicEffector.ThrusterDynamicEffector()
     thr.ModelTag = "thrusters"
     pos_b = np.asarray(veh.positions_b_m, float) + np.asarray(desc.com_b_m, float)  # back into B
@@ -313,6 +333,7 @@ def _add_inspector(sim, desc, effects: dict, duration_s: float):
         dirs = np.array([rotmat(qexp(phi[i])) @ dirs[i] for i in range(k)])
     thrust = np.asarray(veh.thrust_n, float) * np.asarray(veh.thrust_scale, float) if np.ndim(veh.thrust_n) else \
         np.full(k, float(veh.thrust_n)) * np.asarray(veh.thrust_scale, float)
+    keep = []
     for i in range(k):
         c = thrusterDynamicEffector.THRSimConfig()
         c.thrLoc_B = pos_b[i].tolist()
@@ -326,71 +347,71 @@ def _add_inspector(sim, desc, effects: dict, duration_s: float):
     cmd = messaging.THRArrayOnTimeCmdMsg()
     thr.cmdsInMsg.subscribeTo(cmd)
     insp.addDynamicEffector(thr)
+    return thr, cmd, keep
 
-    if mdot > 0.0:
-        from Basilisk.simulation import fuelTank
 
-        # All the propellant the run can use, in a tank at the centre of mass
-        # (a point: the bench's inertia stays fixed as mass is used).
-        fuel = min(0.2 * m_hub, 2.0 * mdot * k * duration_s + 1e-3)
-        tank = fuelTank.FuelTank()
-        model = fuelTank.FuelTankModelConstantVolume()
-        model.propMassInit = fuel
-        model.r_TcT_TInit = [[0.0], [0.0], [0.0]]
-        model.radiusTankInit = 1e-4
-        tank.setTankModel(model)
-        tank.setR_TB_B(com.reshape(3, 1).tolist())
-        tank.addThrusterSet(thr)
-        insp.addStateEffector(tank)
-        sim.AddModelToTask("step", tank, 95)
-        m_hub -= fuel
-        keep += [tank, model]
-    if slosh_m > 0.0:
-        from Basilisk.simulation import linearSpringMassDamper
+def _add_fuel_tank(sim, insp, thr, com, m_hub: float, mdot_all: float, duration_s: float, keep: list) -> float:
+    """All the propellant the run can use, in a tank at the centre of mass
+    (a point: the bench's inertia stays fixed as mass is used). Returns the
+    propellant's mass, which the hub no longer carries."""
+    from Basilisk.simulation import fuelTank
 
-        # One spring per body axis through the centre of mass, a third of the
-        # slosh mass each (the bench's slosh is one mass on an isotropic spring).
-        ws = 2.0 * np.pi * SLOSH_FREQ_HZ
-        for ax in range(3):
-            p = linearSpringMassDamper.LinearSpringMassDamper()
-            p.massInit = slosh_m / 3.0
-            p.k = slosh_m / 3.0 * ws**2
-            p.c = 2.0 * SLOSH_DAMPING * ws * slosh_m / 3.0
-            p.r_PB_B = com.reshape(3, 1).tolist()
-            e = np.zeros((3, 1))
-            e[ax] = 1.0
-            p.pHat_B = e.tolist()
-            p.rhoInit, p.rhoDotInit = 0.0, 0.0
-            p.nameOfMassState = f"sloshMass{ax}"
-            p.nameOfRhoState = f"sloshRho{ax}"
-            p.nameOfRhoDotState = f"sloshRhoDot{ax}"
-            insp.addStateEffector(p)
-            sim.AddModelToTask("step", p, 95)
-            keep.append(p)
-    if flex[1] != 0.0:
-        from Basilisk.simulation import hingedRigidBodyStateEffector
+    fuel = min(0.2 * m_hub, 2.0 * mdot_all * duration_s + 1e-3)
+    tank = fuelTank.FuelTank()
+    model = fuelTank.FuelTankModelConstantVolume()
+    model.propMassInit = fuel
+    model.r_TcT_TInit = [[0.0], [0.0], [0.0]]
+    model.radiusTankInit = 1e-4
+    tank.setTankModel(model)
+    tank.setR_TB_B(com.reshape(3, 1).tolist())
+    tank.addThrusterSet(thr)
+    insp.addStateEffector(tank)
+    sim.AddModelToTask("step", tank, 95)
+    keep += [tank, model]
+    return fuel
 
-        # The panel is part of the described vehicle: the hub is what is left
-        # of its mass, centre of mass and inertia (panel_layout).
-        lay = panel_layout(m_hub, com, j_hub, m_total, flex[0], flex[1])
-        panel = hingedRigidBodyStateEffector.HingedRigidBodyStateEffector()
-        panel.mass, panel.d, panel.k, panel.c = lay.mass_kg, lay.arm_m, lay.stiffness, lay.damping
-        panel.IPntS_S = lay.inertia_s.tolist()
-        panel.r_HB_B = lay.hinge_b_m.reshape(3, 1).tolist()
-        # Hinge axis (the H frame's y) along body z: the panel swings in the body x-y plane, its arm along -x.
-        panel.dcm_HB = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
-        panel.thetaInit = lay.theta0_rad
-        panel.thetaDotInit = 0.0
-        panel.nameOfThetaState = "panelTheta"
-        panel.nameOfThetaDotState = "panelThetaDot"
-        insp.addStateEffector(panel)
-        sim.AddModelToTask("step", panel, 95)
-        keep.append(panel)
-        m_hub, j_hub = lay.hub_mass_kg, lay.hub_inertia
-        insp.hub.r_BcB_B = lay.hub_com_b_m.reshape(3, 1).tolist()
-        insp.hub.IHubPntBc_B = j_hub.tolist()
-    insp.hub.mHub = m_hub
-    return insp, thr, cmd, com, keep
+
+def _add_slosh(sim, insp, com, slosh_m: float, keep: list) -> None:
+    """One spring per body axis through the centre of mass, a third of the
+    slosh mass each (the bench's slosh is one mass on an isotropic spring)."""
+    from Basilisk.simulation import linearSpringMassDamper
+
+    ws = 2.0 * np.pi * SLOSH_FREQ_HZ
+    for ax in range(3):
+        p = linearSpringMassDamper.LinearSpringMassDamper()
+        p.massInit = slosh_m / 3.0
+        p.k = slosh_m / 3.0 * ws**2
+        p.c = 2.0 * SLOSH_DAMPING * ws * slosh_m / 3.0
+        p.r_PB_B = com.reshape(3, 1).tolist()
+        e = np.zeros((3, 1))
+        e[ax] = 1.0
+        p.pHat_B = e.tolist()
+        p.rhoInit, p.rhoDotInit = 0.0, 0.0
+        p.nameOfMassState = f"sloshMass{ax}"
+        p.nameOfRhoState = f"sloshRho{ax}"
+        p.nameOfRhoDotState = f"sloshRhoDot{ax}"
+        insp.addStateEffector(p)
+        sim.AddModelToTask("step", p, 95)
+        keep.append(p)
+
+
+def _add_panel(sim, insp, lay: PanelLayout, keep: list) -> None:
+    """The hinged panel of ``lay`` on the hub."""
+    from Basilisk.simulation import hingedRigidBodyStateEffector
+
+    panel = hingedRigidBodyStateEffector.HingedRigidBodyStateEffector()
+    panel.mass, panel.d, panel.k, panel.c = lay.mass_kg, lay.arm_m, lay.stiffness, lay.damping
+    panel.IPntS_S = lay.inertia_s.tolist()
+    panel.r_HB_B = lay.hinge_b_m.reshape(3, 1).tolist()
+    # Hinge axis (the H frame's y) along body z: the panel swings in the body x-y plane, its arm along -x.
+    panel.dcm_HB = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
+    panel.thetaInit = lay.theta0_rad
+    panel.thetaDotInit = 0.0
+    panel.nameOfThetaState = "panelTheta"
+    panel.nameOfThetaDotState = "panelThetaDot"
+    insp.addStateEffector(panel)
+    sim.AddModelToTask("step", panel, 95)
+    keep.append(panel)
 
 
 def flown_mass_properties(description: dict, effects: dict | None = None) -> dict:
