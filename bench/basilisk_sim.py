@@ -445,31 +445,15 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
     the run's start. Returns the IMU's summed outputs per log sample (mean
     specific force, mean rate; IMU axes, without noise) and the truth at the
     IMU ticks and pose captures."""
-    from Basilisk.architecture import messaging
-    from Basilisk.simulation import imuSensor, spacecraft
-    from Basilisk.utilities import SimulationBaseClass, simIncludeGravBody
+    from Basilisk.simulation import spacecraft
+    from Basilisk.utilities import SimulationBaseClass
 
-    k = desc.n_thrusters
     sim = SimulationBaseClass.SimBaseClass()
     sim.SetProgressBar(False) if hasattr(sim, "SetProgressBar") else None
     proc = sim.CreateNewProcess("dynamics")
     step_ns = int(round(h * 1e9))
     proc.addTask(sim.CreateNewTask("step", step_ns))
-
-    grav = simIncludeGravBody.gravBodyFactory()
-    earth = grav.createEarth()
-    earth.isCentralBody = True
-    mu = earth.mu
-    if "differential_j2" in effects:
-        from Basilisk.simulation.sphericalHarmonicsGravityModel import SphericalHarmonicsGravityModel
-
-        j2 = float(np.atleast_1d(effects["differential_j2"])[0])
-        sh = SphericalHarmonicsGravityModel()
-        sh.muBody, sh.radEquator, sh.maxDeg = mu, earth.radEquator, 2
-        # Fully normalised C20 = -J2 / sqrt(5); all else zero.
-        sh.cBar = [[1.0], [0.0, 0.0], [-j2 / np.sqrt(5.0), 0.0, 0.0]]
-        sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
-        earth.gravityModel = sh
+    grav, earth = _gravity(effects)
 
     host = spacecraft.Spacecraft()
     host.ModelTag = "host"
@@ -479,34 +463,85 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
 
     insp, thr, cmd, com, keep = _add_inspector(sim, desc, effects, seg.duration_s)
     grav.addBodiesTo(insp)
-    m_total = float(desc.mass_kg)
-
     if "differential_drag" in effects:
-        from Basilisk.simulation import dragDynamicEffector, exponentialAtmosphere
+        _add_drag(sim, effects, host, insp, com, float(desc.mass_kg), earth.radEquator, keep)
+    imu, c_ib = _add_imu(insp, desc, effects)
+    _initial_states(host, insp, seg, desc, effects, t0, earth.mu)
 
-        p = np.atleast_1d(np.asarray(effects["differential_drag"], float))
-        b_host = float(p[1]) if p.size > 1 else max(0.0, -float(p[0]))
-        b_insp = float(p[0]) + b_host
-        atmo = exponentialAtmosphere.ExponentialAtmosphere()
-        atmo.ModelTag = "atmosphere"
-        atmo.planetRadius = earth.radEquator
-        atmo.baseDensity = AIR_DENSITY_KGPM3
-        atmo.scaleHeight = 1e15  # the bench's constant density
-        sim.AddModelToTask("step", atmo, 99)
-        keep.append(atmo)
-        for sc, b, m in ((host, b_host, host.hub.mHub), (insp, b_insp, m_total)):
-            if b <= 0.0:
-                continue
-            atmo.addSpacecraftToModel(sc.scStateOutMsg)
-            drag = dragDynamicEffector.DragDynamicEffector()
-            drag.coreParams.dragCoeff = 2.0
-            drag.coreParams.projectedArea = b * m / 2.0  # B = C_d A / m
-            # Basilisk applies the force about the body origin B; the bench's drag acts through the centre of mass.
-            drag.coreParams.comOffset = (com if sc is insp else np.zeros(3)).tolist()
-            drag.atmoDensInMsg.subscribeTo(atmo.envOutMsgs[-1])
-            sc.addDynamicEffector(drag)
-            sim.AddModelToTask("step", drag, 98)
-            keep.append(drag)
+    sim.AddModelToTask("step", thr, 100)  # reads its command before the spacecraft integrates the step
+    sim.AddModelToTask("step", host, 90)
+    sim.AddModelToTask("step", insp, 90)
+    sim.AddModelToTask("step", imu, 50)
+    rec_imu = imu.sensorOutMsg.recorder()
+    rec_ins = insp.scStateOutMsg.recorder()
+    rec_host = host.scStateOutMsg.recorder()
+    for r in (rec_imu, rec_ins, rec_host):
+        sim.AddModelToTask("step", r, 10)
+    sim.InitializeSimulation()
+    n_steps = _fly_valves(sim, seg, desc.n_thrusters, h, step_ns, cmd)
+
+    steps = np.rint(rec_imu.times() / step_ns).astype(np.int64)
+    if steps.size != n_steps + 1 or np.any(steps != np.arange(n_steps + 1)):
+        raise RuntimeError("Basilisk recorded an unexpected step sequence")
+    f_mean, w_mean = _imu_means(rec_imu, rec_ins, c_ib, imu_t, T, h)
+    return (f_mean, w_mean, _truth(rec_host, rec_ins, imu_t), _truth(rec_host, rec_ins, pose_cap), com)
+
+
+def _gravity(effects: dict) -> tuple:
+    """(gravity factory, Earth): a point mass, or with J2 by spherical
+    harmonics for differential J2."""
+    from Basilisk.utilities import simIncludeGravBody
+
+    grav = simIncludeGravBody.gravBodyFactory()
+    earth = grav.createEarth()
+    earth.isCentralBody = True
+    if "differential_j2" in effects:
+        from Basilisk.simulation.sphericalHarmonicsGravityModel import SphericalHarmonicsGravityModel
+
+        j2 = float(np.atleast_1d(effects["differential_j2"])[0])
+        sh = SphericalHarmonicsGravityModel()
+        sh.muBody, sh.radEquator, sh.maxDeg = earth.mu, earth.radEquator, 2
+        # Fully normalised C20 = -J2 / sqrt(5); all else zero.
+        sh.cBar = [[1.0], [0.0, 0.0], [-j2 / np.sqrt(5.0), 0.0, 0.0]]
+        sh.sBar = [[0.0], [0.0, 0.0], [0.0, 0.0, 0.0]]
+        earth.gravityModel = sh
+    return grav, earth
+
+
+def _add_drag(sim, effects: dict, host, insp, com, m_total: float, planet_radius_m: float, keep: list) -> None:
+    """Drag on the host and the inspector in a constant-density atmosphere,
+    their ballistic coefficients from the differential drag's parameters."""
+    from Basilisk.simulation import dragDynamicEffector, exponentialAtmosphere
+
+    p = np.atleast_1d(np.asarray(effects["differential_drag"], float))
+    b_host = float(p[1]) if p.size > 1 else max(0.0, -float(p[0]))
+    b_insp = float(p[0]) + b_host
+    atmo = exponentialAtmosphere.ExponentialAtmosphere()
+    atmo.ModelTag = "atmosphere"
+    atmo.planetRadius = planet_radius_m
+    atmo.baseDensity = AIR_DENSITY_KGPM3
+    atmo.scaleHeight = 1e15  # the bench's constant density
+    sim.AddModelToTask("step", atmo, 99)
+    keep.append(atmo)
+    for sc, b, m in ((host, b_host, host.hub.mHub), (insp, b_insp, m_total)):
+        if b <= 0.0:
+            continue
+        atmo.addSpacecraftToModel(sc.scStateOutMsg)
+        drag = dragDynamicEffector.DragDynamicEffector()
+        drag.coreParams.dragCoeff = 2.0
+        drag.coreParams.projectedArea = b * m / 2.0  # B = C_d A / m
+        # Basilisk applies the force about the body origin B; the bench's drag acts through the centre of mass.
+        drag.coreParams.comOffset = (com if sc is insp else np.zeros(3)).tolist()
+        drag.atmoDensInMsg.subscribeTo(atmo.envOutMsgs[-1])
+        sc.addDynamicEffector(drag)
+        sim.AddModelToTask("step", drag, 98)
+        keep.append(drag)
+
+
+def _add_imu(insp, desc, effects: dict) -> tuple:
+    """(Basilisk's IMU on the inspector, its body-to-IMU rotation) with the
+    IMU effects (misalignment, biases, scale)."""
+    from Basilisk.simulation import imuSensor
 
     imu = imuSensor.ImuSensor()
     imu.ModelTag = "imu"
@@ -520,8 +555,11 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
     imu.senRotBias = np.asarray(effects.get("gyro_bias", np.zeros(3)), float).tolist()
     if "gyro_scale" in effects:
         imu.gyroScale = (1.0 + np.asarray(effects["gyro_scale"], float)).tolist()  # per IMU axis, as the library's
+    return imu, c_ib
 
-    # Initial states: the run starts at rest in the Hill frame.
+
+def _initial_states(host, insp, seg, desc, effects: dict, t0: float, mu: float) -> None:
+    """The run starts at rest in the Hill frame of the host's orbit."""
     r_c, v_c = _host_orbit(desc, effects, t0, mu)
     c_hn, thd = hill_frame(r_c, v_c)
     c_nh = c_hn[0].T
@@ -537,16 +575,11 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
     insp.hub.sigma_BNInit = dcm_to_mrp((c_nh @ c_hb).T).reshape(3, 1).tolist()
     insp.hub.omega_BN_BInit = (c_hb.T @ w_hn).reshape(3, 1).tolist()
 
-    sim.AddModelToTask("step", thr, 100)  # reads its command before the spacecraft integrates the step
-    sim.AddModelToTask("step", host, 90)
-    sim.AddModelToTask("step", insp, 90)
-    sim.AddModelToTask("step", imu, 50)
-    rec_imu = imu.sensorOutMsg.recorder()
-    rec_ins = insp.scStateOutMsg.recorder()
-    rec_host = host.scStateOutMsg.recorder()
-    for r in (rec_imu, rec_ins, rec_host):
-        sim.AddModelToTask("step", r, 10)
-    sim.InitializeSimulation()
+
+def _fly_valves(sim, seg, k: int, h: float, step_ns: int, cmd) -> int:
+    """Run the simulation through the segment, writing each valve switch's
+    on-times when it happens. Returns the number of steps flown."""
+    from Basilisk.architecture import messaging
 
     n_steps = int(round(seg.duration_s / h))
     payload = messaging.THRArrayOnTimeCmdMsgPayload()
@@ -560,10 +593,12 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
         cmd.write(payload, s * step_ns)
     sim.ConfigureStopTime(n_steps * step_ns)
     sim.ExecuteSimulation()
+    return n_steps
 
-    steps = np.rint(rec_imu.times() / step_ns).astype(np.int64)
-    if steps.size != n_steps + 1 or np.any(steps != np.arange(n_steps + 1)):
-        raise RuntimeError("Basilisk recorded an unexpected step sequence")
+
+def _imu_means(rec_imu, rec_ins, c_ib, imu_t, T: float, h: float) -> tuple:
+    """(mean specific force, mean rate) over each log sample's interval, in
+    IMU axes, from Basilisk's per-step delta-v and delta-angle."""
     dv = np.asarray(rec_imu.DVFramePlatform, float)
     dv = dv - imu_dv_error(np.asarray(rec_ins.TotalAccumDV_BN_B, float), np.asarray(rec_ins.sigma_BN, float)) @ c_ib.T
     dr = np.asarray(rec_imu.DRFramePlatform, float)
@@ -577,20 +612,21 @@ def _fly_segment(seg, t0: float, desc, effects: dict, T: float, imu_t, pose_cap,
         for p in dr[a + 1:b + 1]:
             q = qmul(q, qexp(p))
         w_mean[j] = qlog(q) / T
+    return f_mean, w_mean
 
-    def truth(idx):
-        idx = np.asarray(idx, np.int64)
-        rc, vc = np.asarray(rec_host.r_CN_N)[idx], np.asarray(rec_host.v_CN_N)[idx]
-        rd, vd = np.asarray(rec_ins.r_CN_N)[idx], np.asarray(rec_ins.v_CN_N)[idx]
-        rb = np.asarray(rec_ins.r_BN_N)[idx]
-        r, v, c_hn = relative_hill(rc, vc, rd, vd)
-        rb_h = np.einsum("nij,nj->ni", c_hn, rb - rc)
-        c_bn = mrp_to_dcm_bn(np.asarray(rec_ins.sigma_BN)[idx])
-        q = dcm_to_quat(c_hn @ np.transpose(c_bn, (0, 2, 1)))
-        w = np.asarray(rec_ins.omega_BN_B)[idx]
-        return r, v, q, w, rb_h
 
-    return f_mean, w_mean, truth(imu_t), truth(pose_cap), com
+def _truth(rec_host, rec_ins, idx) -> tuple:
+    """(r, v, q, w, body origin) in the Hill frame at the recorded steps ``idx``."""
+    idx = np.asarray(idx, np.int64)
+    rc, vc = np.asarray(rec_host.r_CN_N)[idx], np.asarray(rec_host.v_CN_N)[idx]
+    rd, vd = np.asarray(rec_ins.r_CN_N)[idx], np.asarray(rec_ins.v_CN_N)[idx]
+    rb = np.asarray(rec_ins.r_BN_N)[idx]
+    r, v, c_hn = relative_hill(rc, vc, rd, vd)
+    rb_h = np.einsum("nij,nj->ni", c_hn, rb - rc)
+    c_bn = mrp_to_dcm_bn(np.asarray(rec_ins.sigma_BN)[idx])
+    q = dcm_to_quat(c_hn @ np.transpose(c_bn, (0, 2, 1)))
+    w = np.asarray(rec_ins.omega_BN_B)[idx]
+    return r, v, q, w, rb_h
 
 
 # --- the log ----------------------------------------------------------------------
