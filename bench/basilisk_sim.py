@@ -647,32 +647,16 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
     T = 1.0 / (desc.imu_rate_hz or 10.0)
     if abs(T / h - round(T / h)) > 1e-9:
         raise ValueError(f"the IMU interval {T} s is not a whole number of Basilisk steps ({h} s)")
-    nT = int(round(T / h))
-    pref = desc.pose_reference_b_m  # in B: Basilisk knows where B is
-    lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
     latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
-    s_a = desc.accel_sigma_mps2 if noise else 0.0
-    s_g = desc.gyro_sigma_rps if noise else 0.0
     out = {k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von",
                            "tt", "tr", "tv", "tq", "tw")}
     segments = []
     t0 = 0.0
     for seg in plan:
-        n_steps = int(round(seg.duration_s / h))
-        nominal = np.arange(nT, n_steps + 1, nT)
-        jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
-        # As the bench: a sample whose interval would start before the run is left out, the last ends at the run's end.
-        t_imu = np.minimum(nominal * h + jit, n_steps * h)
-        t_imu = t_imu[t_imu - T >= -1e-12]
-        imu_i = np.unique(np.clip(np.rint(t_imu / h).astype(np.int64), nT, n_steps))
-        n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
-        pose_t = clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
-        pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
-        pose_i = np.rint(pose_t / h).astype(np.int64)
-        cap_i = np.rint((pose_t - latency) / h).astype(np.int64)
-        ok = (cap_i >= 0) & (pose_i <= n_steps)
-        pose_i, cap_i = pose_i[ok], cap_i[ok]
+        imu_i, pose_i, cap_i = _sample_steps(seg, clocks, rng, T, h, latency)
         f_mean, w_mean, tr_imu, tr_pose, _ = _fly_segment(seg, t0, desc, effects, T, imu_i, cap_i, h)
+        s_a = desc.accel_sigma_mps2 if noise else 0.0
+        s_g = desc.gyro_sigma_rps if noise else 0.0
         acc = f_mean + s_a * rng.standard_normal(f_mean.shape)
         gyr = w_mean + s_g * rng.standard_normal(w_mean.shape)
         keep = np.ones(imu_i.size, bool)
@@ -682,18 +666,7 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         out["imu_t"].append(imu_t[keep])
         out["acc"].append(acc[keep])
         out["gyr"].append(gyr[keep])
-        _, _, q_p, _, rb_p = tr_pose
-        for j in range(pose_i.size):
-            r_meas = rb_p[j] + rotmat(q_p[j]) @ (pref + lever)
-            sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05) if noise else 0.0
-            r_meas = r_meas + sig * rng.standard_normal(3)
-            q_meas = qnormalize(qmul(q_p[j], qexp((POSE_ATT_SIGMA_RAD if noise else 0.0) * rng.standard_normal(3))))
-            stamp = t0 + pose_i[j] * h - desc.pose_time_offset_s + desc.pose_latency_s
-            out["pc"].append(stamp)
-            out["pd"].append(stamp + clocks.pose_delay_s)
-            out["pr"].append(r_meas)
-            out["pq"].append(q_meas)
-            out["prs"].append(max(sig, 1e-6))
+        _measure_poses(out, desc, effects, clocks, rng, noise, tr_pose, t0 + pose_i * h)
         out["vt"].append(t0 + np.asarray(seg.cmd_t_s, float))
         out["von"].append(np.asarray(seg.cmd_on_s, float).reshape(-1, desc.n_thrusters))
         r, v, q, w, _ = tr_imu
@@ -705,6 +678,53 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         segments.append({"t_start_s": float(t0), "t_end_s": float(t0 + seg.duration_s), "manoeuvre": seg.manoeuvre,
                          "starts_at_rest": bool(np.all(np.asarray(seg.v0_hill_mps) == 0.0))})
         t0 += seg.duration_s + clocks.gap_s
+    log = _log_of(out, description, segments, seed, h, with_truth)
+    key = {"seed": int(seed), "engine": "basilisk",
+           "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
+    return log, key
+
+
+def _sample_steps(seg, clocks: Clocks, rng, T: float, h: float, latency: float) -> tuple:
+    """(IMU sample steps, pose delivery steps, pose capture steps) of one
+    run, with the clocks' jitter."""
+    nT = int(round(T / h))
+    n_steps = int(round(seg.duration_s / h))
+    nominal = np.arange(nT, n_steps + 1, nT)
+    jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
+    # As the bench: a sample whose interval would start before the run is left out, the last ends at the run's end.
+    t_imu = np.minimum(nominal * h + jit, n_steps * h)
+    t_imu = t_imu[t_imu - T >= -1e-12]
+    imu_i = np.unique(np.clip(np.rint(t_imu / h).astype(np.int64), nT, n_steps))
+    n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
+    pose_t = clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
+    pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
+    pose_i = np.rint(pose_t / h).astype(np.int64)
+    cap_i = np.rint((pose_t - latency) / h).astype(np.int64)
+    ok = (cap_i >= 0) & (pose_i <= n_steps)
+    return imu_i, pose_i[ok], cap_i[ok]
+
+
+def _measure_poses(out: dict, desc, effects: dict, clocks: Clocks, rng, noise: bool, tr_pose, t_pose) -> None:
+    """The pose sensor's measurements of the truth at its captures (its
+    reference point and lever arm, its noise), stamped as the log states."""
+    pref = desc.pose_reference_b_m  # in B: Basilisk knows where B is
+    lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
+    _, _, q_p, _, rb_p = tr_pose
+    for j in range(t_pose.size):
+        r_meas = rb_p[j] + rotmat(q_p[j]) @ (pref + lever)
+        sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05) if noise else 0.0
+        r_meas = r_meas + sig * rng.standard_normal(3)
+        q_meas = qnormalize(qmul(q_p[j], qexp((POSE_ATT_SIGMA_RAD if noise else 0.0) * rng.standard_normal(3))))
+        stamp = t_pose[j] - desc.pose_time_offset_s + desc.pose_latency_s
+        out["pc"].append(stamp)
+        out["pd"].append(stamp + clocks.pose_delay_s)
+        out["pr"].append(r_meas)
+        out["pq"].append(q_meas)
+        out["prs"].append(max(sig, 1e-6))
+
+
+def _log_of(out: dict, description: dict, segments: list, seed: int, h: float, with_truth: bool) -> FlightLog:
+    """The flight log (format 2) of the collected streams."""
     cat = {k: np.concatenate(v) for k, v in out.items() if k in ("imu_t", "acc", "gyr", "vt", "von", "tt", "tr", "tv",
                                                                  "tq", "tw")}
     pc = np.asarray(out["pc"], float)
@@ -722,6 +742,4 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
     if with_truth:
         log.streams["truth"] = {"t_s": cat["tt"], "r_hill_m": cat["tr"], "v_hill_mps": cat["tv"], "q_hb": cat["tq"],
                                 "omega_bi_b_rps": cat["tw"]}
-    key = {"seed": int(seed), "engine": "basilisk",
-           "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
-    return log, key
+    return log
