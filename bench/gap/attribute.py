@@ -160,15 +160,19 @@ def ln_bayes_factor(two_dll: float, u: np.ndarray, Ju: np.ndarray, nonnegative: 
     return float(0.5 * two_dll + ln_prior + 0.5 * k * np.log(2 * np.pi) - 0.5 * logdet)
 
 
-def bounded_fit(J: np.ndarray, s: np.ndarray, lower: float, upper: float) -> np.ndarray:
+def bounded_fit(J: np.ndarray, s: np.ndarray, lower, upper) -> np.ndarray:
     """J theta* with theta* = argmin |s - J theta|^2 over lower <= theta <= upper:
     the part of ``s`` a candidate with those physical bounds can reproduce.
-    Unbounded (or symmetric bounds the fit stays inside): the projection onto
-    J's range."""
+    ``lower``, ``upper``: one bound for every parameter, or one per column
+    (several candidates' Jacobians stacked side by side).
+    Unbounded (or bounds the fit stays inside): the projection onto J's
+    range."""
     U, sv, _ = np.linalg.svd(J, full_matrices=False)
     U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
     p = U @ (U.T @ s)
-    if lower == -np.inf and upper == np.inf:
+    lower = np.broadcast_to(np.asarray(lower, float), J.shape[1:])
+    upper = np.broadcast_to(np.asarray(upper, float), J.shape[1:])
+    if np.all(np.isneginf(lower)) and np.all(np.isposinf(upper)):
         return p
     th, *_ = np.linalg.lstsq(J, p, rcond=None)
     if np.all(th >= lower) and np.all(th <= upper):
@@ -180,7 +184,7 @@ def bounded_fit(J: np.ndarray, s: np.ndarray, lower: float, upper: float) -> np.
     norm = np.linalg.norm(J, axis=0)
     keep = norm > 0
     Js = J[:, keep] / norm[keep]
-    x = lsq_linear(Js, s, bounds=(lower * norm[keep], upper * norm[keep]), method="bvls").x
+    x = lsq_linear(Js, s, bounds=(lower[keep] * norm[keep], upper[keep] * norm[keep]), method="bvls").x
     return Js @ x
 
 

@@ -92,24 +92,11 @@ def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
 def _stacked_fit(jac: dict, d, names: list, v: np.ndarray) -> np.ndarray:
     """The part of ``v`` the names' candidates reproduce together (-J theta,
     every parameter inside its physical bounds)."""
-    from scipy.optimize import lsq_linear
+    from bench.gap.attribute import bounded_fit, candidate
 
-    from bench.gap.attribute import candidate
-
-    J = np.hstack([-jac[n] for n in names])
     lo = np.concatenate([np.full(jac[n].shape[1], candidate(d, n).lower) for n in names])
     hi = np.concatenate([np.full(jac[n].shape[1], candidate(d, n).bound) for n in names])
-    norm = np.linalg.norm(J, axis=0)
-    keep = norm > 0
-    if not np.any(keep):
-        return np.zeros_like(v)
-    Js = J[:, keep] / norm[keep]
-    lo, hi = lo[keep] * norm[keep], hi[keep] * norm[keep]
-    if np.all(np.isinf(lo)) and np.all(np.isinf(hi)):
-        x, *_ = np.linalg.lstsq(Js, v, rcond=None)
-    else:
-        x = lsq_linear(Js, v, bounds=(lo, hi), method="bvls").x
-    return Js @ x
+    return bounded_fit(np.hstack([-jac[n] for n in names]), v, lo, hi)
 
 
 def set_separability_of_logs(log0, log1, true_in: list) -> dict:
