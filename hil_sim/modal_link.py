@@ -9,6 +9,7 @@ arrives, so its answer comes one image late). The on-board plate model is
 told a first period prior_period_factor times the truth's, so every a
 priori frequency is off by that factor.
 """
+
 from __future__ import annotations
 
 import time
@@ -26,7 +27,7 @@ TM_MODAL = pk.APID_BY_NAME["tm_modal"].apid
 CONFIG = pk.APID_BY_NAME["cmd_config"].apid
 RESET = pk.APID_BY_NAME["cmd_reset"].apid
 PARAM_MODAL_PERIOD1 = 15  # cmd_config id (docs/LINK.md)
-RESET_MODAL = 0x4         # cmd_reset target bit
+RESET_MODAL = 0x4  # cmd_reset target bit
 
 
 @dataclass
@@ -44,9 +45,22 @@ class PlateHilConfig:
 
 def parse_tm_modal(p: pk.Packet) -> dict:
     v = p.values()
-    return dict(t_s=p.t_s, image_id=v[0], status=v[1], decomposition=v[2], fused=bool(v[3]), n_modes=v[4],
-                n_used=v[5], n_skipped=v[6], rcond=v[7], nis=v[8], omega_radps=np.array(v[9:19]),
-                alpha_ps=np.array(v[19:29]), amplitude=np.array(v[29:39]), amplitude_sigma=np.array(v[39:49]))
+    return dict(
+        t_s=p.t_s,
+        image_id=v[0],
+        status=v[1],
+        decomposition=v[2],
+        fused=bool(v[3]),
+        n_modes=v[4],
+        n_used=v[5],
+        n_skipped=v[6],
+        rcond=v[7],
+        nis=v[8],
+        omega_radps=np.array(v[9:19]),
+        alpha_ps=np.array(v[19:29]),
+        amplitude=np.array(v[29:39]),
+        amplitude_sigma=np.array(v[39:49]),
+    )
 
 
 def plate_image_points(plate, sensor, coeffs, rng, noise_frac=0.03):
@@ -60,72 +74,105 @@ def plate_image_points(plate, sensor, coeffs, rng, noise_frac=0.03):
     return p, sigma
 
 
+class _PlateLink:
+    """The bench's end of the link during a plate run: sends in pieces,
+    relaying between them, and collects the flight side's modal answers."""
+
+    def __init__(self, link):
+        self.link = link
+        self.down = pk.Deframer(pk.FROM_FLIGHT)
+        self.answers: dict = {}
+        self.uplink = bytearray()  # every byte sent, for replay in-process
+
+    def send(self, data: bytes) -> None:
+        # In pieces, relaying between them: the relay runs in this thread and
+        # a pty holds only a few kB, so one 30 kB write would block forever.
+        self.uplink.extend(data)
+        for i in range(0, len(data), 1024):
+            self.link.write(data[i : i + 1024])
+            self.link.pump(0.0)
+            self.collect_now()
+
+    def collect_now(self) -> None:
+        data = self.link.read_available()
+        for item in self.down.feed(data) if data else []:
+            if isinstance(item, pk.Packet) and item.apid == TM_MODAL:
+                m = parse_tm_modal(item)
+                self.answers[m["image_id"]] = m
+
+    def collect(self, deadline: float, want=None) -> bool:
+        while True:
+            self.link.pump(0.005)
+            self.collect_now()
+            if want is not None and want in self.answers:
+                return True
+            if time.perf_counter() >= deadline:
+                return False
+
+
+def _configure(io: _PlateLink, sender, plate, cfg: PlateHilConfig) -> None:
+    """Tell the flight side the a priori lowest period and reset its modal
+    tracker (repeated: the link may drop a command)."""
+    period = float(2 * np.pi / plate.omega_radps[0]) * cfg.prior_period_factor
+    for _ in range(cfg.command_repeats):
+        io.send(
+            sender.frame(CONFIG, 0.0, pk.pack_payload(CONFIG, PARAM_MODAL_PERIOD1, 0, period))
+            + sender.frame(
+                RESET, 0.0, pk.pack_payload(RESET, RESET_MODAL, 0, *[0.0] * 6, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            )
+        )
+    io.collect(time.perf_counter() + 0.05)
+
+
 def run_plate_hil(cfg: PlateHilConfig, progress=None) -> dict:
+    """Fly the plate's range images to fsw_node over the link, one image per
+    step, and collect its modal answers with their latency."""
     rng = np.random.default_rng(cfg.seed)
     plate = st.Plate(n_modes=pk.MODAL_TM_MODES)
     sensor = st.plate_sensor(plate)
     amp, phase = st.plate_truth(plate, rng)
     link = open_link(faults_up=cfg.faults, faults_down=cfg.faults, seed=cfg.seed, device=cfg.device, baud=cfg.baud)
-    sender, down = pk.Sender(), pk.Deframer(pk.FROM_FLIGHT)
-    answers: dict = {}
-    uplink = bytearray()  # every byte sent, for replay in-process
+    sender, io = pk.Sender(), _PlateLink(link)
     latency, points_sent, truth = [], [], []
-
-    def send(data: bytes):
-        # In pieces, relaying between them: the relay runs in this thread and
-        # a pty holds only a few kB, so one 30 kB write would block forever.
-        uplink.extend(data)
-        for i in range(0, len(data), 1024):
-            link.write(data[i:i + 1024])
-            link.pump(0.0)
-            collect_now()
-
-    def collect_now():
-        data = link.read_available()
-        for item in down.feed(data) if data else []:
-            if isinstance(item, pk.Packet) and item.apid == TM_MODAL:
-                m = parse_tm_modal(item)
-                answers[m["image_id"]] = m
-
-    def collect(deadline: float, want=None) -> bool:
-        while True:
-            link.pump(0.005)
-            collect_now()
-            if want is not None and want in answers:
-                return True
-            if time.perf_counter() >= deadline:
-                return False
-
     wall0 = time.perf_counter()
     try:
-        period = float(2 * np.pi / plate.omega_radps[0]) * cfg.prior_period_factor
-        for _ in range(cfg.command_repeats):
-            send(sender.frame(CONFIG, 0.0, pk.pack_payload(CONFIG, PARAM_MODAL_PERIOD1, 0, period))
-                 + sender.frame(RESET, 0.0, pk.pack_payload(RESET, RESET_MODAL, 0, *[0.0] * 6, 1.0, 0.0, 0.0, 0.0,
-                                                            0.0, 0.0, 0.0)))
-        collect(time.perf_counter() + 0.05)
+        _configure(io, sender, plate, cfg)
         for k in range(cfg.images):
             t = k * cfg.dt_s
             coeffs = st.plate_coeffs(plate, amp, phase, t)
             p, sigma = plate_image_points(plate, sensor, coeffs, rng)
             data = b"".join(sender.frame(SEG, t, pl, seq_flags=f) for f, pl in pk.range_image_segments(k, p, sigma))
             t0 = time.perf_counter()
-            send(data)
-            collect(t0 + cfg.answer_timeout_s, want=k)
+            io.send(data)
+            io.collect(t0 + cfg.answer_timeout_s, want=k)
             latency.append(time.perf_counter() - t0)
             points_sent.append(len(p))
             truth.append(coeffs)
             if progress and (k + 1) % 20 == 0:
                 progress(k + 1, cfg.images)
-        collect(time.perf_counter() + cfg.answer_timeout_s)
+        io.collect(time.perf_counter() + cfg.answer_timeout_s)
     finally:
         wall = time.perf_counter() - wall0
         ended = link.close()
-    return dict(plate=plate, amp=amp, phase=phase, answers=answers, points_sent=np.array(points_sent),
-                truth=np.array(truth), latency_s=np.array(latency), wall_s=wall, uplink=bytes(uplink),
-                bytes_up=link.bytes_up, bytes_down=link.bytes_down, faults_up=link.up.counts.__dict__,
-                faults_down=link.down.counts.__dict__, bench_rejected_by_reason=dict(down.rejected),
-                fsw_node_exit_code=ended["exit_code"], fsw_node_summary=ended["stderr"].strip(), cfg=cfg)
+    return dict(
+        plate=plate,
+        amp=amp,
+        phase=phase,
+        answers=io.answers,
+        points_sent=np.array(points_sent),
+        truth=np.array(truth),
+        latency_s=np.array(latency),
+        wall_s=wall,
+        uplink=bytes(io.uplink),
+        bytes_up=link.bytes_up,
+        bytes_down=link.bytes_down,
+        faults_up=link.up.counts.__dict__,
+        faults_down=link.down.counts.__dict__,
+        bench_rejected_by_reason=dict(io.down.rejected),
+        fsw_node_exit_code=ended["exit_code"],
+        fsw_node_summary=ended["stderr"].strip(),
+        cfg=cfg,
+    )
 
 
 def plate_hil_summary(res: dict) -> dict:

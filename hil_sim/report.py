@@ -1,4 +1,5 @@
 """Report folder of a HIL run: the flight log (docs/FLIGHT_LOG.md) and plots."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,9 +19,9 @@ def plot_run(run: DockingRun, path: Path, title: str):
     for block, a, unit in (("pos", ax[0], "m"), ("vel", ax[1], "m/s")):
         off = 0 if block == "pos" else 3
         for i in range(3):
-            line, = a.plot(e["t"], e[block][:, i], label=f"{labels[i]}")
-            a.plot(e["t"], 3 * e["sigma"][:, off + i], "--", color=line.get_color(), lw=0.7)
-            a.plot(e["t"], -3 * e["sigma"][:, off + i], "--", color=line.get_color(), lw=0.7)
+            (line,) = a.plot(e.t, e.block(block)[:, i], label=f"{labels[i]}")
+            a.plot(e.t, 3 * e.sigma[:, off + i], "--", color=line.get_color(), lw=0.7)
+            a.plot(e.t, -3 * e.sigma[:, off + i], "--", color=line.get_color(), lw=0.7)
         a.set_ylabel(f"{block} error [{unit}]")
         a.legend(loc="upper right", ncol=3)
         a.grid(alpha=0.3)
@@ -57,10 +58,15 @@ def plot_latency(lat_ms: np.ndarray, path: Path):
 
 
 def write_hil_report(res: dict, summary: dict, out: Path):
-    cfg = {"scenario": summary["scenario"], "seed": summary["seed"], "faults": summary["faults"],
-           "orbit_radius_m": 6378137.0 + 500e3, "dt_imu_s": 0.1, "source": "proxops hil"}
+    cfg = {
+        "scenario": summary["scenario"],
+        "seed": summary["seed"],
+        "faults": summary["faults"],
+        "orbit_radius_m": 6378137.0 + 500e3,
+        "dt_imu_s": 0.1,
+        "source": "proxops hil",
+    }
     write_flight_log(out / "flight_log.h5", runs_to_flight_log(res["runs"], cfg))
     plot_run(res["runs"][0], out / "nav_errors.png", "Docking over the HIL link: navigation errors")
     if res["steps"]:
         plot_latency(res["step_latency_ms"], out / "step_latency.png")
-

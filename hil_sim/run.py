@@ -8,6 +8,7 @@ mode runs as fast as the link answers; real-time mode paces the loop at the
 IMU rate by the wall clock. A run longer than one docking chains docking
 runs (each one a cmd_reset of the flight filter, time tags running on).
 """
+
 from __future__ import annotations
 
 import time
@@ -70,7 +71,9 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
     try:
         k = 0
         while t_done < cfg.duration_s - 1e-9:
-            sc = ScenarioConfig(**{**cfg.scenario.__dict__, "t_max_s": min(cfg.scenario.t_max_s, cfg.duration_s - t_done)})
+            sc = ScenarioConfig(
+                **{**cfg.scenario.__dict__, "t_max_s": min(cfg.scenario.t_max_s, cfg.duration_s - t_done)}
+            )
             nav.time_offset_s = t_done
             nav.configure_nav(nav_config(sc), t_s=0.0)
             pacer = _Pacer(cfg.realtime, t_done, wall0)
@@ -79,8 +82,10 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
             # A run not docked when the time left ran out was cut by the
             # end of the HIL run, not failed by the scenario's own limit.
             run.summary.cut_by_duration = bool(
-                not run.summary.docked and sc.t_max_s < cfg.scenario.t_max_s
-                and run.summary.t_end_s >= sc.t_max_s - sc.dt_s)
+                not run.summary.docked
+                and sc.t_max_s < cfg.scenario.t_max_s
+                and run.summary.t_end_s >= sc.t_max_s - sc.dt_s
+            )
             runs.append(run)
             t_done += float(run.summary.t_end_s) + sc.dt_s
             k += 1
@@ -125,8 +130,8 @@ def nav_errors(runs) -> dict:
     pos, vel = [], []
     for run in runs:
         e = errors_from_first_update(run)
-        if len(e["t"]) == 0:
+        if len(e.t) == 0:
             continue
-        pos.append(float(np.max(np.abs(e["pos"]))))
-        vel.append(float(np.max(np.abs(e["vel"]))))
+        pos.append(float(np.max(np.abs(e.pos))))
+        vel.append(float(np.max(np.abs(e.vel))))
     return {"max_pos_err_m": pos, "max_vel_err_mps": vel}

@@ -5,8 +5,10 @@ Per image: the estimator's mode shapes at the measured points -> flight
 decomposition (eqs. 2-4) -> flight filter step (bank or joint, eqs. 5-7) ->
 shape reconstruction (eqs. 8-9) for the shape error.
 """
+
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
@@ -62,8 +64,15 @@ def run_trial(item: dict, spec: dict) -> dict:
 # Pendulum (experiment analogue)
 
 
-def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate_hz: float = 15.0,
-                   n_points: int = 600, noise_m: float = 0.003, keep_series: bool = False):
+def pendulum_trial(
+    seed: int,
+    kind: str = "bank",
+    duration_s: float = 10.0,
+    rate_hz: float = 15.0,
+    n_points: int = 600,
+    noise_m: float = 0.003,
+    keep_series: bool = False,
+):
     fb = _fb()
     rng = np.random.default_rng(seed)
     pend = st.Pendulum()
@@ -72,8 +81,17 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
     phase = rng.uniform(0, 2 * np.pi, m)
     th_est = pend.estimator_modes(rng, n_modes=m)
     w0 = st.PENDULUM_OMEGA_PRIOR
-    filt = make_filter(kind, m, w0, st.PENDULUM_ALPHA_PRIOR, sigma_v0=w0 * 0.05,
-                       sigma_w0=0.1 * w0, sigma_a0=[0.1, 0.1, 1.0], q_a=1e-9, q_v=1e-7)
+    filt = make_filter(
+        kind,
+        m,
+        w0,
+        st.PENDULUM_ALPHA_PRIOR,
+        sigma_v0=w0 * 0.05,
+        sigma_w0=0.1 * w0,
+        sigma_a0=[0.1, 0.1, 1.0],
+        q_a=1e-9,
+        q_v=1e-7,
+    )
     dec = fb.ModalDecomposition3(sigma_e_m=noise_m)
     dt = 1.0 / rate_hz
     steps = int(round(duration_s * rate_hz))
@@ -117,11 +135,42 @@ def pendulum_trial(seed: int, kind: str = "bank", duration_s: float = 10.0, rate
 # Plate (simulation)
 
 
-def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int = 180, dt_s: float = 60.0,
-                prior_err: float = 0.1, noise_frac: float = 0.03, keep_series: bool = False, oracle: bool = True,
-                batch_ml_periods=(), crb_periods=(), acquire_periods=None, acquire_sigma_rel=0.01,
-                acquire_with="flight", acquire_grid_sigmas=3.0, ut_alpha=1.0, points_at="measured",
-                coarse_check=False):
+@dataclass(frozen=True)
+class _TrialSetup:
+    """What a plate trial's scoring needs beside its flight: image times, the
+    true and a priori frequencies, the modes excited enough to be scored."""
+
+    t: np.ndarray  # image times [s]
+    dt_s: float
+    amp: np.ndarray  # true modal amplitudes
+    phase: np.ndarray
+    w_true: np.ndarray  # true frequencies [rad/s]
+    w_prior: np.ndarray  # a priori frequencies
+    sigma_w_prior: np.ndarray  # their 1-sigma
+    strong: np.ndarray  # modes excited >= 0.2 (the others' frequencies are not observable)
+    period1: float  # the lowest mode's period [s]
+
+
+def plate_trial(
+    seed: int,
+    n_modes: int = 10,
+    kind: str = "bank",
+    n_images: int = 180,
+    dt_s: float = 60.0,
+    prior_err: float = 0.1,
+    noise_frac: float = 0.03,
+    keep_series: bool = False,
+    oracle: bool = True,
+    batch_ml_periods=(),
+    crb_periods=(),
+    acquire_periods=None,
+    acquire_sigma_rel=0.01,
+    acquire_with="flight",
+    acquire_grid_sigmas=3.0,
+    ut_alpha=1.0,
+    points_at="measured",
+    coarse_check=False,
+):
     """One simulation run. prior_err: a priori frequency error, drawn per mode
     uniformly in +-prior_err (the paper assumes it bounded by about 20 %).
     batch_ml_periods: times [lowest-mode periods] at which the batch ML
@@ -145,54 +194,84 @@ def plate_trial(seed: int, n_modes: int = 10, kind: str = "bank", n_images: int 
     (bench.sim.structure.plate_points). coarse_check: also compare every
     image's coarse amplitudes with the truth (normalised estimation error
     squared, per-mode bias in units of the reported sigma)."""
-    rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
-    sensor = st.plate_sensor(plate)
-    amp, phase = st.plate_truth(plate, rng)
-    w_true = plate.omega_radps
-    w_prior = w_true * (1 + rng.uniform(-prior_err, prior_err, n_modes))
-    batch_ml_images = _images_at(batch_ml_periods, w_true[0], dt_s, n_images, "batch ML reference")
-    crb_images = _images_at(crb_periods, w_true[0], dt_s, n_images, "Cramer-Rao bound")
+    w1 = plate.omega_radps[0]
+    batch_ml_images = _images_at(batch_ml_periods, w1, dt_s, n_images, "batch ML reference")
+    crb_images = _images_at(crb_periods, w1, dt_s, n_images, "Cramer-Rao bound")
     new_filter = partial(_plate_filter, kind, n_modes, ut_alpha)
     if acquire_periods is not None:
         if not crb_periods:
             raise ValueError("the two-pass prototype is scored at the Cramer-Rao times: give crb_periods (--crb-at)")
-        (acquire_image,) = _images_at([acquire_periods], w_true[0], dt_s, n_images, "acquisition")
+        (acquire_image,) = _images_at([acquire_periods], w1, dt_s, n_images, "acquisition")
     keep_cov = bool(batch_ml_periods or crb_periods or acquire_periods or coarse_check)
     fl = _PlateFlight(plate, n_images, keep_cov, keep_records=acquire_periods is not None)
-    sigma_w_prior = 0.1 * w_prior
-    fl.fly(sensor, amp, phase, rng, dt_s, noise_frac, points_at, new_filter(w_prior, sigma_w_prior),
-           new_filter(w_true, 1e-6 * w_true) if oracle else None)
-    t = np.arange(n_images) * dt_s
-    period1 = 2 * np.pi / w_true[0]
-    strong = amp >= 0.2  # see _plate_summary
-    out = _plate_summary(seed, kind, dt_s, amp, w_true, w_prior, fl)
+    su = _fly_plate(fl, plate, seed, dt_s, prior_err, noise_frac, points_at, new_filter, oracle)
+    out = _plate_summary(seed, kind, dt_s, su.amp, su.w_true, su.w_prior, fl)
     if oracle:
-        out.update(_shape_convergence(fl.shape_rms, fl.shape_rms_oracle, dt_s, period1))
+        out.update(_shape_convergence(fl.shape_rms, fl.shape_rms_oracle, dt_s, su.period1))
     if batch_ml_periods:
-        out["batch_ml"] = [_batch_ml_row(k, fl.coarse, fl.coarse_cov, t, w_prior, sigma_w_prior, fl.est, fl.truth,
-                                         fl.phi_grid, fl.shape_rms, fl.shape_rms_oracle, w_true, strong, period1)
-                           for k in batch_ml_images]
+        out["batch_ml"] = [_batch_ml_row(k, fl, su) for k in batch_ml_images]
     if crb_periods:
-        out["crb"] = [_crb_row(k, fl.coarse_cov, t, amp, phase, w_true, sigma_w_prior, fl.est, fl.phi_grid,
-                               fl.shape_rms, fl.shape_rms_oracle, strong, period1) for k in crb_images]
+        out["crb"] = [_crb_row(k, fl, su) for k in crb_images]
     if acquire_periods is not None:
-        out["acquisition"] = _acquire(acquire_with, acquire_image, fl.records, fl.coarse, fl.coarse_cov, t, w_prior,
-                                      sigma_w_prior, acquire_sigma_rel, new_filter, dt_s, fl.shape, fl.phi_grid,
-                                      fl.truth, w_true, strong, crb_images, period1, grid_sigmas=acquire_grid_sigmas,
-                                      shape_rms_known=fl.shape_rms_oracle)
+        out["acquisition"] = _acquire(
+            acquire_with, acquire_image, fl, su, acquire_sigma_rel, new_filter, crb_images, acquire_grid_sigmas
+        )
     if coarse_check:
         out["coarse_check"] = _coarse_check(fl.coarse, fl.coarse_cov, fl.truth)
     out["points_at"] = points_at
     if keep_series:
-        out.update(t_s=t, est=fl.est, coarse=fl.coarse, truth=fl.truth)
+        out.update(t_s=su.t, est=fl.est, coarse=fl.coarse, truth=fl.truth)
     return out
+
+
+def _fly_plate(fl, plate, seed: int, dt_s, prior_err, noise_frac, points_at, new_filter, oracle: bool) -> _TrialSetup:
+    """Draw the trial's truth and a priori frequencies from ``seed`` and fly
+    ``fl`` through its images; returns what the scoring needs."""
+    rng = np.random.default_rng(seed)
+    sensor = st.plate_sensor(plate)
+    amp, phase = st.plate_truth(plate, rng)
+    w_true = plate.omega_radps
+    w_prior = w_true * (1 + rng.uniform(-prior_err, prior_err, plate.n_modes))
+    sigma_w_prior = 0.1 * w_prior
+    fl.fly(
+        sensor,
+        amp,
+        phase,
+        rng,
+        dt_s,
+        noise_frac,
+        points_at,
+        new_filter(w_prior, sigma_w_prior),
+        new_filter(w_true, 1e-6 * w_true) if oracle else None,
+    )
+    return _TrialSetup(
+        t=np.arange(fl.est.shape[0]) * dt_s,
+        dt_s=dt_s,
+        amp=amp,
+        phase=phase,
+        w_true=w_true,
+        w_prior=w_prior,
+        sigma_w_prior=sigma_w_prior,
+        strong=amp >= 0.2,  # see _plate_summary
+        period1=2 * np.pi / w_true[0],
+    )
 
 
 def _plate_filter(kind: str, n_modes: int, ut_alpha: float, w0, sw0):
     """The plate's estimating filter from frequencies w0 with 1-sigma sw0."""
-    return make_filter(kind, n_modes, w0, np.zeros(n_modes), sigma_v0=w0 * 1.0, sigma_w0=sw0,
-                       sigma_a0=1e-6, q_a=0.0, q_v=0.0, ut_alpha=ut_alpha)
+    return make_filter(
+        kind,
+        n_modes,
+        w0,
+        np.zeros(n_modes),
+        sigma_v0=w0 * 1.0,
+        sigma_w0=sw0,
+        sigma_a0=1e-6,
+        q_a=0.0,
+        q_v=0.0,
+        ut_alpha=ut_alpha,
+    )
 
 
 class _PlateFlight:
@@ -266,7 +345,9 @@ def _plate_summary(seed: int, kind: str, dt_s: float, amp, w_true, w_prior, fl: 
         "amp_true": amp,
         "mode_converge_index_1pct": per_mode,
         "measurements_to_converge_1pct_excited": k_strong,
-        "time_to_converge_1pct_excited_periods": None if k_strong is None else k_strong * dt_s / (2 * np.pi / w_true[0]),
+        "time_to_converge_1pct_excited_periods": None
+        if k_strong is None
+        else k_strong * dt_s / (2 * np.pi / w_true[0]),
         "kind": kind,
         "dt_s": dt_s,
         "period1_s": period1,
@@ -291,12 +372,15 @@ def _shape_convergence(shape_rms, shape_rms_oracle, dt_s: float, period1: float)
     the first image from which the filter's 5-image running median stays
     within twice it."""
     n_images = shape_rms.size
-    floor = float(np.median(shape_rms_oracle[n_images // 2:]))
-    rm = np.array([np.nanmedian(shape_rms[max(0, i - 2): i + 3]) for i in range(n_images)])
+    floor = float(np.median(shape_rms_oracle[n_images // 2 :]))
+    rm = np.array([np.nanmedian(shape_rms[max(0, i - 2) : i + 3]) for i in range(n_images)])
     bad = np.nonzero(~(rm <= 2.0 * floor))[0]
     ks = 0 if bad.size == 0 else int(bad[-1]) + 1
-    return {"shape_noise_floor_m": floor, "shape_converge_index": ks if ks < n_images else None,
-            "shape_converge_periods": None if ks >= n_images else ks * dt_s / period1}
+    return {
+        "shape_noise_floor_m": floor,
+        "shape_converge_index": ks if ks < n_images else None,
+        "shape_converge_periods": None if ks >= n_images else ks * dt_s / period1,
+    }
 
 
 def _coarse_check(coarse, cov, truth):
@@ -308,31 +392,38 @@ def _coarse_check(coarse, cov, truth):
     c = cov[ok]
     nees = np.einsum("ki,ki->k", e, np.linalg.solve(c, e[:, :, None])[:, :, 0])
     z = e / np.sqrt(np.diagonal(c, axis1=1, axis2=2))
-    return {"images": int(ok.sum()), "nees": nees, "z_mean": z.mean(axis=0), "z_sq_sum": np.sum(z ** 2, axis=0)}
+    return {"images": int(ok.sum()), "nees": nees, "z_mean": z.mean(axis=0), "z_sq_sum": np.sum(z**2, axis=0)}
 
 
-def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, new_filter, dt_s, shape, phi_grid,
-             truth, w_true, strong, score_images, period1, grid_sigmas=3.0, shape_rms_known=None):
+def _acquire(method, k0, fl, su: _TrialSetup, sigma_rel, new_filter, score_images, grid_sigmas=3.0):
     """Frequencies from the first k0 images (method "flight" or "batch-ml"),
     then a flight joint filter from them over every image."""
     import time
 
+    t, w_true, strong, period1 = su.t, su.w_true, su.strong, su.period1
+    records, shape, phi_grid, truth = fl.records, fl.shape, fl.phi_grid, fl.truth
     want = {k - 1 for k in score_images}
     rows = []
 
     def score(filt, k):
         if k in want and filt.initialized:
             z_hat, _ = shape(filt.amplitudes, filt.amplitude_cov, phi_grid)
-            rows.append({"images": k + 1, "periods": float(t[k] / period1),
-                         "excited_within_1pct": _excited_within_1pct(filt.state[:, 2], w_true, strong),
-                         "shape_rms_m": float(np.sqrt(np.mean((z_hat - phi_grid @ truth[k]) ** 2))),
-                         "shape_rms_known_omega_m": float("nan") if shape_rms_known is None
-                         else float(shape_rms_known[k])})
+            rows.append(
+                {
+                    "images": k + 1,
+                    "periods": float(t[k] / period1),
+                    "excited_within_1pct": _excited_within_1pct(filt.state[:, 2], w_true, strong),
+                    "shape_rms_m": float(np.sqrt(np.mean((z_hat - phi_grid @ truth[k]) ** 2))),
+                    "shape_rms_known_omega_m": float(fl.shape_rms_oracle[k]),
+                }
+            )
 
     out = {"method": method, "images": int(k0), "periods": float(t[k0 - 1] / period1), "sigma_rel": sigma_rel}
     if method == "flight":
         out["grid_sigmas"] = grid_sigmas
-        acq = getattr(_fb(), f"ModalAcquisition{len(w_prior)}")(w_prior, sigma_w, grid_sigmas=grid_sigmas)
+        acq = getattr(_fb(), f"ModalAcquisition{len(su.w_prior)}")(
+            su.w_prior, su.sigma_w_prior, grid_sigmas=grid_sigmas
+        )
         stored = [k for k in range(k0) if records[k].ok and acq.add(float(t[k]), records[k]) == "ok"]
         t0 = time.perf_counter()
         status = acq.search()
@@ -352,17 +443,17 @@ def _acquire(method, k0, records, coarse, cov, t, w_prior, sigma_w, sigma_rel, n
 
         if grid_sigmas != 3.0:
             raise ValueError("the batch ML searches +-3 sigma: acquire_grid_sigmas applies to the flight search only")
-        ml = modal_batch_ml.fit(coarse[:k0], cov[:k0], t[:k0], w_prior, sigma_w)
+        ml = modal_batch_ml.fit(fl.coarse[:k0], fl.coarse_cov[:k0], t[:k0], su.w_prior, su.sigma_w_prior)
         out["batch_ml_start"] = ml["start"]
         omega = ml["omega"]
         filt = new_filter(omega, sigma_rel * omega)
         for k in range(k0):
-            filt.step(dt_s, records[k])
+            filt.step(su.dt_s, records[k])
         score(filt, k0 - 1)
     else:
         raise ValueError(f"acquire_with: 'flight' or 'batch-ml', got {method!r}")
     for k in range(k0, len(records)):  # on from the acquisition, live; scored at times before it: nothing
-        filt.step(dt_s, records[k])
+        filt.step(su.dt_s, records[k])
         score(filt, k)
     out["omega_radps"] = np.asarray(omega, float)
     out["search_excited_within_1pct"] = _excited_within_1pct(omega, w_true, strong)
@@ -384,59 +475,80 @@ def _images_at(periods, omega1, dt_s, n_images, what):
     return images
 
 
-def _crb_row(k, cov, t, amp, phase, w_true, sigma_w, est, phi_grid, shape_rms, shape_rms_oracle, strong, period1):
+def _crb_row(k, fl, su: _TrialSetup):
     """The Cramer-Rao bounds of the first k images beside the filter at image k - 1."""
     from bench.campaigns import modal_crb
 
+    t, w_true, strong, est, cov = su.t, su.w_true, su.strong, fl.est, fl.coarse_cov
     ok = np.all(np.isfinite(cov[:k]), axis=(1, 2))
     # a = amp sin(w t + phase) = c cos(w t) + s sin(w t)
-    b = modal_crb.bound(t[:k][ok], w_true, amp * np.sin(phase), amp * np.cos(phase), cov[:k][ok], sigma_w,
-                        phi_grid, strong=strong)
+    b = modal_crb.bound(
+        t[:k][ok],
+        w_true,
+        su.amp * np.sin(su.phase),
+        su.amp * np.cos(su.phase),
+        cov[:k][ok],
+        su.sigma_w_prior,
+        fl.phi_grid,
+        strong=strong,
+    )
     rel = np.abs(est[k - 1, :, 2] / w_true - 1)
-    return {"images": int(k), "periods": float(t[k - 1] / period1),
-            "crb_sd_omega_rel": b["sd_omega_rel"],
-            "crb_p_within_1pct": b["p_within_band"],
-            "crb_expected_excited_within_1pct": b["expected_within_band_scored"],
-            "crb_p_all_excited_within_1pct": b["p_all_scored_within_band"],
-            "n_excited": b["n_scored"],
-            "filter_excited_within_1pct": _excited_within_1pct(est[k - 1, :, 2], w_true, strong),
-            "filter_freq_rel_err": rel,
-            "crb_shape_rms_m": b["shape_rms_bound_m"],
-            "crb_shape_rms_known_omega_m": b["shape_rms_bound_known_omega_m"],
-            "shape_rms_filter_m": float(shape_rms[k - 1]),
-            "shape_rms_known_omega_m": float(shape_rms_oracle[k - 1])}
+    return {
+        "images": int(k),
+        "periods": float(t[k - 1] / su.period1),
+        "crb_sd_omega_rel": b["sd_omega_rel"],
+        "crb_p_within_1pct": b["p_within_band"],
+        "crb_expected_excited_within_1pct": b["expected_within_band_scored"],
+        "crb_p_all_excited_within_1pct": b["p_all_scored_within_band"],
+        "n_excited": b["n_scored"],
+        "filter_excited_within_1pct": _excited_within_1pct(est[k - 1, :, 2], w_true, strong),
+        "filter_freq_rel_err": rel,
+        "crb_shape_rms_m": b["shape_rms_bound_m"],
+        "crb_shape_rms_known_omega_m": b["shape_rms_bound_known_omega_m"],
+        "shape_rms_filter_m": float(fl.shape_rms[k - 1]),
+        "shape_rms_known_omega_m": float(fl.shape_rms_oracle[k - 1]),
+    }
 
 
-def _batch_ml_row(k, coarse, cov, t, w_prior, sigma_w, est, truth, phi_grid, shape_rms, shape_rms_oracle,
-                  w_true, strong, period1):
+def _batch_ml_row(k, fl, su: _TrialSetup):
     """The batch ML reference on the first k images beside the filter at image k - 1."""
     from bench.campaigns import modal_batch_ml
 
-    ml = modal_batch_ml.fit(coarse[:k], cov[:k], t[:k], w_prior, sigma_w, extra_starts=[("filter", est[k - 1, :, 2])],
-                            reference_starts=[("truth", w_true)])
+    t, w_true, strong, est, truth, phi_grid = su.t, su.w_true, su.strong, fl.est, fl.truth, fl.phi_grid
+    ml = modal_batch_ml.fit(
+        fl.coarse[:k],
+        fl.coarse_cov[:k],
+        t[:k],
+        su.w_prior,
+        su.sigma_w_prior,
+        extra_starts=[("filter", est[k - 1, :, 2])],
+        reference_starts=[("truth", w_true)],
+    )
     err = phi_grid @ (ml["amplitude_end"] - truth[k - 1])
     ref = ml["reference"]["truth"]
     err_ref = phi_grid @ (ref["amplitude_end"] - truth[k - 1])
 
-    return {"images": int(k), "periods": float(t[k - 1] / period1),
-            "shape_rms_batch_ml_m": float(np.sqrt(np.mean(err ** 2))),
-            "shape_rms_filter_m": float(shape_rms[k - 1]),
-            "shape_rms_known_omega_m": float(shape_rms_oracle[k - 1]),
-            "omega_batch_ml_radps": ml["omega"],
-            # over the modes excited >= 0.2 (the others' frequencies are not observable yet)
-            "freq_rel_err_max_excited_batch_ml": float(np.max(np.abs(ml["omega"] / w_true - 1)[strong], initial=0.0)),
-            "freq_rel_err_max_excited_filter": float(np.max(np.abs(est[k - 1, :, 2] / w_true - 1)[strong],
-                                                            initial=0.0)),
-            "excited_within_1pct_batch_ml": _excited_within_1pct(ml["omega"], w_true, strong),
-            "excited_within_1pct_filter": _excited_within_1pct(est[k - 1, :, 2], w_true, strong),
-            "n_excited": int(np.sum(strong)),
-            "batch_ml_start": ml["start"],
-            "batch_ml_cost": ml["cost"],
-            # the optimum reached from the true frequencies (not an estimator: it tells whether the
-            # data hold a better optimum near the truth than the estimator's starts found)
-            "from_truth_cost": ref["cost"],
-            "from_truth_excited_within_1pct": _excited_within_1pct(ref["omega"], w_true, strong),
-            "shape_rms_from_truth_m": float(np.sqrt(np.mean(err_ref ** 2)))}
+    return {
+        "images": int(k),
+        "periods": float(t[k - 1] / su.period1),
+        "shape_rms_batch_ml_m": float(np.sqrt(np.mean(err**2))),
+        "shape_rms_filter_m": float(fl.shape_rms[k - 1]),
+        "shape_rms_known_omega_m": float(fl.shape_rms_oracle[k - 1]),
+        "omega_batch_ml_radps": ml["omega"],
+        # over the modes excited >= 0.2 (the others' frequencies are not observable yet)
+        "freq_rel_err_max_excited_batch_ml": float(np.max(np.abs(ml["omega"] / w_true - 1)[strong], initial=0.0)),
+        "freq_rel_err_max_excited_filter": float(np.max(np.abs(est[k - 1, :, 2] / w_true - 1)[strong], initial=0.0)),
+        "excited_within_1pct_batch_ml": _excited_within_1pct(ml["omega"], w_true, strong),
+        "excited_within_1pct_filter": _excited_within_1pct(est[k - 1, :, 2], w_true, strong),
+        "n_excited": int(np.sum(strong)),
+        "batch_ml_start": ml["start"],
+        "batch_ml_cost": ml["cost"],
+        # the optimum reached from the true frequencies (not an estimator: it tells whether the
+        # data hold a better optimum near the truth than the estimator's starts found)
+        "from_truth_cost": ref["cost"],
+        "from_truth_excited_within_1pct": _excited_within_1pct(ref["omega"], w_true, strong),
+        "shape_rms_from_truth_m": float(np.sqrt(np.mean(err_ref**2))),
+    }
 
 
 def plate_aliased_case(n_modes: int = 10):
@@ -451,6 +563,11 @@ def plate_aliased_case(n_modes: int = 10):
     sq = st.Plate(n_modes=n_modes, ly_m=2000.0)
     x = np.linspace(10, sq.lx_m - 10, 500)
     alias = dec.decompose(sq.phi(x, x), np.zeros(x.size))
-    return {"too_few_points": {"status": few.status, "n_used": few.n_used},
-            "aliased_diagonal": {"status": alias.status, "condition_number": alias.condition_number,
-                                 "n_used": alias.n_used}}
+    return {
+        "too_few_points": {"status": few.status, "n_used": few.n_used},
+        "aliased_diagonal": {
+            "status": alias.status,
+            "condition_number": alias.condition_number,
+            "n_used": alias.n_used,
+        },
+    }

@@ -27,6 +27,7 @@ Metrics, every sample from the run's first pose update on:
     pipeline's status for every rendered frame of every run, by reason; a
     frame that is not Ok delivers no pose.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -94,20 +95,32 @@ def run_metrics(run: DockingRun) -> RunMetrics:
         nis_att.append(nu[3:] @ np.linalg.solve(S[3:, 3:], nu[3:]))
     # Posterior NEES at the step at which each fused update was applied.
     idx = np.searchsorted(run.t, u.t_fused[fused] - 1e-9)
-    err = np.hstack([e["pos"], e["vel"], e["att"]])
-    sig2 = e["sigma"] ** 2
-    blocks = np.stack([np.sum(err[:, 3 * b:3 * b + 3] ** 2 / sig2[:, 3 * b:3 * b + 3], axis=1) for b in range(3)], 1)
+    err = np.hstack([e.pos, e.vel, e.att])
+    sig2 = e.sigma**2
+    blocks = np.stack(
+        [np.sum(err[:, 3 * b : 3 * b + 3] ** 2 / sig2[:, 3 * b : 3 * b + 3], axis=1) for b in range(3)], 1
+    )
     statuses = {}
     for s in list(run.predict_status) + list(u.status):
         statuses[str(s)] = statuses.get(str(s), 0) + 1  # plain str: numpy strings print as np.str_('ok')
     sm = run.summary
     return RunMetrics(
-        seed=sm.seed, docked=sm.docked, t_end_s=sm.t_end_s,
-        max_pos_err_m=float(np.max(np.abs(e["pos"]))), max_vel_err_mps=float(np.max(np.abs(e["vel"]))),
-        max_att_err_rad=float(np.max(np.abs(e["att"]))), nees=e["nees"],
-        nees_step=np.rint(e["t"] / 0.1).astype(int), nees_post_1hz=run.nees[idx],
-        nis=u.nis[fused], nis_epoch=np.rint(np.asarray(u.t_capture)[fused]).astype(int), nis_pos=np.array(nis_pos), nis_att=np.array(nis_att), nees_blocks=blocks,
-        statuses=statuses, summary=sm,
+        seed=sm.seed,
+        docked=sm.docked,
+        t_end_s=sm.t_end_s,
+        max_pos_err_m=float(np.max(np.abs(e.pos))),
+        max_vel_err_mps=float(np.max(np.abs(e.vel))),
+        max_att_err_rad=float(np.max(np.abs(e.att))),
+        nees=e.nees,
+        nees_step=np.rint(e.t / 0.1).astype(int),
+        nees_post_1hz=run.nees[idx],
+        nis=u.nis[fused],
+        nis_epoch=np.rint(np.asarray(u.t_capture)[fused]).astype(int),
+        nis_pos=np.array(nis_pos),
+        nis_att=np.array(nis_att),
+        nees_blocks=blocks,
+        statuses=statuses,
+        summary=sm,
     )
 
 
@@ -197,9 +210,12 @@ def _vision(metrics: list[RunMetrics]) -> dict:
     for m in metrics:
         for k, v in m.summary.vision_status_counts.items():
             counts[k] = counts.get(k, 0) + int(v)
-    return {"vision_status_counts": counts, "vision_frames": int(sum(counts.values())),
-            "fused_pose_count": int(sum(m.nis.size for m in metrics)),
-            "runs_started_late": int(sum((m.summary.t_nav_init_s or 0.0) > 0.0 for m in metrics))}
+    return {
+        "vision_status_counts": counts,
+        "vision_frames": int(sum(counts.values())),
+        "fused_pose_count": int(sum(m.nis.size for m in metrics)),
+        "runs_started_late": int(sum((m.summary.t_nav_init_s or 0.0) > 0.0 for m in metrics)),
+    }
 
 
 def _consistency(metrics: list[RunMetrics]) -> dict:
@@ -232,19 +248,28 @@ def _consistency(metrics: list[RunMetrics]) -> dict:
         "nees_thinned_band": thin_band,
         "nees_thinned_count": thin_count,
         "nees_ensemble": ensemble_consistency(nees_1hz, nees_1hz_k, NAV_DOF, min_runs),
-        "nis_ensemble": ensemble_consistency([m.nis for m in metrics], [m.nis_epoch for m in metrics], POSE_DOF,
-                                             min_runs),
+        "nis_ensemble": ensemble_consistency(
+            [m.nis for m in metrics], [m.nis_epoch for m in metrics], POSE_DOF, min_runs
+        ),
         "nees_run_means": run_means.tolist(),
         "nees_mean_std_error": float(run_means.std(ddof=1) / np.sqrt(len(run_means))) if len(run_means) > 1 else None,
-        "nees_block_means": {"pos": float(blocks[:, 0].mean()), "vel": float(blocks[:, 1].mean()),
-                             "att": float(blocks[:, 2].mean()), "dof_each": 3},
-        "nis_block_means": {"pos": float(np.mean(np.concatenate([m.nis_pos for m in metrics]))),
-                            "att": float(np.mean(np.concatenate([m.nis_att for m in metrics]))), "dof_each": 3},
+        "nees_block_means": {
+            "pos": float(blocks[:, 0].mean()),
+            "vel": float(blocks[:, 1].mean()),
+            "att": float(blocks[:, 2].mean()),
+            "dof_each": 3,
+        },
+        "nis_block_means": {
+            "pos": float(np.mean(np.concatenate([m.nis_pos for m in metrics]))),
+            "att": float(np.mean(np.concatenate([m.nis_att for m in metrics]))),
+            "dof_each": 3,
+        },
     }
 
 
 def _checks(pos: dict, vel: dict, c: dict) -> dict:
     """The campaign's pass criteria."""
+
     def inside(band, x):
         return band[0] <= x <= band[1]
 
@@ -268,8 +293,15 @@ def _run_one(item: dict, cfg: ScenarioConfig) -> dict:
     return {"metrics": run_metrics(run), "run": run if item["keep_run"] else None}
 
 
-def run_campaign(n_runs: int, seed: int, cfg: ScenarioConfig | None = None, progress: bool = False,
-                 keep_runs: int = 0, campaign=None, workers: int | None = None):
+def run_campaign(
+    n_runs: int,
+    seed: int,
+    cfg: ScenarioConfig | None = None,
+    progress: bool = False,
+    keep_runs: int = 0,
+    campaign=None,
+    workers: int | None = None,
+):
     """Returns (summary dict, list of the first ``keep_runs`` raw runs). Each
     run is a task of ``campaign`` (bench/runner/runner.py; default a local
     Dask cluster of ``workers``, nothing kept)."""

@@ -1,5 +1,6 @@
 """`proxops nav`: seeded Monte Carlo of the docking scenario with the flight
 navigation filter; summary table, JSON metrics and the paper's Figs. 3-6."""
+
 from __future__ import annotations
 
 import argparse
@@ -16,53 +17,113 @@ from bench.sim.sensors import NoiseProfile
 
 
 def register(sub):
-    p = sub.add_parser("nav", help="navigation Monte Carlo over the docking scenario",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "nav",
+        help="navigation Monte Carlo over the docking scenario",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops nav")
     p.add_argument("--runs", type=number(int, 1, 10000), default=50, help="number of docking runs (1 to 10000)")
-    p.add_argument("--seed", type=number(int, 0, 10**6), default=1,
-                   help="campaign seed, 0 to 1e6 (run i uses seed*1000 + i)")
+    p.add_argument(
+        "--seed", type=number(int, 0, 10**6), default=1, help="campaign seed, 0 to 1e6 (run i uses seed*1000 + i)"
+    )
     p.add_argument("--json", default=None, help="write the metrics here")
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.add_argument("--dynamics", choices=("nonlinear", "cw"), default="nonlinear", help="truth translation model")
     p.add_argument("--profile", choices=("paper", "biased"), default="paper", help="sensor noise profile")
-    p.add_argument("--pose-latency-s", type=number(float, 0.0, 10.0), default=0.0,
-                   help="delivery delay of each pose [s] (0 to 10)")
-    p.add_argument("--pose-r-from", choices=("estimate", "measurement"), default="estimate",
-                   help="range the pose covariance handed to the filter is built from")
+    p.add_argument(
+        "--pose-latency-s", type=number(float, 0.0, 10.0), default=0.0, help="delivery delay of each pose [s] (0 to 10)"
+    )
+    p.add_argument(
+        "--pose-r-from",
+        choices=("estimate", "measurement"),
+        default="estimate",
+        help="range the pose covariance handed to the filter is built from",
+    )
     p.add_argument("--init", choices=("pose", "truth_draw"), default="pose", help="filter initialisation")
-    p.add_argument("--accel-source", choices=("imu", "blr"), default="imu",
-                   help="specific force for predict during firings: accelerometer, or the online BLR's prediction")
-    p.add_argument("--pose-source", choices=("synthetic", "images"), default="synthetic",
-                   help="1 Hz pose: synthetic (5 %% of range) or rendered images through the flight vision pipeline")
+    p.add_argument(
+        "--accel-source",
+        choices=("imu", "blr"),
+        default="imu",
+        help="specific force for predict during firings: accelerometer, or the online BLR's prediction",
+    )
+    p.add_argument(
+        "--pose-source",
+        choices=("synthetic", "images"),
+        default="synthetic",
+        help="1 Hz pose: synthetic (5 %% of range) or rendered images through the flight vision pipeline",
+    )
     add_campaign_arguments(p)
     p.set_defaults(func=main)
 
 
-def print_summary(s: dict) -> None:
+def _yes_no(b) -> str:
+    return "yes" if b else "NO"
+
+
+def _summary_rows(s: dict) -> list:
+    """(metric, value, required, pass) for each of the campaign's checks."""
     c = s["checks"]
-    ok = lambda b: "yes" if b else "NO"  # noqa: E731
-    rows = [
+    ok = _yes_no
+    return [
         ("max position error p95 [m]", s["max_pos_err_m"]["p95"], "<= 0.10", ok(c["pos_p95_le_0.10"])),
         ("max position error median [m]", s["max_pos_err_m"]["median"], "<= 0.05", ok(c["pos_median_le_0.05"])),
         ("max velocity error p95 [m/s]", s["max_vel_err_mps"]["p95"], "<= 0.03", ok(c["vel_p95_le_0.03"])),
         ("max velocity error median [m/s]", s["max_vel_err_mps"]["median"], "<= 0.015", ok(c["vel_median_le_0.015"])),
-        ("NEES mean (9 dof), N-run band", s["nees_mean"], "[{:.3f}, {:.3f}]".format(*s["nees_band"]),
-         ok(c["nees_in_band"])),
-        ("NIS mean (6 dof), N-run band", s["nis_mean"], "[{:.3f}, {:.3f}]".format(*s["nis_band"]), ok(c["nis_in_band"])),
-        ("NEES mean, per-sample band", s["nees_mean"], "[{:.3f}, {:.3f}]".format(*s["nees_band_per_sample"]),
-         ok(c["nees_in_per_sample_band"]) + " (samples correlated)"),
-        ("NIS mean, per-sample band", s["nis_mean"], "[{:.3f}, {:.3f}]".format(*s["nis_band_per_sample"]),
-         ok(c["nis_in_per_sample_band"])),
-        ("NEES mean after updates (1 Hz)", s["nees_post_update_mean"],
-         "[{:.3f}, {:.3f}]".format(*s["nees_post_update_band"]), ""),
-        ("NEES mean every 10 s", s["nees_thinned_mean"], "[{:.3f}, {:.3f}]".format(*s["nees_thinned_band"]),
-         ok(s["nees_thinned_band"][0] <= s["nees_thinned_mean"] <= s["nees_thinned_band"][1])),
-        ("NEES N-run average: epochs in band", s["nees_ensemble"]["in_band_fraction"], "about 0.95 (1 Hz)",
-         ok(c["nees_ensemble_in_band_ge_0.95"])),
-        ("NIS N-run average: epochs in band", s["nis_ensemble"]["in_band_fraction"], "about 0.95 (1 Hz)",
-         ok(c["nis_ensemble_in_band_ge_0.95"])),
+        (
+            "NEES mean (9 dof), N-run band",
+            s["nees_mean"],
+            "[{:.3f}, {:.3f}]".format(*s["nees_band"]),
+            ok(c["nees_in_band"]),
+        ),
+        (
+            "NIS mean (6 dof), N-run band",
+            s["nis_mean"],
+            "[{:.3f}, {:.3f}]".format(*s["nis_band"]),
+            ok(c["nis_in_band"]),
+        ),
+        (
+            "NEES mean, per-sample band",
+            s["nees_mean"],
+            "[{:.3f}, {:.3f}]".format(*s["nees_band_per_sample"]),
+            ok(c["nees_in_per_sample_band"]) + " (samples correlated)",
+        ),
+        (
+            "NIS mean, per-sample band",
+            s["nis_mean"],
+            "[{:.3f}, {:.3f}]".format(*s["nis_band_per_sample"]),
+            ok(c["nis_in_per_sample_band"]),
+        ),
+        (
+            "NEES mean after updates (1 Hz)",
+            s["nees_post_update_mean"],
+            "[{:.3f}, {:.3f}]".format(*s["nees_post_update_band"]),
+            "",
+        ),
+        (
+            "NEES mean every 10 s",
+            s["nees_thinned_mean"],
+            "[{:.3f}, {:.3f}]".format(*s["nees_thinned_band"]),
+            ok(s["nees_thinned_band"][0] <= s["nees_thinned_mean"] <= s["nees_thinned_band"][1]),
+        ),
+        (
+            "NEES N-run average: epochs in band",
+            s["nees_ensemble"]["in_band_fraction"],
+            "about 0.95 (1 Hz)",
+            ok(c["nees_ensemble_in_band_ge_0.95"]),
+        ),
+        (
+            "NIS N-run average: epochs in band",
+            s["nis_ensemble"]["in_band_fraction"],
+            "about 0.95 (1 Hz)",
+            ok(c["nis_ensemble_in_band_ge_0.95"]),
+        ),
     ]
+
+
+def print_summary(s: dict) -> None:
+    """The campaign's checks as a table, then its diagnostics."""
+    rows = _summary_rows(s)
     print(f"\n{s['runs']} runs, seed {s['seed']}, {s['dynamics']} truth, docked {s['docked']}/{s['runs']}")
     print(f"{'metric':34s} {'value':>10s}  {'required':>18s}  pass")
     for name, v, req, p in rows:
@@ -70,18 +131,24 @@ def print_summary(s: dict) -> None:
     if s["nees_mean_std_error"] is not None:
         print(f"NEES mean standard error from the per-run means: {s['nees_mean_std_error']:.3f}")
     nb, ib = s["nees_block_means"], s["nis_block_means"]
-    print(f"NEES blocks (3 dof each): pos {nb['pos']:.3f} vel {nb['vel']:.3f} att {nb['att']:.3f}; "
-          f"NIS blocks: pos {ib['pos']:.3f} att {ib['att']:.3f}")
+    print(
+        f"NEES blocks (3 dof each): pos {nb['pos']:.3f} vel {nb['vel']:.3f} att {nb['att']:.3f}; "
+        f"NIS blocks: pos {ib['pos']:.3f} att {ib['att']:.3f}"
+    )
     for name in ("nees", "nis"):
         e = s[f"{name}_ensemble"]
         if e["epochs"]:
-            print(f"{name.upper()} N-run average over {e['epochs']} epochs ({e['runs_per_epoch_min']}-"
-                  f"{e['runs_per_epoch_max']} runs each): mean {e['mean_of_epoch_means']:.3f}, "
-                  f"{e['below_band']} below and {e['above_band']} above the band")
+            print(
+                f"{name.upper()} N-run average over {e['epochs']} epochs ({e['runs_per_epoch_min']}-"
+                f"{e['runs_per_epoch_max']} runs each): mean {e['mean_of_epoch_means']:.3f}, "
+                f"{e['below_band']} below and {e['above_band']} above the band"
+            )
     print(f"gated {s['gated_count']}, statuses " + ", ".join(f"{k} {v}" for k, v in s["status_counts"].items()))
     if "vision_status_counts" in s:
-        print(f"vision: {s['vision_frames']} frames, statuses {s['vision_status_counts']}, "
-              f"{s['fused_pose_count']} poses fused, {s['runs_started_late']} runs started after t = 0")
+        print(
+            f"vision: {s['vision_frames']} frames, statuses {s['vision_status_counts']}, "
+            f"{s['fused_pose_count']} poses fused, {s['runs_started_late']} runs started after t = 0"
+        )
 
 
 def make_plots(runs, summary, folder) -> None:
@@ -97,15 +164,17 @@ def make_plots(runs, summary, folder) -> None:
     plt.close(fig)
     # Figs. 4-6: errors per axis with 3-sigma bounds, first run.
     e = errors_from_first_update(runs[0])
-    for key, blk, unit, title, fname in (("pos", 0, "m", "position error", "nav_pos_err.png"),
-                                         ("vel", 1, "m/s", "velocity error", "nav_vel_err.png"),
-                                         ("att", 2, "rad", "attitude error (body frame)", "nav_att_err.png")):
+    for key, blk, unit, title, fname in (
+        ("pos", 0, "m", "position error", "nav_pos_err.png"),
+        ("vel", 1, "m/s", "velocity error", "nav_vel_err.png"),
+        ("att", 2, "rad", "attitude error (body frame)", "nav_att_err.png"),
+    ):
         fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
         for j, ax in enumerate(axes):
-            sig = 3 * e["sigma"][:, 3 * blk + j]
-            ax.plot(e["t"], e[key][:, j], lw=0.8, label="error")
-            ax.plot(e["t"], sig, "k--", lw=0.6, label="3-sigma")
-            ax.plot(e["t"], -sig, "k--", lw=0.6)
+            sig = 3 * e.sigma[:, 3 * blk + j]
+            ax.plot(e.t, e.block(key)[:, j], lw=0.8, label="error")
+            ax.plot(e.t, sig, "k--", lw=0.6, label="3-sigma")
+            ax.plot(e.t, -sig, "k--", lw=0.6)
             ax.set_ylabel(f"{'xyz'[j]} [{unit}]")
         axes[0].set_title(f"UKF {title}, seed {runs[0].summary.seed}")
         axes[0].legend(loc="upper right", fontsize=7)
@@ -123,8 +192,11 @@ def make_plots(runs, summary, folder) -> None:
     lo, hi = chi2.ppf([0.025, 0.975], 6)
     ax.axhline(lo, color="k", ls="--", lw=0.6)
     ax.axhline(hi, color="k", ls="--", lw=0.6)
-    ax.set(xlabel="capture time [s]", ylabel="NIS (6 dof)",
-           title=f"NIS per pose update; campaign mean {summary['nis_mean']:.2f}")
+    ax.set(
+        xlabel="capture time [s]",
+        ylabel="NIS (6 dof)",
+        title=f"NIS per pose update; campaign mean {summary['nis_mean']:.2f}",
+    )
     fig.tight_layout()
     fig.savefig(out / "nav_nis.png", dpi=120)
     plt.close(fig)
@@ -139,8 +211,9 @@ def make_plots(runs, summary, folder) -> None:
         ax.plot(t, e["band_lo"], "k--", lw=0.6, label="95 % band")
         ax.plot(t, e["band_hi"], "k--", lw=0.6)
         ax.set_ylabel(f"{name.upper()} ({dof} dof)")
-        ax.set_title(f"{name.upper()}: {100 * e['in_band_fraction']:.1f} % of epochs in band (95 % expected)",
-                     fontsize=9)
+        ax.set_title(
+            f"{name.upper()}: {100 * e['in_band_fraction']:.1f} % of epochs in band (95 % expected)", fontsize=9
+        )
     axes[0].legend(loc="upper right", fontsize=7)
     axes[-1].set_xlabel("time [s]")
     fig.tight_layout()
@@ -157,8 +230,14 @@ def main(args):
         raise ValueError(f"{fsw_bindings.__file__} has no NavUkf: rebuild the bindings with bind_nav")
     profile = NoiseProfile.paper() if args.profile == "paper" else NoiseProfile.biased()
     profile = profile.with_(pose_latency_s=args.pose_latency_s)
-    cfg = ScenarioConfig(profile=profile, dynamics=args.dynamics, pose_R_from=args.pose_r_from, init=args.init,
-                         accel_source=args.accel_source, pose_source=args.pose_source)
+    cfg = ScenarioConfig(
+        profile=profile,
+        dynamics=args.dynamics,
+        pose_R_from=args.pose_r_from,
+        init=args.init,
+        accel_source=args.accel_source,
+        pose_source=args.pose_source,
+    )
     keep = min(args.runs, 5) if args.plots else 0
     # Run i depends on the seed and the configuration, not on --runs: a longer campaign reuses a shorter one's runs.
     campaign = campaign_from(args, "nav", {"seed": args.seed, "config": cfg})
@@ -167,8 +246,10 @@ def main(args):
         print(f"results store: {summary['store']}")
     print_summary(summary)
     if summary.get("failed_runs") or summary.get("missing_runs"):
-        print(f"summary of {summary['runs']} of {summary['runs_requested']} runs: "
-              f"{len(summary.get('failed_runs', []))} failed, {len(summary.get('missing_runs', []))} not stored")
+        print(
+            f"summary of {summary['runs']} of {summary['runs_requested']} runs: "
+            f"{len(summary.get('failed_runs', []))} failed, {len(summary.get('missing_runs', []))} not stored"
+        )
         for f in summary.get("failed_runs", [])[:5]:
             print(f"  run {f['run']} (seed {f['seed']}) failed: {f['error']}")
     if args.json:

@@ -35,6 +35,7 @@ Bayes factor among those that explain the held-out data):
   unexplained  otherwise (nothing in the library accounts for the gap).
 Without a detected gap the verdict is "no_gap".
 """
+
 from __future__ import annotations
 
 import sys
@@ -84,8 +85,12 @@ class _Progress:
         self.done += n
         if self.enabled and time.time() - self.t_last > 0.5:
             self.t_last = time.time()
-            print(f"\r  {self.label}: {min(self.done, self.total)}/{self.total} replays, "
-                  f"{time.time() - self.t0:5.1f} s", end="", flush=True, file=sys.stderr)
+            print(
+                f"\r  {self.label}: {min(self.done, self.total)}/{self.total} replays, {time.time() - self.t0:5.1f} s",
+                end="",
+                flush=True,
+                file=sys.stderr,
+            )
 
     def close(self):
         if self.enabled:
@@ -148,10 +153,23 @@ def heldout_runs_shrink(ctx: Context, name: str) -> dict:
         q0 = np.sum(ch.e0[hd] ** 2, axis=1)
         q1 = np.sum((f.after_dyn if f.after_dyn is not None else ch.e0)[hd] ** 2, axis=1)
     cells, lab = _gap_cells(c2)
-    sh = quantify.shrink_combined(d.pose_tc[held], nominal.nis[held], f.after_nav.nis[held], t_d, q0, q1,
-                                  cells=cells, lab_dyn=None if lab is None else lab[hd])
-    return {"runs": n_runs, "train_runs": int((n_runs + 1) // 2), "heldout_runs": int(n_runs // 2), **sh,
-            "parameters": {p: float(v) for p, v in zip(candidates_of(d)[name].params, f.theta)}}
+    sh = quantify.shrink_combined(
+        d.pose_tc[held],
+        nominal.nis[held],
+        f.after_nav.nis[held],
+        t_d,
+        q0,
+        q1,
+        cells=cells,
+        lab_dyn=None if lab is None else lab[hd],
+    )
+    return {
+        "runs": n_runs,
+        "train_runs": int((n_runs + 1) // 2),
+        "heldout_runs": int(n_runs // 2),
+        **sh,
+        "parameters": {p: float(v) for p, v in zip(candidates_of(d)[name].params, f.theta)},
+    }
 
 
 class HeldOut:
@@ -172,8 +190,16 @@ class HeldOut:
             q0 = np.sum(ch.e0[hd] ** 2, axis=1)
             q1 = np.sum((after_dyn if after_dyn is not None else ch.e0)[hd] ** 2, axis=1)
         held = ctx.held_nav
-        return quantify.shrink_combined(ctx.d.pose_tc[held], ctx.nominal.nis[held], after_nav.nis[held], td, q0, q1,
-                                        cells=self.cells, lab_dyn=None if self.lab_dyn is None else self.lab_dyn[hd])
+        return quantify.shrink_combined(
+            ctx.d.pose_tc[held],
+            ctx.nominal.nis[held],
+            after_nav.nis[held],
+            td,
+            q0,
+            q1,
+            cells=self.cells,
+            lab_dyn=None if self.lab_dyn is None else self.lab_dyn[hd],
+        )
 
     def train_channels(self, after_nav: Pass, after_dyn) -> dict:
         ctx, ch, train = self.ctx, self.ctx.ch, self.ctx.train_nav
@@ -193,9 +219,16 @@ class HeldOut:
         return v
 
 
-def diagnose(log, calibration: dict | None = None, progress: bool = False, n_confirm: int = N_CONFIRM,
-             confirm_always: bool = False, make_calibration: bool = True, calibration_source: str | None = None,
-             calibration_runs: int | None = None) -> dict:
+def diagnose(
+    log,
+    calibration: dict | None = None,
+    progress: bool = False,
+    n_confirm: int = N_CONFIRM,
+    confirm_always: bool = False,
+    make_calibration: bool = True,
+    calibration_source: str | None = None,
+    calibration_runs: int | None = None,
+) -> dict:
     """Diagnose one log. Returns a JSON-ready dict; ``result["_internal"]``
     holds arrays for the report (drop it before writing JSON).
 
@@ -206,8 +239,7 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     (``make_calibration``; bench/gap/log_null.py)."""
     t_start = time.time()
     d = prepare(log)
-    cal, cal_info = _calibration(log, d, calibration, make_calibration, calibration_source, calibration_runs,
-                                 progress)
+    cal, cal_info = _calibration(log, d, calibration, make_calibration, calibration_source, calibration_runs, progress)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
     prog = _Progress(1 + n_screen, progress)
     det = detect(d, progress=prog)
@@ -224,12 +256,21 @@ def diagnose(log, calibration: dict | None = None, progress: bool = False, n_con
     verdict, ambiguous_with, ranking = _single_answer(d, fits, ranking) if detected else ("no_gap", [], ranking)
     effect_set = None
     if detected:
-        verdict, effect_set, ambiguous_with = _set_answer(ctx, fits, scores, cal, thr_glr, thr_map, det.map_max_abs_z,
-                                                          verdict, ranking, ambiguous_with)
+        verdict, effect_set, ambiguous_with = _set_answer(
+            ctx, fits, scores, cal, thr_glr, thr_map, det.map_max_abs_z, verdict, ranking, ambiguous_with
+        )
     out = _answer(d, ctx, det, cal, cal_info, fits, ranking, verdict, ambiguous_with, effect_set, detected)
     out["elapsed_s"] = time.time() - t_start
-    out["_internal"] = {"d": d, "nominal": ctx.nominal, "fits": fits, "train": ctx.train_nav, "held": ctx.held_nav,
-                        "cells": det.cells, "ctx": ctx, "held_shrink": scores.shrink}
+    out["_internal"] = {
+        "d": d,
+        "nominal": ctx.nominal,
+        "fits": fits,
+        "train": ctx.train_nav,
+        "held": ctx.held_nav,
+        "cells": det.cells,
+        "ctx": ctx,
+        "held_shrink": scores.shrink,
+    }
     return out
 
 
@@ -259,21 +300,35 @@ def _judge(ctx: Context, f, scores: HeldOut, thr_map: float, t_map: float) -> di
     # Or a shrink whose bootstrap interval reaches SHRINK_MIN: the held-out
     # deficit is a sum of squares over many rows, and near the detection
     # limit its noise alone can hold the point estimate under the bar.
-    shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
-                 or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"]
-                 or (np.isfinite(sh["ci95"][1]) and sh["ci95"][1] >= SHRINK_MIN))
+    shrink_ok = (
+        (np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN)
+        or not sh["measurable"]
+        or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"]
+        or (np.isfinite(sh["ci95"][1]) and sh["ci95"][1] >= SHRINK_MIN)
+    )
     contra = scores.train_channels(f.after_nav, f.after_dyn)
     consistent = all(c["z"] >= -Z_CONTRADICT for c in contra.values())
-    explains = bool(dll_held > HELDOUT_DLL_MIN and shrink_ok and consistent
-                    and map_after <= max(thr_map, MAP_REMAINDER * t_map))
+    explains = bool(
+        dll_held > HELDOUT_DLL_MIN and shrink_ok and consistent and map_after <= max(thr_map, MAP_REMAINDER * t_map)
+    )
     c = candidates_of(d)[f.name]
     return {
-        "effect": f.name, "kind": f.kind, "evidence": {"ln_bf": f.ln_bf, "bic": f.bic, "dll_train": f.dll_train,
-                                                      "screen_bic": f.screen_bic, "dll_heldout": dll_held},
+        "effect": f.name,
+        "kind": f.kind,
+        "evidence": {
+            "ln_bf": f.ln_bf,
+            "bic": f.bic,
+            "dll_train": f.dll_train,
+            "screen_bic": f.screen_bic,
+            "dll_heldout": dll_held,
+        },
         "parameters": {p: {"value": float(v), "sigma": float(s)} for p, v, s in zip(c.params, f.theta, f.sigma)},
         "unconstrained_fit_beyond_bound_sigma": f.bound_excess_sigma,
-        "shrink_heldout": sh, "map_max_abs_z_after": map_after, "explains_heldout": explains,
-        "training_channels": contra, "shrink_ok": bool(shrink_ok),
+        "shrink_heldout": sh,
+        "map_max_abs_z_after": map_after,
+        "explains_heldout": explains,
+        "training_channels": contra,
+        "shrink_ok": bool(shrink_ok),
         "separate_by": c.separate_by,
         "replay_rms_heldout_after": quantify.channel_rms(f.after_nav.innovation[ctx.held_nav]),
     }
@@ -317,21 +372,47 @@ def _single_answer(d: LogData, fits: list, ranking: list) -> tuple:
         # their priors' Occam factors, not the data).
         d2 = signature_distance(fit_of[best["effect"]], fit_of[r["effect"]], candidates_of(d))
         if dbf < BF_AMBIGUOUS or d2 < DELTA2_95:
-            ambiguous_with.append({"effect": r["effect"], "ln_bf_difference": dbf, "signature_distance2": d2,
-                                   "separate_by": f"{best['separate_by']}; {r['separate_by']}"})
+            ambiguous_with.append(
+                {
+                    "effect": r["effect"],
+                    "ln_bf_difference": dbf,
+                    "signature_distance2": d2,
+                    "separate_by": f"{best['separate_by']}; {r['separate_by']}",
+                }
+            )
     return ("ambiguous" if ambiguous_with else "explained"), ambiguous_with, ranking
 
 
-def _set_answer(ctx: Context, fits: list, scores: HeldOut, cal: dict, thr_glr: float, thr_map: float, t_map: float,
-                verdict: str, ranking: list, ambiguous_with: list) -> tuple:
+def _set_answer(
+    ctx: Context,
+    fits: list,
+    scores: HeldOut,
+    cal: dict,
+    thr_glr: float,
+    thr_map: float,
+    t_map: float,
+    verdict: str,
+    ranking: list,
+    ambiguous_with: list,
+) -> tuple:
     """(verdict, effect_set, ambiguous_with) once several effects at once are
     considered (bench/gap/select.py): the set forward selection supports
     replaces the single answer only when its joint fit explains the held-out
     data and beats the best single explanation there; with no explanation,
     the members that each earn their place make a partial answer."""
-    effect_set = _effect_set(ctx, fits, thr_glr, thr_map, t_map, scores.shrink, scores.dll, scores.train_channels,
-                             ranking if verdict in ("explained", "ambiguous") else [],
-                             one_ok=verdict == "unexplained", null_map=cal.get("null_map_max_abs_z"))
+    effect_set = _effect_set(
+        ctx,
+        fits,
+        thr_glr,
+        thr_map,
+        t_map,
+        scores.shrink,
+        scores.dll,
+        scores.train_channels,
+        ranking if verdict in ("explained", "ambiguous") else [],
+        one_ok=verdict == "unexplained",
+        null_map=cal.get("null_map_max_abs_z"),
+    )
     if effect_set is not None and effect_set["explains_heldout"]:
         from bench.gap.select import look_alike_sets
 
@@ -339,13 +420,28 @@ def _set_answer(ctx: Context, fits: list, scores: HeldOut, cal: dict, thr_glr: f
         cands = candidates_of(ctx.d)
         # A set the data cannot tell from this one (one member swapped for
         # a look-alike that reproduces the set's signature): ambiguous.
-        ambiguous_with = [{"set": [a["with"] if n == a["replace"] else n for n in names], **a,
-                           "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}"}
-                          for a in look_alike_sets(ctx, fits, names, DELTA2_95)]
+        ambiguous_with = [
+            {
+                "set": [a["with"] if n == a["replace"] else n for n in names],
+                **a,
+                "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}",
+            }
+            for a in look_alike_sets(ctx, fits, names, DELTA2_95)
+        ]
         return ("ambiguous" if ambiguous_with else "explained"), effect_set, ambiguous_with
     if verdict == "unexplained" and effect_set is not None:
-        effect_set = _partial_set(effect_set, ctx, fits, thr_glr, thr_map, t_map, scores.shrink, scores.dll,
-                                  scores.train_channels, cal.get("null_map_max_abs_z"))
+        effect_set = _partial_set(
+            effect_set,
+            ctx,
+            fits,
+            thr_glr,
+            thr_map,
+            t_map,
+            scores.shrink,
+            scores.dll,
+            scores.train_channels,
+            cal.get("null_map_max_abs_z"),
+        )
         if effect_set is not None and effect_set["partly_explains"]:
             verdict = "partly_explained"
     return verdict, effect_set, ambiguous_with
@@ -354,8 +450,11 @@ def _set_answer(ctx: Context, fits: list, scores: HeldOut, cal: dict, thr_glr: f
 def _dynamics_or_sensor(where, verdict: str, ranking: list, effect_set) -> str | None:
     """Whether the gap is in the vehicle's dynamics or in a sensor: the
     answer's kind, or where the gap map puts it when nothing explains it."""
-    set_kinds = ({m["kind"] for m in effect_set["members"]}
-                 if effect_set is not None and effect_set["explains_heldout"] else None)
+    set_kinds = (
+        {m["kind"] for m in effect_set["members"]}
+        if effect_set is not None and effect_set["explains_heldout"]
+        else None
+    )
     if set_kinds:
         return set_kinds.pop() if len(set_kinds) == 1 else "dynamics and sensor"
     if verdict in ("explained", "ambiguous"):
@@ -368,13 +467,30 @@ def _dynamics_or_sensor(where, verdict: str, ranking: list, effect_set) -> str |
     # gaps point at the dynamics; attitude, broadband or IMU-scatter
     # gaps at a sensor.
     s, st = where["stream"], where["stat"]
-    return "dynamics" if (s in ("imu accel vs valves", "gyro vs valve torques")
-                          and (where["regime_peak"] == "firing" or st in ("mean", "lowfreq"))) \
-        or (s == "pose position" and st in ("mean", "lowfreq", "lag")) else "sensor"
+    return (
+        "dynamics"
+        if (
+            s in ("imu accel vs valves", "gyro vs valve torques")
+            and (where["regime_peak"] == "firing" or st in ("mean", "lowfreq"))
+        )
+        or (s == "pose position" and st in ("mean", "lowfreq", "lag"))
+        else "sensor"
+    )
 
 
-def _answer(d: LogData, ctx: Context, det, cal: dict, cal_info: dict, fits: list, ranking: list, verdict: str,
-            ambiguous_with: list, effect_set, detected: bool) -> dict:
+def _answer(
+    d: LogData,
+    ctx: Context,
+    det,
+    cal: dict,
+    cal_info: dict,
+    fits: list,
+    ranking: list,
+    verdict: str,
+    ambiguous_with: list,
+    effect_set,
+    detected: bool,
+) -> dict:
     """The JSON-ready answer of diagnose()."""
     nominal, ch, held = ctx.nominal, ctx.ch, ctx.held_nav
     summ = localise.summarise(det.cells, cal.get("null_map_max_abs_z"))
@@ -398,39 +514,93 @@ def _answer(d: LogData, ctx: Context, det, cal: dict, cal_info: dict, fits: list
         runs_shrink = {"runs": int(d.n_segments), "fraction": None, "reason": "measured on held-out blocks for a set"}
     else:
         runs_shrink = heldout_runs_shrink(ctx, best["effect"]) if best is not None and verdict != "no_gap" else None
-    screen_table = [{"effect": f.name, "kind": f.kind, "screen_2dll": f.screen_2dll, "rank": f.rank,
-                     "screen_logp": f.screen_logp, "screen_ln_bf": f.screen_ln_bf, "screen_bic": f.screen_bic}
-                    for f in fits]
-    thr = cal.get("thresholds", {})
     return {
         "gap_detected": detected,
-        "statistics": {"map_max_abs_z": det.map_max_abs_z, "map_threshold": float(thr.get("map_max_abs_z", np.inf)),
-                       "screen_logp_max": det.screen_logp_max,
-                       "screen_logp_threshold": float(thr.get("screen_logp", np.inf)),
-                       "screen_bic_max": max(f.screen_bic for f in fits), "false_alarm_rate": cal.get("false_alarm_rate"),
-                       "calibration_runs": cal.get("runs")},
-        "location": {"where": where, "dynamics_or_sensor": dyn_or_sensor, "top_cells": summ["top_cells"],
-                     "effect_acts_while": acts},
+        "statistics": _statistics(det, cal, fits),
+        "location": {
+            "where": where,
+            "dynamics_or_sensor": dyn_or_sensor,
+            "top_cells": summ["top_cells"],
+            "effect_acts_while": acts,
+        },
         "attribution": ranking,
-        "effects": (effect_set["members"] if is_set else
-                    ([{"effect": ranking[0]["effect"], "parameters": ranking[0]["parameters"]}]
-                     if verdict in ("explained", "ambiguous") else [])),
+        "effects": _named_effects(effect_set, is_set, ranking, verdict),
         "effect_set": effect_set,
-        "screening": screen_table,
+        "screening": _screen_table(fits),
         "verdict": verdict,
         "ambiguous_with": ambiguous_with,
         "shrink_heldout_runs": runs_shrink,
-        "shrink_heldout": ({"effect": " + ".join(m["effect"] for m in effect_set["members"]) if is_set else best["effect"],
-                            "fraction": shrink_best["fraction"], "ci95": shrink_best["ci95"]} if best else None),
+        "shrink_heldout": (
+            {
+                "effect": " + ".join(m["effect"] for m in effect_set["members"]) if is_set else best["effect"],
+                "fraction": shrink_best["fraction"],
+                "ci95": shrink_best["ci95"],
+            }
+            if best
+            else None
+        ),
         "replay_rms_heldout_before": quantify.channel_rms(nominal.innovation[held]),
         "not_modelled": list(NOT_MODELLED),
         "examined": examined(d, ctx, detected),
         "calibration": cal_info,
-        "log": {"duration_s": d.duration_s, "imu_samples": int(d.imu_t.size), "pose_updates": int(d.pose_tc.size),
-                "segments": int(d.pose_start.sum()), "valves": d.valves is not None,
-                "thrusters": int(d.desc.n_thrusters), "manoeuvres": d.desc.manoeuvres() or None,
-                "defaults_used": list(d.desc.defaults), "dropped": dict(d.dropped),
-                "train_updates": int(ctx.train_nav.sum()), "heldout_updates": int(held.sum())},
+        "log": _log_summary(d, ctx),
+    }
+
+
+def _statistics(det, cal: dict, fits: list) -> dict:
+    """The detection statistics beside their calibrated thresholds."""
+    thr = cal.get("thresholds", {})
+    return {
+        "map_max_abs_z": det.map_max_abs_z,
+        "map_threshold": float(thr.get("map_max_abs_z", np.inf)),
+        "screen_logp_max": det.screen_logp_max,
+        "screen_logp_threshold": float(thr.get("screen_logp", np.inf)),
+        "screen_bic_max": max(f.screen_bic for f in fits),
+        "false_alarm_rate": cal.get("false_alarm_rate"),
+        "calibration_runs": cal.get("runs"),
+    }
+
+
+def _screen_table(fits: list) -> list:
+    """Each candidate's screening statistics, one row per candidate."""
+    return [
+        {
+            "effect": f.name,
+            "kind": f.kind,
+            "screen_2dll": f.screen_2dll,
+            "rank": f.rank,
+            "screen_logp": f.screen_logp,
+            "screen_ln_bf": f.screen_ln_bf,
+            "screen_bic": f.screen_bic,
+        }
+        for f in fits
+    ]
+
+
+def _named_effects(effect_set, is_set: bool, ranking: list, verdict: str) -> list:
+    """The effects the answer names with their parameters: the set's members,
+    or the best single candidate when that is the answer."""
+    if is_set:
+        return effect_set["members"]
+    if verdict in ("explained", "ambiguous"):
+        return [{"effect": ranking[0]["effect"], "parameters": ranking[0]["parameters"]}]
+    return []
+
+
+def _log_summary(d: LogData, ctx: Context) -> dict:
+    """What the log held and how it was split into training and held-out data."""
+    return {
+        "duration_s": d.duration_s,
+        "imu_samples": int(d.imu_t.size),
+        "pose_updates": int(d.pose_tc.size),
+        "segments": int(d.pose_start.sum()),
+        "valves": d.valves is not None,
+        "thrusters": int(d.desc.n_thrusters),
+        "manoeuvres": d.desc.manoeuvres() or None,
+        "defaults_used": list(d.desc.defaults),
+        "dropped": dict(d.dropped),
+        "train_updates": int(ctx.train_nav.sum()),
+        "heldout_updates": int(ctx.held_nav.sum()),
     }
 
 
@@ -442,12 +612,61 @@ def _partial_set(es: dict, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held
     keep = [st for st, m in zip(es["_steps"], es["members"]) if m["adds_dll_heldout"] > HELDOUT_DLL_MIN]
     if not keep or len(keep) == len(es["members"]):
         return es
-    return _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, [],
-                       one_ok=True, null_map=null_map, steps=keep)
+    return _effect_set(
+        ctx,
+        fits,
+        thr_glr,
+        thr_map,
+        t_map,
+        held_shrink,
+        held_dll,
+        train_channels,
+        [],
+        one_ok=True,
+        null_map=null_map,
+        steps=keep,
+    )
 
 
-def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, single: list,
-                one_ok: bool = False, null_map=None, steps: list | None = None):
+def _set_member(ctx, sf, step: dict, sh: dict, dll_h: float, held_shrink, held_dll) -> dict:
+    """One member of a jointly fitted set: its parameters from the joint fit and
+    what it adds beside the others (the set refitted without it)."""
+    from bench.gap import select
+
+    n = step["effect"]
+    nav_wo, dyn_wo = select.without(sf, ctx, n)
+    sh_wo = held_shrink(nav_wo, dyn_wo)
+    c = candidates_of(ctx.d)[n]
+    return {
+        "effect": n,
+        "kind": c.kind,
+        "conditional_logp": step["conditional_logp"],
+        "parameters": {
+            p: {"value": float(v), "sigma": float(g)} for p, v, g in zip(c.params, sf.theta[n], sf.sigma[n])
+        },
+        "adds_shrink": (
+            float(sh["fraction"] - sh_wo["fraction"])
+            if np.isfinite(sh["fraction"]) and np.isfinite(sh_wo["fraction"])
+            else None
+        ),
+        "adds_dll_heldout": float(dll_h - held_dll(nav_wo, dyn_wo)),
+    }
+
+
+def _effect_set(
+    ctx,
+    fits,
+    thr_glr,
+    thr_map,
+    t_map,
+    held_shrink,
+    held_dll,
+    train_channels,
+    single: list,
+    one_ok: bool = False,
+    null_map=None,
+    steps: list | None = None,
+):
     """The forward-selected set, jointly refitted and tested on the held-out
     data like a single candidate; None when the selection stops at one effect
     (or at none: ``one_ok`` keeps a set of one, for the partial answer)."""
@@ -464,38 +683,45 @@ def _effect_set(ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train
     dll_h = held_dll(sf.after_nav, sf.after_dyn)
     cells_after = map_cells(d, sf.after_nav) + localise.dyn_cells(d, ch, sf.after_dyn)
     map_after = localise.map_statistic(cells_after)
-    shrink_ok = ((np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN) or not sh["measurable"]
-                 or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"])
+    shrink_ok = (
+        (np.isfinite(sh["fraction"]) and sh["fraction"] >= SHRINK_MIN)
+        or not sh["measurable"]
+        or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"]
+    )
     consistent = all(c["z"] >= -Z_CONTRADICT for c in train_channels(sf.after_nav, sf.after_dyn).values())
     best_single = max((r["evidence"]["dll_heldout"] for r in single if r["explains_heldout"]), default=-np.inf)
-    members = []
-    for st in steps:
-        n = st["effect"]
-        nav_wo, dyn_wo = select.without(sf, ctx, n)
-        sh_wo = held_shrink(nav_wo, dyn_wo)
-        c = candidates_of(d)[n]
-        members.append({
-            "effect": n, "kind": c.kind, "conditional_logp": st["conditional_logp"],
-            "parameters": {p: {"value": float(v), "sigma": float(g)}
-                           for p, v, g in zip(c.params, sf.theta[n], sf.sigma[n])},
-            "adds_shrink": (float(sh["fraction"] - sh_wo["fraction"])
-                            if np.isfinite(sh["fraction"]) and np.isfinite(sh_wo["fraction"]) else None),
-            "adds_dll_heldout": float(dll_h - held_dll(nav_wo, dyn_wo)),
-        })
+    members = [_set_member(ctx, sf, st, sh, dll_h, held_shrink, held_dll) for st in steps]
     needed = all(m["adds_dll_heldout"] > HELDOUT_DLL_MIN for m in members)
     remainder_left = map_after > max(thr_map, MAP_REMAINDER * t_map)
-    explains = bool(len(members) >= 2 and dll_h > HELDOUT_DLL_MIN and shrink_ok and consistent and needed
-                    and dll_h - best_single > HELDOUT_DLL_MIN and not remainder_left)
+    explains = bool(
+        len(members) >= 2
+        and dll_h > HELDOUT_DLL_MIN
+        and shrink_ok
+        and consistent
+        and needed
+        and dll_h - best_single > HELDOUT_DLL_MIN
+        and not remainder_left
+    )
     # A partial answer: every member earns its place on the held-out data and
     # contradicts no channel, and what is left is still a gap.
-    partly = bool(not explains and needed and consistent and dll_h > HELDOUT_DLL_MIN
-                  and (remainder_left or not shrink_ok))
+    partly = bool(
+        not explains and needed and consistent and dll_h > HELDOUT_DLL_MIN and (remainder_left or not shrink_ok)
+    )
     rem = localise.summarise(cells_after, null_map)["where"]
-    return {"members": members, "shrink_heldout": sh, "dll_heldout": dll_h, "map_max_abs_z_after": map_after,
-            "explains_heldout": explains, "partly_explains": partly, "every_member_needed": needed,
-            "consistent": bool(consistent), "remainder_where": rem,
-            "dll_heldout_gain_over_single": float(dll_h - best_single) if np.isfinite(best_single) else None,
-            "_fit": sf, "_steps": steps}
+    return {
+        "members": members,
+        "shrink_heldout": sh,
+        "dll_heldout": dll_h,
+        "map_max_abs_z_after": map_after,
+        "explains_heldout": explains,
+        "partly_explains": partly,
+        "every_member_needed": needed,
+        "consistent": bool(consistent),
+        "remainder_where": rem,
+        "dll_heldout_gain_over_single": float(dll_h - best_single) if np.isfinite(best_single) else None,
+        "_fit": sf,
+        "_steps": steps,
+    }
 
 
 MIN_RUN_UPDATES = 10  # fewer fused pose updates than this: a run too short to show a gap
@@ -514,8 +740,10 @@ def examined(d: LogData, ctx: Context, detected: bool) -> dict:
     if ctx.ch is None:
         for name in ("accelerometer vs valves", "gyro vs valve torques"):
             channels[name] = {"examined": False, "why": "no valves stream"}
-        not_examined.append("dynamics (accelerometer and gyro against the commanded thrust): no valves stream, so "
-                            "thrust loss, thruster misalignment and mass depletion cannot be seen")
+        not_examined.append(
+            "dynamics (accelerometer and gyro against the commanded thrust): no valves stream, so "
+            "thrust loss, thruster misalignment and mass depletion cannot be seen"
+        )
     else:
         n_a = int(np.sum(ctx.ch.kind == 0))
         channels["accelerometer vs valves"] = {"examined": True, "rows": n_a}
@@ -523,26 +751,38 @@ def examined(d: LogData, ctx: Context, detected: bool) -> dict:
         fired = d.valves.sum(axis=0) * d.dt_s
         idle = [int(i) for i in np.flatnonzero(fired <= 0.0)]
         if idle:
-            not_examined.append(f"thruster{'s' if len(idle) > 1 else ''} {', '.join(map(str, idle))} never fired: "
-                                "their loss and tilt are not examined")
+            not_examined.append(
+                f"thruster{'s' if len(idle) > 1 else ''} {', '.join(map(str, idle))} never fired: "
+                "their loss and tilt are not examined"
+            )
     seg = segment_of(d, d.pose_tc)
     short = [int(k) for k in np.unique(seg) if int(np.sum(ok & (seg == k))) < MIN_RUN_UPDATES]
     if short:
-        not_examined.append(f"run{'s' if len(short) > 1 else ''} {', '.join(map(str, short))}: fewer than "
-                            f"{MIN_RUN_UPDATES} pose updates each")
+        not_examined.append(
+            f"run{'s' if len(short) > 1 else ''} {', '.join(map(str, short))}: fewer than "
+            f"{MIN_RUN_UPDATES} pose updates each"
+        )
     if d.ref_q is not None:
         w_h = np.einsum("nji,j->ni", rotmats(d.ref_q), np.array([0.0, 0.0, d.n_radps]))
         w_bh = np.abs(d.gyro - w_h)
         still = [a for i, a in enumerate("xyz") if np.percentile(w_bh[:, i], 99) < RATE_EXCITED_RPS]
         if still:
-            not_examined.append(f"rotation about body {', '.join(still)} never exceeded {RATE_EXCITED_RPS} rad/s: "
-                                "gyro scale on that axis is not examined")
+            not_examined.append(
+                f"rotation about body {', '.join(still)} never exceeded {RATE_EXCITED_RPS} rad/s: "
+                "gyro scale on that axis is not examined"
+            )
     looked = [k for k, v in channels.items() if v["examined"]]
     missing = [k for k, v in channels.items() if not v["examined"]]
-    summary = ((f"no gap in {', '.join(looked)}" if not detected else f"channels: {', '.join(looked)}")
-               + (f"; not examined: {', '.join(missing)} ({channels[missing[0]]['why']})" if missing else ""))
-    return {"summary": summary, "channels": channels, "not_examined": not_examined,
-            "defaults_used": list(d.desc.defaults) if d.desc is not None else [], "dropped": dict(d.dropped)}
+    summary = (f"no gap in {', '.join(looked)}" if not detected else f"channels: {', '.join(looked)}") + (
+        f"; not examined: {', '.join(missing)} ({channels[missing[0]]['why']})" if missing else ""
+    )
+    return {
+        "summary": summary,
+        "channels": channels,
+        "not_examined": not_examined,
+        "defaults_used": list(d.desc.defaults) if d.desc is not None else [],
+        "dropped": dict(d.dropped),
+    }
 
 
 def public(result: dict) -> dict:

@@ -14,6 +14,7 @@ on these rows is linear in its parameters (to first order), so its
 Jacobian is computed in closed form here (``jacobian``); candidates with no
 signature on this channel return None.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -28,8 +29,10 @@ from bench.so3 import rotmats
 def _skew_rows(v: np.ndarray) -> np.ndarray:
     """(N, 3) -> (N, 3, 3) cross-product matrices [v]x."""
     z = np.zeros(v.shape[0])
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], 1), np.stack([v[:, 2], z, -v[:, 0]], 1),
-                     np.stack([-v[:, 1], v[:, 0], z], 1)], 1)
+    return np.stack(
+        [np.stack([z, -v[:, 2], v[:, 1]], 1), np.stack([v[:, 2], z, -v[:, 0]], 1), np.stack([-v[:, 1], v[:, 0], z], 1)],
+        1,
+    )
 
 
 @dataclass
@@ -67,7 +70,7 @@ class DynChannel:
         out = np.empty_like(w)
         for (a, b), L in zip(self.seg_bounds, self.chol):
             x = L[0][:, None] * w[a:b]
-            x[1:] += L[1][:-1, None] * w[a:b - 1]
+            x[1:] += L[1][:-1, None] * w[a : b - 1]
             out[a:b] = x
         return out
 
@@ -75,13 +78,40 @@ class DynChannel:
         """(n_gyro_rows,) True where row i and row i + 1 share a segment (their differences correlate, -1/2)."""
         adj = np.zeros(self.gyro_rows.size, bool)
         for a, b in self.seg_bounds:
-            adj[a:b - 1] = True
+            adj[a : b - 1] = True
         return adj
 
     def jacobian(self, name: str) -> np.ndarray | None:
         """d(e)/d(theta) (R, 3, k): the change of the whitened rows per unit parameter."""
         f = _JAC.get(name)
         return None if f is None else f(self)
+
+
+def _open_seconds_before(n_open: np.ndarray, seg_id: np.ndarray) -> np.ndarray:
+    """Valve-open seconds summed over all valves before each sample, restarted
+    at each segment (the propellant used so far, for the mass)."""
+    vs = np.zeros_like(n_open)
+    for s in np.unique(seg_id):
+        m = seg_id == s
+        c = np.cumsum(n_open[m])
+        vs[m] = c - n_open[m]
+    return vs
+
+
+def _difference_whiteners(seg_of_row: np.ndarray) -> tuple:
+    """Per segment, the row range and the banded Cholesky factor of the
+    covariance of first differences of white noise (tridiagonal 2, -1)."""
+    bounds, chols = [], []
+    start = 0
+    for s in np.unique(seg_of_row):
+        n = int(np.sum(seg_of_row == s))
+        ab = np.zeros((2, n))
+        ab[0] = 2.0
+        ab[1, :-1] = -1.0
+        chols.append(cholesky_banded(ab, lower=True))
+        bounds.append((start, start + n))
+        start += n
+    return bounds, chols
 
 
 def build(d: LogData) -> DynChannel | None:
@@ -105,15 +135,9 @@ def build(d: LogData) -> DynChannel | None:
     alpha = (tau - np.cross(w, w @ J.T)) @ Jinv.T
     e_a = (d.accel - F / veh.mass_kg) / sig_a
     # Segments (runs) reset the gyro differences and the mass.
-    seg_id = d.imu_seg if d.imu_seg is not None else np.concatenate(
-        [[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
+    seg_id = d.imu_seg if d.imu_seg is not None else np.concatenate([[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
     brk = np.concatenate([[True], np.diff(seg_id) != 0])
-    n_open = open_.sum(axis=1) * d.dt_s
-    vs = np.zeros_like(n_open)
-    for s in np.unique(seg_id):
-        m = seg_id == s
-        c = np.cumsum(n_open[m])
-        vs[m] = c - n_open[m]
+    vs = _open_seconds_before(open_.sum(axis=1) * d.dt_s, seg_id)
     k = np.flatnonzero(~brk)  # difference k-1 -> k within a segment
     # Consecutive interval means are their centres' spacing apart (the time
     # stamps' difference: jitter and dropped samples included).
@@ -123,24 +147,32 @@ def build(d: LogData) -> DynChannel | None:
     # interval, so with jittered or dropped samples the intervals overlap or
     # leave gaps, and a per-sample average of the torque would leak a drift.
     # W[r, i]: thruster i's effective open seconds in difference row r.
-    W = turn_weights(d.valve_stream, d.imu_t, k, d.dt_s, open_.shape[1]) if d.valve_stream is not None else \
-        0.5 * (open_[k - 1] + open_[k]) * h
+    W = (
+        turn_weights(d.valve_stream, d.imu_t, k, d.dt_s, open_.shape[1])
+        if d.valve_stream is not None
+        else 0.5 * (open_[k - 1] + open_[k]) * h
+    )
     gyroscopic = -np.cross(w, w @ J.T) @ Jinv.T
     turn = (W @ Ti) @ Jinv.T + 0.5 * (gyroscopic[k - 1] + gyroscopic[k]) * h
     dg = (w[k] - w[k - 1] - turn) / sig_g
-    bounds, chols = [], []
-    start = 0
-    seg_of_row = seg_id[k]
-    for s in np.unique(seg_of_row):
-        n = int(np.sum(seg_of_row == s))
-        ab = np.zeros((2, n))
-        ab[0] = 2.0
-        ab[1, :-1] = -1.0
-        chols.append(cholesky_banded(ab, lower=True))
-        bounds.append((start, start + n))
-        start += n
-    ch = DynChannel(t=None, e0=None, kind=None, sig_a=sig_a, gyro_rows=k, seg_bounds=bounds, chol=chols, F=F,
-                    open_=open_, alpha=alpha, w=w, vs=vs, mass=veh.mass_kg, dt=d.dt_s, veh=veh)
+    bounds, chols = _difference_whiteners(seg_id[k])
+    ch = DynChannel(
+        t=None,
+        e0=None,
+        kind=None,
+        sig_a=sig_a,
+        gyro_rows=k,
+        seg_bounds=bounds,
+        chol=chols,
+        F=F,
+        open_=open_,
+        alpha=alpha,
+        w=w,
+        vs=vs,
+        mass=veh.mass_kg,
+        dt=d.dt_s,
+        veh=veh,
+    )
     ch.sig_g = sig_g
     ch.h = h
     ch.W = W
@@ -154,8 +186,10 @@ def build(d: LogData) -> DynChannel | None:
 
 # --- Jacobians: rows = -(change of the predicted measurement) / sigma ----------
 
-def _stack(ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None,
-           dturn: np.ndarray | None = None) -> np.ndarray:
+
+def _stack(
+    ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None, dturn: np.ndarray | None = None
+) -> np.ndarray:
     """da: (N, 3, k) change of the predicted accelerometer; dalpha: (N, 3, k)
     change of the predicted angular acceleration (gyro differences follow);
     or dturn: (rows, 3, k) the change of each gyro difference directly."""
@@ -204,8 +238,12 @@ def turn_weights(valves: dict, t: np.ndarray, rows: np.ndarray, dt: float, n_thr
         if not np.any(m):
             continue
         s, du = vt[m], on[m, i]
-        out[:, i] = (_open_time_integral(s, du, a) - _open_time_integral(s, du, a - dt)
-                     - _open_time_integral(s, du, b) + _open_time_integral(s, du, b - dt)) / dt
+        out[:, i] = (
+            _open_time_integral(s, du, a)
+            - _open_time_integral(s, du, a - dt)
+            - _open_time_integral(s, du, b)
+            + _open_time_integral(s, du, b - dt)
+        ) / dt
     return out
 
 
@@ -238,8 +276,8 @@ def _jac_misalign(ch):
         Sd = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
         Sr = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
         dF = -T[i] * Sd  # d(force)/d(phi_i)
-        da[:, :, 3 * i:3 * i + 3] = ch.open_[:, i, None, None] * dF[None] / ch.mass
-        dturn[:, :, 3 * i:3 * i + 3] = ch.W[:, i, None, None] * (Jinv @ Sr @ dF)[None]
+        da[:, :, 3 * i : 3 * i + 3] = ch.open_[:, i, None, None] * dF[None] / ch.mass
+        dturn[:, :, 3 * i : 3 * i + 3] = ch.W[:, i, None, None] * (Jinv @ Sr @ dF)[None]
     return _stack(ch, da, None, dturn)
 
 
@@ -282,6 +320,13 @@ def _jac_drag(ch):
     return _stack(ch, da, None)
 
 
-_JAC = {"differential_drag": _jac_drag, "accel_bias": _jac_accel_bias, "thrust_loss": _jac_thrust_loss, "thruster_misalignment": _jac_misalign,
-        "com_offset": _jac_com, "mass_depletion": _jac_mass, "gyro_scale": _jac_gyro_scale,
-        "imu_misalignment": _jac_imu_misalign}
+_JAC = {
+    "differential_drag": _jac_drag,
+    "accel_bias": _jac_accel_bias,
+    "thrust_loss": _jac_thrust_loss,
+    "thruster_misalignment": _jac_misalign,
+    "com_offset": _jac_com,
+    "mass_depletion": _jac_mass,
+    "gyro_scale": _jac_gyro_scale,
+    "imu_misalignment": _jac_imu_misalign,
+}

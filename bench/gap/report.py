@@ -1,4 +1,5 @@
 """The diagnosis page: Markdown with plots, readable in two minutes."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,9 +16,9 @@ CH = ("r_x", "r_y", "r_z", "th_x", "th_y", "th_z")
 def _gap_map_png(cells, path: Path):
     plt = matplotlib_agg()
     rows = [(s, a) for s, _, _ in localise.STREAMS for a in "xyz"] + [
-        (s, a) for s, _ in localise.DYN_STREAMS for a in "xyz"]
-    cols = [(r, st) for r in localise.REGIMES for st in localise.STATS
-            if r == "all" or st in ("mean", "variance")]
+        (s, a) for s, _ in localise.DYN_STREAMS for a in "xyz"
+    ]
+    cols = [(r, st) for r in localise.REGIMES for st in localise.STATS if r == "all" or st in ("mean", "variance")]
     z = np.full((len(rows), len(cols)), np.nan)
     for c in cells:
         i = rows.index((c["stream"], c["axis"]))
@@ -26,8 +27,12 @@ def _gap_map_png(cells, path: Path):
     fig, ax = plt.subplots(figsize=(10, 5.0))
     lim = max(4.0, float(np.nanmax(np.abs(z))) if np.isfinite(z).any() else 4.0)
     im = ax.imshow(z, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
-    short = {"pose position": "pose pos", "pose attitude": "pose att", "imu accel vs valves": "accel-valves",
-             "gyro vs valve torques": "gyro-torques"}
+    short = {
+        "pose position": "pose pos",
+        "pose attitude": "pose att",
+        "imu accel vs valves": "accel-valves",
+        "gyro vs valve torques": "gyro-torques",
+    }
     ax.set_yticks(range(len(rows)), [f"{short[s]} {a}" for s, a in rows])
     ax.set_xticks(range(len(cols)), [f"{r}\n{s}" for r, s in cols], fontsize=7)
     for i in range(z.shape[0]):
@@ -92,8 +97,17 @@ def residual_series(result: dict) -> tuple:
     nav = fit is None or any(candidates_of(d)[n].nav for n in names) or ctx.ch is None
     if nav:
         after = fit.after_nav.white if fit is not None else None
-        series = [(f"{CH[i]} (whitened)", d.pose_tc, nominal.white[:, i], None if after is None else after[:, i],
-                   held, float(np.median(np.diff(d.pose_tc))) if d.pose_tc.size > 1 else 1.0) for i in range(6)]
+        series = [
+            (
+                f"{CH[i]} (whitened)",
+                d.pose_tc,
+                nominal.white[:, i],
+                None if after is None else after[:, i],
+                held,
+                float(np.median(np.diff(d.pose_tc))) if d.pose_tc.size > 1 else 1.0,
+            )
+            for i in range(6)
+        ]
         return series, "pose innovations (whitened)"
     ch = ctx.ch
     series = []
@@ -101,8 +115,16 @@ def residual_series(result: dict) -> tuple:
         m = ch.kind == kind
         hd = ctx.held_dyn[m] if ctx.held_dyn is not None else np.zeros(int(m.sum()), bool)
         for i, ax in enumerate("xyz"):
-            series.append((f"{name} {ax}", ch.t[m], ch.e0[m, i],
-                           fit.after_dyn[m, i] if fit.after_dyn is not None else None, hd, d.dt_s))
+            series.append(
+                (
+                    f"{name} {ax}",
+                    ch.t[m],
+                    ch.e0[m, i],
+                    fit.after_dyn[m, i] if fit.after_dyn is not None else None,
+                    hd,
+                    d.dt_s,
+                )
+            )
     return series, "accelerometer and gyro against the valve model (whitened rows)"
 
 
@@ -119,7 +141,104 @@ def _spans(t, mask):
     return out
 
 
+def _not_told_apart_lines(result: dict, best) -> list:
+    """The sets or effects the data could not tell apart, and what would."""
+    lines = []
+    if not result["ambiguous_with"]:
+        return lines
+    lines += ["### Not told apart", ""]
+    for a in result["ambiguous_with"]:
+        if "replace" in a:  # a set with one member swapped for a look-alike
+            lines.append(
+                f"- {' + '.join(a['set'])}: {a['with']} in place of {a['replace']} reproduces the set's "
+                f"fitted signature to within {a['signature_distance2']:.1f} noise variances: "
+                f"separate with: {a['separate_by']}"
+            )
+            continue
+        lines.append(
+            f"- {best['effect']} vs {a['effect']} (ln Bayes factor difference {a['ln_bf_difference']:.1f}; "
+            f"{a['effect']} reproduces {best['effect']}'s fitted signature to within "
+            f"{a['signature_distance2']:.1f} noise variances): "
+            f"separate with: {a['separate_by']}"
+        )
+    lines.append("")
+    return lines
+
+
+def _ranking_lines(result: dict) -> list:
+    """The ranking table and the screening line."""
+    lines = [
+        "## Ranking (confirmed by full-filter refit on training blocks)",
+        "",
+        "| effect | kind | ln Bayes factor | BIC | dLL train | dLL held-out | shrink held-out [95 % CI] | explains | parameters |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["attribution"]:
+        sh = r["shrink_heldout"]
+        pars = "; ".join(f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in r["parameters"].items())
+        lines.append(
+            f"| {r['effect']} | {r['kind']} | {r['evidence']['ln_bf']:.1f} | {r['evidence']['bic']:.1f} | {r['evidence']['dll_train']:.1f} | "
+            f"{r['evidence']['dll_heldout']:.1f} | {sh['fraction']:.2f} [{sh['ci95'][0]:.2f}, {sh['ci95'][1]:.2f}] | "
+            f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |"
+        )
+    lines += [
+        "",
+        "Screening (linearised GLR, every candidate, -log10 p against chi-square(rank)): "
+        + ", ".join(f"{s['effect']} {s['screen_logp']:.1f}" for s in result["screening"]),
+        "",
+    ]
+    return lines
+
+
+def _gap_map_lines(loc: dict) -> list:
+    """The gap map and its top cells."""
+    lines = [
+        "## Gap map",
+        "",
+        "![gap map](gap_map.png)",
+        "",
+        "Top cells (family-wise p-values against the null's largest |z|):",
+        "",
+    ]
+    for c in loc["top_cells"]:
+        lines.append(
+            f"- {c['stream']} {c['axis']} {c['regime']} {c['stat']}: z = {c['z']:.2f}"
+            + (f", p {'<=' if c.get('p_beyond_null') else '='} {c['p_familywise']:.3f}" if "p_familywise" in c else "")
+        )
+    return lines
+
+
+def _residual_lines(series: list, named: str, what: str) -> list:
+    """The residual plot and the held-out RMS before and after."""
+    lines = [
+        "",
+        "## Residuals and spectra, before and after",
+        "",
+        f"Shown: {what}.",
+        "",
+        "![residuals](residuals.png)",
+        "",
+    ]
+    rms = [
+        (
+            nm,
+            float(np.sqrt(np.nanmean(b[h] ** 2))) if np.any(h) else float("nan"),
+            float(np.sqrt(np.nanmean(a[h] ** 2))) if a is not None and np.any(h) else None,
+        )
+        for nm, _, b, a, h, _ in series
+    ]
+    lines.append(
+        "RMS on held-out rows, nominal"
+        + (f" -> with {named}" if named else "")
+        + ": "
+        + ", ".join(f"{nm} {b:.3g}" + (f" -> {a:.3g}" if a is not None else "") for nm, b, a in rms)
+    )
+    return lines
+
+
 def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
+    """Write the diagnosis as a markdown report with its gap map and residual
+    plots into ``out_dir``; returns the report's path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     it = result["_internal"]
@@ -139,50 +258,25 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
         lines.append(f"- **{label.capitalize()}**: {text}" if label else f"  {text}")
     if not result["gap_detected"]:
         lines.append(f"- No gap at the calibrated false-alarm rate ({st['false_alarm_rate']}).")
-    lines += ["", f"Detection: gap-map max |z| = {st['map_max_abs_z']:.2f} (threshold {st['map_threshold']:.2f}); "
-              f"best screening -log10 p = {st['screen_logp_max']:.2f} (threshold {st['screen_logp_threshold']:.2f}); "
-              f"thresholds from {st['calibration_runs']} null runs, false-alarm rate {st['false_alarm_rate']}.", ""]
-    if result["ambiguous_with"]:
-        lines += ["### Not told apart", ""]
-        for a in result["ambiguous_with"]:
-            if "replace" in a:  # a set with one member swapped for a look-alike
-                lines.append(f"- {' + '.join(a['set'])}: {a['with']} in place of {a['replace']} reproduces the set's "
-                             f"fitted signature to within {a['signature_distance2']:.1f} noise variances: "
-                             f"separate with: {a['separate_by']}")
-                continue
-            lines.append(f"- {best['effect']} vs {a['effect']} (ln Bayes factor difference {a['ln_bf_difference']:.1f}; "
-                         f"{a['effect']} reproduces {best['effect']}'s fitted signature to within "
-                         f"{a['signature_distance2']:.1f} noise variances): "
-                         f"separate with: {a['separate_by']}")
-        lines.append("")
-    lines += ["## Ranking (confirmed by full-filter refit on training blocks)", "",
-              "| effect | kind | ln Bayes factor | BIC | dLL train | dLL held-out | shrink held-out [95 % CI] | explains | parameters |",
-              "|---|---|---|---|---|---|---|---|---|"]
-    for r in result["attribution"]:
-        sh = r["shrink_heldout"]
-        pars = "; ".join(f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in r["parameters"].items())
-        lines.append(f"| {r['effect']} | {r['kind']} | {r['evidence']['ln_bf']:.1f} | {r['evidence']['bic']:.1f} | {r['evidence']['dll_train']:.1f} | "
-                     f"{r['evidence']['dll_heldout']:.1f} | {sh['fraction']:.2f} [{sh['ci95'][0]:.2f}, {sh['ci95'][1]:.2f}] | "
-                     f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |")
-    lines += ["", "Screening (linearised GLR, every candidate, -log10 p against chi-square(rank)): " + ", ".join(
-        f"{s['effect']} {s['screen_logp']:.1f}" for s in result["screening"]), ""]
-    lines += ["## Gap map", "", "![gap map](gap_map.png)", "",
-              "Top cells (family-wise p-values against the null's largest |z|):", ""]
-    for c in loc["top_cells"]:
-        lines.append(f"- {c['stream']} {c['axis']} {c['regime']} {c['stat']}: z = {c['z']:.2f}"
-                     + (f", p {'<=' if c.get('p_beyond_null') else '='} {c['p_familywise']:.3f}"
-                        if "p_familywise" in c else ""))
-    lines += ["", "## Residuals and spectra, before and after", "", f"Shown: {what}.", "",
-              "![residuals](residuals.png)", ""]
-    rms = [(nm, float(np.sqrt(np.nanmean(b[h] ** 2))) if np.any(h) else float("nan"),
-            float(np.sqrt(np.nanmean(a[h] ** 2))) if a is not None and np.any(h) else None)
-           for nm, _, b, a, h, _ in series]
-    lines.append("RMS on held-out rows, nominal" + (f" -> with {named}" if named else "") + ": " + ", ".join(
-        f"{nm} {b:.3g}" + (f" -> {a:.3g}" if a is not None else "") for nm, b, a in rms))
-    lines += ["", f"In the library but without a candidate model yet: {', '.join(result['not_modelled'])}.", "",
-              f"Log: {result['log']['duration_s']:.0f} s, {result['log']['pose_updates']} pose updates "
-              f"({result['log']['train_updates']} train / {result['log']['heldout_updates']} held out); "
-              f"diagnosed in {result['elapsed_s']:.1f} s."]
+    lines += [
+        "",
+        f"Detection: gap-map max |z| = {st['map_max_abs_z']:.2f} (threshold {st['map_threshold']:.2f}); "
+        f"best screening -log10 p = {st['screen_logp_max']:.2f} (threshold {st['screen_logp_threshold']:.2f}); "
+        f"thresholds from {st['calibration_runs']} null runs, false-alarm rate {st['false_alarm_rate']}.",
+        "",
+    ]
+    lines += _not_told_apart_lines(result, best)
+    lines += _ranking_lines(result)
+    lines += _gap_map_lines(loc)
+    lines += _residual_lines(series, named, what)
+    lines += [
+        "",
+        f"In the library but without a candidate model yet: {', '.join(result['not_modelled'])}.",
+        "",
+        f"Log: {result['log']['duration_s']:.0f} s, {result['log']['pose_updates']} pose updates "
+        f"({result['log']['train_updates']} train / {result['log']['heldout_updates']} held out); "
+        f"diagnosed in {result['elapsed_s']:.1f} s.",
+    ]
     p = out / "README.md"
     p.write_text("\n".join(lines) + "\n")
     return p

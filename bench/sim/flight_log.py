@@ -5,6 +5,7 @@ The contract is docs/FLIGHT_LOG.md; this module is its executable form. A
 user can write a log with plain h5py by following that page; ``validate``
 names the stream, the field, the row and what is wrong.
 """
+
 from __future__ import annotations
 
 import json
@@ -43,48 +44,85 @@ class StreamSpec:
 
 # The schema. Frames and units as in docs/CONVENTIONS.md; quaternions [w, x, y, z].
 STREAMS = (
-    StreamSpec("imu", "t_s", (
-        FieldSpec("t_s", None, "s"),
-        FieldSpec("accel_b_mps2", 3, "m/s^2"),
-        FieldSpec("omega_bi_b_rps", 3, "rad/s"),
-    ), True, "IMU samples; each is the mean over the interval ending at t_s"),
-    StreamSpec("pose", "t_capture_s", (
-        FieldSpec("t_capture_s", None, "s"),
-        FieldSpec("t_delivered_s", None, "s"),
-        FieldSpec("r_hill_m", 3, "m"),
-        FieldSpec("q_hb", 4, "1", quaternion=True),
-        FieldSpec("r_sigma_m", None, "m"),
-        FieldSpec("att_sigma_rad", None, "rad"),
-    ), True, "LED pose measurements: inspector position in the Hill frame and attitude body->Hill"),
-    StreamSpec("valves", "t_s", (
-        FieldSpec("t_s", None, "s"),
-        FieldSpec("on_time_s", PER_THRUSTER, "s", optional=True, nonnegative=True),
-        FieldSpec("interval_s", None, "s", optional=True, nonnegative=True),
-        FieldSpec("mask", None, "bit i = thruster i open", integer=True, optional=True, nonnegative=True),
-    ), False, "valve commands: thruster i open from t_s for on_time_s[i] (pulse-width modulation), "
-              "or every thruster in mask open from t_s for interval_s"),
-    StreamSpec("estimate", "t_s", (
-        FieldSpec("t_s", None, "s"),
-        FieldSpec("r_hill_m", 3, "m"),
-        FieldSpec("v_hill_mps", 3, "m/s"),
-        FieldSpec("q_hb", 4, "1", quaternion=True),
-        FieldSpec("p_diag", 9, "SI^2 over [dr, dv, dtheta_body]"),
-    ), False, "navigation telemetry after each predict"),
-    StreamSpec("update", "t_s", (
-        FieldSpec("t_s", None, "s"),
-        FieldSpec("status", None, "0 ok, 1 gated, 2 not positive definite, 3 bad input", integer=True),
-        FieldSpec("fused", None, "0/1", integer=True),
-        FieldSpec("innovation", 6, "[m, m, m, rad, rad, rad]"),
-        FieldSpec("nis", None, "1"),
-        FieldSpec("log_likelihood", None, "1"),
-    ), False, "navigation pose-update records", strictly_increasing=False),
-    StreamSpec("truth", "t_s", (
-        FieldSpec("t_s", None, "s"),
-        FieldSpec("r_hill_m", 3, "m"),
-        FieldSpec("v_hill_mps", 3, "m/s"),
-        FieldSpec("q_hb", 4, "1", quaternion=True),
-        FieldSpec("omega_bi_b_rps", 3, "rad/s"),
-    ), False, "truth, when the log comes from a simulation or has an external reference"),
+    StreamSpec(
+        "imu",
+        "t_s",
+        (
+            FieldSpec("t_s", None, "s"),
+            FieldSpec("accel_b_mps2", 3, "m/s^2"),
+            FieldSpec("omega_bi_b_rps", 3, "rad/s"),
+        ),
+        True,
+        "IMU samples; each is the mean over the interval ending at t_s",
+    ),
+    StreamSpec(
+        "pose",
+        "t_capture_s",
+        (
+            FieldSpec("t_capture_s", None, "s"),
+            FieldSpec("t_delivered_s", None, "s"),
+            FieldSpec("r_hill_m", 3, "m"),
+            FieldSpec("q_hb", 4, "1", quaternion=True),
+            FieldSpec("r_sigma_m", None, "m"),
+            FieldSpec("att_sigma_rad", None, "rad"),
+        ),
+        True,
+        "LED pose measurements: inspector position in the Hill frame and attitude body->Hill",
+    ),
+    StreamSpec(
+        "valves",
+        "t_s",
+        (
+            FieldSpec("t_s", None, "s"),
+            FieldSpec("on_time_s", PER_THRUSTER, "s", optional=True, nonnegative=True),
+            FieldSpec("interval_s", None, "s", optional=True, nonnegative=True),
+            FieldSpec("mask", None, "bit i = thruster i open", integer=True, optional=True, nonnegative=True),
+        ),
+        False,
+        "valve commands: thruster i open from t_s for on_time_s[i] (pulse-width modulation), "
+        "or every thruster in mask open from t_s for interval_s",
+    ),
+    StreamSpec(
+        "estimate",
+        "t_s",
+        (
+            FieldSpec("t_s", None, "s"),
+            FieldSpec("r_hill_m", 3, "m"),
+            FieldSpec("v_hill_mps", 3, "m/s"),
+            FieldSpec("q_hb", 4, "1", quaternion=True),
+            FieldSpec("p_diag", 9, "SI^2 over [dr, dv, dtheta_body]"),
+        ),
+        False,
+        "navigation telemetry after each predict",
+    ),
+    StreamSpec(
+        "update",
+        "t_s",
+        (
+            FieldSpec("t_s", None, "s"),
+            FieldSpec("status", None, "0 ok, 1 gated, 2 not positive definite, 3 bad input", integer=True),
+            FieldSpec("fused", None, "0/1", integer=True),
+            FieldSpec("innovation", 6, "[m, m, m, rad, rad, rad]"),
+            FieldSpec("nis", None, "1"),
+            FieldSpec("log_likelihood", None, "1"),
+        ),
+        False,
+        "navigation pose-update records",
+        strictly_increasing=False,
+    ),
+    StreamSpec(
+        "truth",
+        "t_s",
+        (
+            FieldSpec("t_s", None, "s"),
+            FieldSpec("r_hill_m", 3, "m"),
+            FieldSpec("v_hill_mps", 3, "m/s"),
+            FieldSpec("q_hb", 4, "1", quaternion=True),
+            FieldSpec("omega_bi_b_rps", 3, "rad/s"),
+        ),
+        False,
+        "truth, when the log comes from a simulation or has an external reference",
+    ),
 )
 STREAM_BY_NAME = {s.name: s for s in STREAMS}
 
@@ -141,7 +179,11 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
             problems.append(Problem(where, None, f"not numeric (dtype {arr.dtype})"))
             continue
         width = n_thrusters if f.width == PER_THRUSTER else f.width
-        expected = "(N,)" if width is None else f"(N, {width})" + (" (one column per thruster)" if f.width == PER_THRUSTER else "")
+        expected = (
+            "(N,)"
+            if width is None
+            else f"(N, {width})" + (" (one column per thruster)" if f.width == PER_THRUSTER else "")
+        )
         if (width is None and arr.ndim != 1) or (width is not None and (arr.ndim != 2 or arr.shape[1] != width)):
             problems.append(Problem(where, None, f"wrong shape {arr.shape}, expected {expected}"))
             continue
@@ -156,7 +198,13 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
             bad = np.abs(norms - 1.0) > QUAT_NORM_TOL
             if np.any(bad):
                 row = int(np.argmax(bad))
-                problems.append(Problem(where, row, f"quaternion [w, x, y, z] norm {norms[row]:.9g}, expected 1 within {QUAT_NORM_TOL:g}"))
+                problems.append(
+                    Problem(
+                        where,
+                        row,
+                        f"quaternion [w, x, y, z] norm {norms[row]:.9g}, expected 1 within {QUAT_NORM_TOL:g}",
+                    )
+                )
         if f.integer and np.any(arr != np.round(arr)):
             row = int(np.argmax(arr != np.round(arr)))
             problems.append(Problem(where, row, f"expected an integer, got {arr[row]}"))
@@ -166,7 +214,9 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
     if name == "valves":
         problems.extend(_check_valve_form(data, n_thrusters))
     if len(set(lengths.values())) > 1:
-        problems.append(Problem(name, None, "fields differ in length: " + ", ".join(f"{k}={v}" for k, v in lengths.items())))
+        problems.append(
+            Problem(name, None, "fields differ in length: " + ", ".join(f"{k}={v}" for k, v in lengths.items()))
+        )
     t = data.get(spec.time_field)
     if t is not None and not any(p.where == f"{name}/{spec.time_field}" for p in problems):
         t = np.asarray(t)
@@ -175,8 +225,9 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
             bad = d <= 0 if spec.strictly_increasing else d < 0
             if np.any(bad):
                 row = int(np.argmax(bad)) + 1
-                problems.append(Problem(f"{name}/{spec.time_field}", row,
-                                        f"time not increasing ({t[row - 1]!r} then {t[row]!r})"))
+                problems.append(
+                    Problem(f"{name}/{spec.time_field}", row, f"time not increasing ({t[row - 1]!r} then {t[row]!r})")
+                )
     return problems
 
 
@@ -196,8 +247,14 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
             if np.any(over):
                 row = int(np.argmax(over))
                 field_ = "on_time_s" if has_on else "interval_s"
-                return [Problem(f"valves/{field_}", row, f"pulse of {float(longest[row]):.6g} s runs past the next "
-                                                        f"command ({float(np.diff(t)[row]):.6g} s later)")]
+                return [
+                    Problem(
+                        f"valves/{field_}",
+                        row,
+                        f"pulse of {float(longest[row]):.6g} s runs past the next "
+                        f"command ({float(np.diff(t)[row]):.6g} s later)",
+                    )
+                ]
     if has_mask:
         missing = [k for k in ("mask", "interval_s") if k not in data]
         if missing:
@@ -207,8 +264,9 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
             over = m.astype(np.int64) >> n_thrusters
             if np.any(over != 0):
                 row = int(np.argmax(over != 0))
-                return [Problem("valves/mask", row, f"opens a thruster beyond the vehicle's {n_thrusters} "
-                                                    f"({int(m[row])})")]
+                return [
+                    Problem("valves/mask", row, f"opens a thruster beyond the vehicle's {n_thrusters} ({int(m[row])})")
+                ]
     return []
 
 
@@ -231,8 +289,13 @@ def validate_log(log: FlightLog) -> list:
     for spec in STREAMS:
         data = log.streams.get(spec.name)
         if spec.required and isinstance(data, dict) and spec.time_field in data and np.size(data[spec.time_field]) < 2:
-            problems.append(Problem(f"{spec.name}/{spec.time_field}", None,
-                                    f"{np.size(data[spec.time_field])} samples (at least 2 needed)"))
+            problems.append(
+                Problem(
+                    f"{spec.name}/{spec.time_field}",
+                    None,
+                    f"{np.size(data[spec.time_field])} samples (at least 2 needed)",
+                )
+            )
     for name in log.streams:
         if name not in STREAM_BY_NAME:
             problems.append(Problem(name, None, f"unknown stream (known: {', '.join(STREAM_BY_NAME)})"))
@@ -315,11 +378,14 @@ def read_flight_log(path, validate: bool = True) -> FlightLog:
         try:
             version = int(raw)
         except (TypeError, ValueError):
-            raise FlightLogError(f"{path}: /format_version: {raw!r} is not an integer "
-                                 f"(this reader: {', '.join(map(str, READ_VERSIONS))})") from None
+            raise FlightLogError(
+                f"{path}: /format_version: {raw!r} is not an integer "
+                f"(this reader: {', '.join(map(str, READ_VERSIONS))})"
+            ) from None
         if version not in READ_VERSIONS:
-            raise FlightLogError(f"{path}: /format_version: {version} not supported "
-                                 f"(this reader: {', '.join(map(str, READ_VERSIONS))})")
+            raise FlightLogError(
+                f"{path}: /format_version: {version} not supported (this reader: {', '.join(map(str, READ_VERSIONS))})"
+            )
         config = _json_attr(h, "config_json", path)
         description = _json_attr(h, "description_json", path) if version >= 2 else None
         if version < 2 and "description_json" in h.attrs:
@@ -340,52 +406,57 @@ def read_flight_log(path, validate: bool = True) -> FlightLog:
     return log
 
 
+def _run_streams(run, offset: float) -> dict:
+    """One run's streams in the log's layout, its time tags moved by ``offset``."""
+    t = run.t + offset
+    u = run.updates
+    return {
+        "imu": {"t_s": run.imu_t + offset, "accel_b_mps2": run.imu_accel, "omega_bi_b_rps": run.imu_gyro},
+        "pose": {
+            "t_capture_s": u.t_capture + offset,
+            "t_delivered_s": u.t_fused + offset,
+            "r_hill_m": u.r_meas,
+            "q_hb": u.q_meas,
+            "r_sigma_m": u.r_sigma,
+            "att_sigma_rad": u.att_sigma,
+        },
+        "estimate": {
+            "t_s": t,
+            "r_hill_m": run.est[:, 0:3],
+            "v_hill_mps": run.est[:, 3:6],
+            "q_hb": run.est[:, 6:10],
+            "p_diag": np.array([np.diag(P) for P in run.P]),
+        },
+        "update": {
+            "t_s": u.t_fused + offset,
+            "status": np.array([STATUS_CODES[s] for s in u.status], dtype=int),
+            "fused": np.asarray(u.fused, dtype=int),
+            "innovation": np.asarray(u.innovation).reshape(-1, 6),
+            "nis": u.nis,
+            "log_likelihood": u.loglik,
+        },
+        "truth": {
+            "t_s": t,
+            "r_hill_m": run.r_true,
+            "v_hill_mps": run.v_true,
+            "q_hb": run.q_true,
+            "omega_bi_b_rps": run.w_true,
+        },
+    }
+
+
 def runs_to_flight_log(runs, config: dict) -> FlightLog:
     """One flight log over chained runs (time tags run on from run to run)."""
-    imu, pose, est, upd, truth = ({} for _ in range(5))
-    offset = 0.0
-    parts = {k: [] for k in ("imu_t", "acc", "gyr", "p_tc", "p_td", "p_r", "p_q", "p_rs", "p_as",
-                              "e_t", "e_r", "e_v", "e_q", "e_p", "u_t", "u_st", "u_f", "u_in", "u_nis", "u_ll",
-                              "t_t", "t_r", "t_v", "t_q", "t_w")}
+    if not runs:
+        raise ValueError("a flight log needs at least one run")
+    per_run, offset = [], 0.0
     for run in runs:
-        t = run.t + offset
-        parts["imu_t"].append(run.imu_t + offset)
-        parts["acc"].append(run.imu_accel)
-        parts["gyr"].append(run.imu_gyro)
-        u = run.updates
-        parts["p_tc"].append(u.t_capture + offset)
-        parts["p_td"].append(u.t_fused + offset)
-        parts["p_r"].append(u.r_meas)
-        parts["p_q"].append(u.q_meas)
-        parts["p_rs"].append(u.r_sigma)
-        parts["p_as"].append(u.att_sigma)
-        parts["u_t"].append(u.t_fused + offset)
-        parts["u_st"].append(np.array([STATUS_CODES[s] for s in u.status], dtype=int))
-        parts["u_f"].append(np.asarray(u.fused, dtype=int))
-        parts["u_in"].append(np.asarray(u.innovation).reshape(-1, 6))
-        parts["u_nis"].append(u.nis)
-        parts["u_ll"].append(u.loglik)
-        parts["e_t"].append(t)
-        parts["e_r"].append(run.est[:, 0:3])
-        parts["e_v"].append(run.est[:, 3:6])
-        parts["e_q"].append(run.est[:, 6:10])
-        parts["e_p"].append(np.array([np.diag(P) for P in run.P]))
-        parts["t_t"].append(t)
-        parts["t_r"].append(run.r_true)
-        parts["t_v"].append(run.v_true)
-        parts["t_q"].append(run.q_true)
-        parts["t_w"].append(run.w_true)
-        offset = t[-1] + 0.1
-    c = {k: np.concatenate(v) if v else np.zeros(0) for k, v in parts.items()}
-    imu = {"t_s": c["imu_t"], "accel_b_mps2": c["acc"], "omega_bi_b_rps": c["gyr"]}
-    pose = {"t_capture_s": c["p_tc"], "t_delivered_s": c["p_td"], "r_hill_m": c["p_r"], "q_hb": c["p_q"],
-            "r_sigma_m": c["p_rs"], "att_sigma_rad": c["p_as"]}
-    est = {"t_s": c["e_t"], "r_hill_m": c["e_r"], "v_hill_mps": c["e_v"], "q_hb": c["e_q"], "p_diag": c["e_p"]}
-    upd = {"t_s": c["u_t"], "status": c["u_st"], "fused": c["u_f"], "innovation": c["u_in"],
-           "nis": c["u_nis"], "log_likelihood": c["u_ll"]}
-    truth = {"t_s": c["t_t"], "r_hill_m": c["t_r"], "v_hill_mps": c["t_v"], "q_hb": c["t_q"],
-             "omega_bi_b_rps": c["t_w"]}
-    # The first record of each run is its initial state (same time as the
-    # previous run's end + offset): keep the time strictly increasing.
-    return FlightLog(streams={"imu": imu, "pose": pose, "estimate": est, "update": upd, "truth": truth},
-                     config=config)
+        per_run.append(_run_streams(run, offset))
+        # The first record of each run is its initial state (same time as the
+        # previous run's end + offset): keep the time strictly increasing.
+        offset = run.t[-1] + offset + 0.1
+    streams = {
+        name: {field: np.concatenate([r[name][field] for r in per_run]) for field in fields}
+        for name, fields in per_run[0].items()
+    }
+    return FlightLog(streams=streams, config=config)

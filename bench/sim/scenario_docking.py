@@ -51,6 +51,7 @@ software keeps time by it, so pose frames carry the tag of their IMU tick)
 act in this loop.
 Without effects the run is the same, bit for bit.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
@@ -258,8 +259,13 @@ def _truth_and_sensors(cfg: ScenarioConfig, seed: int, images: bool, rng_imu, rn
         from bench.sim.effects import realise
 
         fx = realise(cfg.effects, cfg.truth_vehicle, cfg.profile, seed)
-        plant = Plant(initial_truth(rng_init, cfg), vehicle=fx.vehicle, dynamics=cfg.dynamics,
-                      substep_s=cfg.substep_s, effects=fx.plant)
+        plant = Plant(
+            initial_truth(rng_init, cfg),
+            vehicle=fx.vehicle,
+            dynamics=cfg.dynamics,
+            substep_s=cfg.substep_s,
+            effects=fx.plant,
+        )
         imu = Imu(fx.profile, rng_imu, c_imu_b=fx.c_imu_b)
         if images and (fx.lever_arm_b_m is not None or fx.occlusion is not None):
             raise ValueError("pose_source 'images' does not model the camera lever arm or LED occlusion effects")
@@ -269,8 +275,9 @@ def _truth_and_sensors(cfg: ScenarioConfig, seed: int, images: bool, rng_imu, rn
         pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=fx.lever_arm_b_m, occlusion=fx.occlusion)
         truth = _Truth(plant, imu, pose, fx.camera_latency_s, fx.imu_clock_rate)
     else:
-        plant = Plant(initial_truth(rng_init, cfg), vehicle=cfg.truth_vehicle, dynamics=cfg.dynamics,
-                      substep_s=cfg.substep_s)
+        plant = Plant(
+            initial_truth(rng_init, cfg), vehicle=cfg.truth_vehicle, dynamics=cfg.dynamics, substep_s=cfg.substep_s
+        )
         truth = _Truth(plant, Imu(cfg.profile, rng_imu), PoseSensor(cfg.profile, rng_pose))
     if images:
         from bench.sim.image_pose import ImagePoseSensor
@@ -365,8 +372,9 @@ class _SpecificForce:
 
             self.learner = fb.ThrusterBlr(prior_precision=1e-3)
         self.dt_s, self.min_samples = cfg.dt_s, cfg.blr_min_samples
-        self.accel_sigma_nav = (cfg.profile.accel_sigma_mps2 if cfg.nav_accel_sigma_mps2 is None
-                                else cfg.nav_accel_sigma_mps2)
+        self.accel_sigma_nav = (
+            cfg.profile.accel_sigma_mps2 if cfg.nav_accel_sigma_mps2 is None else cfg.nav_accel_sigma_mps2
+        )
         self.count, self.used, self.gyro_prev = 0, 0, gyro0
 
     def for_predict(self, config: int, sample):
@@ -383,8 +391,7 @@ class _SpecificForce:
                     accel_nav = mean[0:3] / self.dt_s
                     self.used += 1
             dw = np.asarray(sample.omega_bi_b_rps, float) - np.asarray(self.gyro_prev, float)
-            self.learner.add_mask(int(config),
-                                  np.concatenate([np.asarray(sample.accel_b_mps2, float) * self.dt_s, dw]))
+            self.learner.add_mask(int(config), np.concatenate([np.asarray(sample.accel_b_mps2, float) * self.dt_s, dw]))
             self.count += 1
         self.gyro_prev = sample.omega_bi_b_rps
         return accel_nav
@@ -544,37 +551,60 @@ class _DockingLoop:
         h = self.hist.rows
         out = {key: np.array(v) for key, v in h.items()}
         out["config"] = np.array(h["config"], dtype=int)
-        return DockingRun(**out, updates=self.updates.arrays(), imu_t=np.array(self.imu_log["t"]),
-                          imu_accel=np.array(self.imu_log["accel"]).reshape(-1, 3),
-                          imu_gyro=np.array(self.imu_log["gyro"]).reshape(-1, 3),
-                          summary=self._summary(contact, blr_used))
+        return DockingRun(
+            **out,
+            updates=self.updates.arrays(),
+            imu_t=np.array(self.imu_log["t"]),
+            imu_accel=np.array(self.imu_log["accel"]).reshape(-1, 3),
+            imu_gyro=np.array(self.imu_log["gyro"]).reshape(-1, 3),
+            summary=self._summary(contact, blr_used),
+        )
 
     def _summary(self, contact: bool, blr_used: int) -> DockingSummary:
         s, config = self.plant.state, self.hist.rows["config"]
         e_lat = s.r_hill_m - DOCK_HILL_M
         e_lat = e_lat - (e_lat @ APPROACH_AXIS_HILL) * APPROACH_AXIS_HILL
         out = DockingSummary(
-            seed=int(self.seed), docked=bool(contact), t_end_s=float(s.t_s),
+            seed=int(self.seed),
+            docked=bool(contact),
+            t_end_s=float(s.t_s),
             contact_speed_mps=float(s.v_hill_mps @ APPROACH_AXIS_HILL),
             lateral_miss_m=float(np.linalg.norm(e_lat)),
             attitude_miss_rad=float(np.linalg.norm(boxminus(s.q_hb, self.ctrl.q_des_hb))),
             first_update_t_s=self.first_update_t,
             valve_seconds=float(np.sum([bin(c).count("1") for c in config]) * self.cfg.dt_s),
-            firing_steps=int(np.count_nonzero(config)), blr_steps=int(blr_used), t_nav_init_s=self.t_nav_init)
+            firing_steps=int(np.count_nonzero(config)),
+            blr_steps=int(blr_used),
+            t_nav_init_s=self.t_nav_init,
+        )
         if self.images:
             out.pose_source = "images"
             out.vision_status_counts = dict(self.pose.status_counts)
         return out
 
 
-def errors_from_first_update(run: DockingRun) -> dict:
+@dataclass(frozen=True)
+class NavErrors:
+    """The filter's errors against the truth from the first pose update on."""
+
+    t: np.ndarray  # (N,) time [s]
+    pos: np.ndarray  # (N, 3) position error, Hill frame [m]
+    vel: np.ndarray  # (N, 3) velocity error, Hill frame [m/s]
+    att: np.ndarray  # (N, 3) attitude error, body frame [rad]
+    sigma: np.ndarray  # (N, 9) the matching 1-sigma bounds from P
+    nees: np.ndarray  # (N,) normalised estimation error squared
+
+    def block(self, name: str) -> np.ndarray:
+        """``pos``, ``vel`` or ``att`` by name."""
+        return {"pos": self.pos, "vel": self.vel, "att": self.att}[name]
+
+
+def errors_from_first_update(run: DockingRun) -> NavErrors:
     """Per-axis errors (N, 3) of position, velocity and attitude from the first
     pose update on, with the matching 1-sigma bounds from P."""
     t0 = run.summary.first_update_t_s
     sel = run.t >= (t0 if t0 is not None else np.inf) - 1e-9
     est = run.est[sel]
-    e = np.array([nav_error(r, v, q, x) for r, v, q, x in
-                  zip(run.r_true[sel], run.v_true[sel], run.q_true[sel], est)])
+    e = np.array([nav_error(r, v, q, x) for r, v, q, x in zip(run.r_true[sel], run.v_true[sel], run.q_true[sel], est)])
     sig = np.sqrt(np.array([np.diag(P) for P in run.P[sel]]))
-    return {"t": run.t[sel], "pos": e[:, 0:3], "vel": e[:, 3:6], "att": e[:, 6:9], "sigma": sig,
-            "nees": run.nees[sel]}
+    return NavErrors(t=run.t[sel], pos=e[:, 0:3], vel=e[:, 3:6], att=e[:, 6:9], sigma=sig, nees=run.nees[sel])

@@ -21,6 +21,7 @@ command history with ``effects={}`` and a fresh seed is a null log of the
 same flight: the null calibration made for a user's log
 (bench/gap/log_null.py) is built on it.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -83,13 +84,34 @@ def _vehicle_with_effects(desc, effects: dict):
     return veh, (pfx if on else None)
 
 
-KNOWN = ("thrust_loss", "thruster_misalignment", "com_offset", "mass_depletion", "host_eccentricity",
-         "differential_j2", "differential_drag", "flex_mode", "fuel_slosh", "accel_bias", "gyro_bias",
-         "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm")
+KNOWN = (
+    "thrust_loss",
+    "thruster_misalignment",
+    "com_offset",
+    "mass_depletion",
+    "host_eccentricity",
+    "differential_j2",
+    "differential_drag",
+    "flex_mode",
+    "fuel_slosh",
+    "accel_bias",
+    "gyro_bias",
+    "gyro_scale",
+    "imu_misalignment",
+    "camera_latency",
+    "camera_lever_arm",
+)
 
 
-def simulate(description: dict, plan: list, effects: dict | None = None, seed: int = 0,
-             clocks: Clocks | None = None, with_truth: bool = True, times: list | None = None) -> tuple:
+def simulate(
+    description: dict,
+    plan: list,
+    effects: dict | None = None,
+    seed: int = 0,
+    clocks: Clocks | None = None,
+    with_truth: bool = True,
+    times: list | None = None,
+) -> tuple:
     """(FlightLog, key): the log of ``plan`` flown by the described vehicle
     with ``effects``; the key holds the effects (not in the log). ``times``
     (one dict per segment: imu_t, pose_t on the IMU clock, pose_delay)
@@ -105,16 +127,18 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
     veh, pfx = _vehicle_with_effects(desc, effects)
     T = 1.0 / (desc.imu_rate_hz or 10.0)
     sensors = _Sensors.of(desc, effects)
-    streams = {k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von",
-                               "tt", "tr", "tv", "tq", "tw")}
+    streams = {
+        k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von", "tt", "tr", "tv", "tq", "tw")
+    }
     segments = []
     t0 = 0.0
     for i_seg, seg in enumerate(plan):
         tm = times[i_seg] if times is not None else None
         if tm is not None:
             t0 = float(tm["imu_t"][0] - T)
-        imu_t, f_mean, w_mean, alpha, states, poses = _fly_segment(seg, t0, veh, pfx, desc, T, clocks, rng,
-                                                                   sensors.latency_s, tm)
+        imu_t, f_mean, w_mean, alpha, states, poses = _fly_segment(
+            seg, t0, veh, pfx, desc, T, clocks, rng, sensors.latency_s, tm
+        )
         sensors.imu_samples(streams, rng, clocks, imu_t, f_mean, w_mean, alpha)
         sensors.poses(streams, rng, poses, list(tm["pose_delay"]) if tm is not None else [], clocks.pose_delay_s)
         streams["vt"].append(t0 + seg.cmd_t_s)
@@ -125,8 +149,14 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         streams["tv"].append(st[:, 3:6])
         streams["tq"].append(st[:, 6:10])
         streams["tw"].append(st[:, 10:13])
-        segments.append({"t_start_s": float(t0), "t_end_s": float(t0 + seg.duration_s), "manoeuvre": seg.manoeuvre,
-                         "starts_at_rest": bool(np.all(seg.v0_hill_mps == 0.0))})
+        segments.append(
+            {
+                "t_start_s": float(t0),
+                "t_end_s": float(t0 + seg.duration_s),
+                "manoeuvre": seg.manoeuvre,
+                "starts_at_rest": bool(np.all(seg.v0_hill_mps == 0.0)),
+            }
+        )
         t0 += seg.duration_s + clocks.gap_s
     log = _log_of(streams, dict(description, segments=segments), desc.n_thrusters, seed, with_truth)
     key = {"seed": int(seed), "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
@@ -155,12 +185,17 @@ class _Sensors:
             c_ib = rotmat(qexp(effects["imu_misalignment"])).T @ c_ib
         # The reference point is fixed in B; the truth is the true centre of mass (a centre-of-mass offset moves it).
         pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
-        return cls(desc, c_ib, desc.imu_position_b_m - desc.com_b_m, pref,
-                   np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float),
-                   float(np.atleast_1d(effects.get("camera_latency", 0.0))[0]),
-                   np.asarray(effects.get("accel_bias", np.zeros(3)), float),
-                   np.asarray(effects.get("gyro_bias", np.zeros(3)), float),
-                   np.asarray(effects.get("gyro_scale", np.zeros(3)), float))
+        return cls(
+            desc,
+            c_ib,
+            desc.imu_position_b_m - desc.com_b_m,
+            pref,
+            np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float),
+            float(np.atleast_1d(effects.get("camera_latency", 0.0))[0]),
+            np.asarray(effects.get("accel_bias", np.zeros(3)), float),
+            np.asarray(effects.get("gyro_bias", np.zeros(3)), float),
+            np.asarray(effects.get("gyro_scale", np.zeros(3)), float),
+        )
 
     def imu_samples(self, streams: dict, rng, clocks: Clocks, imu_t, f_mean, w_mean, alpha) -> None:
         """The segment's IMU samples, less the dropped ones."""
@@ -169,8 +204,11 @@ class _Sensors:
         f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
         acc = (f_imu @ c_ib.T) + self.accel_bias + self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
         # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
-        gyr = ((1.0 + self.gyro_scale) * (w_mean @ c_ib.T) + self.gyro_bias
-               + self.desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape))
+        gyr = (
+            (1.0 + self.gyro_scale) * (w_mean @ c_ib.T)
+            + self.gyro_bias
+            + self.desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
+        )
         keep = np.ones(imu_t.size, bool)
         if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
             keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac
@@ -202,58 +240,55 @@ def _log_of(streams: dict, log_desc: dict, n_thrusters: int, seed: int, with_tru
     pc = np.asarray(streams["pc"], float)
     if cat["von"].size == 0:
         cat["von"] = np.zeros((0, n_thrusters))
-    log = FlightLog(streams={
-        "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
-        "pose": {"t_capture_s": pc, "t_delivered_s": np.asarray(streams["pd"], float),
-                 "r_hill_m": np.asarray(streams["pr"], float).reshape(-1, 3),
-                 "q_hb": np.asarray(streams["pq"], float).reshape(-1, 4),
-                 "r_sigma_m": np.asarray(streams["prs"], float), "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD)},
-        "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
-    }, config={"source": "proxops vehicle_sim", "seed": int(seed)}, description=log_desc)
+    log = FlightLog(
+        streams={
+            "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
+            "pose": {
+                "t_capture_s": pc,
+                "t_delivered_s": np.asarray(streams["pd"], float),
+                "r_hill_m": np.asarray(streams["pr"], float).reshape(-1, 3),
+                "q_hb": np.asarray(streams["pq"], float).reshape(-1, 4),
+                "r_sigma_m": np.asarray(streams["prs"], float),
+                "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD),
+            },
+            "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
+        },
+        config={"source": "proxops vehicle_sim", "seed": int(seed)},
+        description=log_desc,
+    )
     if with_truth:
         # Truth on the IMU clock (the centre of mass), at every IMU tick.
-        log.streams["truth"] = {"t_s": cat["tt"], "r_hill_m": cat["tr"], "v_hill_mps": cat["tv"], "q_hb": cat["tq"],
-                                "omega_bi_b_rps": cat["tw"]}
+        log.streams["truth"] = {
+            "t_s": cat["tt"],
+            "r_hill_m": cat["tr"],
+            "v_hill_mps": cat["tv"],
+            "q_hb": cat["tq"],
+            "omega_bi_b_rps": cat["tw"],
+        }
     return log
 
 
-def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: Clocks, rng, latency: float,
-                 times: dict | None = None):
-    """Step the plant through one run. Returns the IMU sample times, each
-    sample's mean specific force and mean inertial rate (body axes, at the
-    centre of mass), its mean angular acceleration, the truth at the sample
-    times, and the poses [(capture time on the IMU clock, r, q)] (captured
-    ``latency`` before their stamp)."""
-    n = desc.mean_motion_radps
-    q0 = qnormalize(np.asarray(seg.q0_hb, float))
-    plant = Plant(PlantState(t0, np.asarray(seg.r0_hill_m, float).copy(), np.asarray(seg.v0_hill_mps, float).copy(),
-                             q0, np.zeros(3)), vehicle=veh, radius_m=desc.orbit_radius_m, effects=pfx)
-    # At rest in the Hill frame: the body turns with it, at theta_dot (n unless the host's orbit is eccentric).
-    thd = plant._host(t0)[2] if pfx is not None and pfx.host_eccentricity > 0.0 else n
-    plant.state.omega_bi_b_rps = rotmat(q0).T @ np.array([0.0, 0.0, thd])
+def _sample_times(seg: PlanSegment, t0: float, T: float, clocks: Clocks, rng, times: dict | None) -> tuple:
+    """The run's IMU sample times, pose stamp times and end: given (``times``),
+    or drawn on the IMU clock with its jitter and the camera's phase and jitter."""
     t_end = t0 + seg.duration_s
     if times is not None:
         imu_t = np.asarray(times["imu_t"], float)
-        t_end = max(t_end, float(imu_t[-1]))
-        pose_t = np.asarray(times["pose_t"], float)
-    else:
-        nominal = t0 + T * np.arange(1, int(np.floor(seg.duration_s / T + 1e-9)) + 1)
-        jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
-        imu_t = np.minimum(nominal + jit, t_end)
-        imu_t = imu_t[imu_t - T >= t0 - 1e-12]
-        n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
-        pose_t = t0 + clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
-        pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
-    pose_cap = pose_t - latency  # the image is taken this long before its stamp's instant
-    pose_ok = (pose_cap >= t0) & (pose_t <= t_end)
-    pose_t, pose_cap = pose_t[pose_ok], pose_cap[pose_ok]
-    on_start = t0 + np.asarray(seg.cmd_t_s, float)
-    on = np.asarray(seg.cmd_on_s, float)
-    k = veh.n_thrusters
-    switches = np.concatenate([on_start, (on_start[:, None] + on).ravel()])
-    grid = np.unique(np.concatenate([[t0, t_end], imu_t, imu_t - T, pose_cap, switches[(switches > t0) & (switches < t_end)]]))
-    grid = grid[(grid >= t0) & (grid <= t_end)]
-    # Record at every grid point: cumulative specific-force integral (body), q_IB, rate, state.
+        return imu_t, np.asarray(times["pose_t"], float), max(t_end, float(imu_t[-1]))
+    nominal = t0 + T * np.arange(1, int(np.floor(seg.duration_s / T + 1e-9)) + 1)
+    jit = np.clip(clocks.imu_jitter_s * rng.standard_normal(nominal.size), -0.3 * T, 0.3 * T)
+    imu_t = np.minimum(nominal + jit, t_end)
+    imu_t = imu_t[imu_t - T >= t0 - 1e-12]
+    n_pose = int(np.floor((seg.duration_s - clocks.pose_phase_s) / clocks.pose_period_s + 1e-9)) + 1
+    pose_t = t0 + clocks.pose_phase_s + clocks.pose_period_s * np.arange(n_pose)
+    pose_t = pose_t + np.clip(clocks.pose_jitter_s * rng.standard_normal(pose_t.size), -0.2, 0.2)
+    return imu_t, pose_t, t_end
+
+
+def _fly_grid(plant: Plant, veh, grid: np.ndarray, on_start: np.ndarray, on: np.ndarray, mflow: float) -> tuple:
+    """Step the plant from grid point to grid point (the valves constant in
+    each step). Returns, at every grid point, the cumulative specific-force
+    integral (body), q_IB, the state and the body rate."""
     S = np.zeros((grid.size, 3))
     qib = np.zeros((grid.size, 4))
     st = np.zeros((grid.size, 13))
@@ -266,12 +301,11 @@ def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: 
         w_at[i] = s.omega_bi_b_rps
 
     snap(0)
-    mflow = pfx.mass_flow_kgps_per_valve if pfx is not None else 0.0
     for i in range(1, grid.size):
         a, b = grid[i - 1], grid[i]
         mid = 0.5 * (a + b)
         j = np.searchsorted(on_start, mid, side="right") - 1
-        valves = np.zeros(k)
+        valves = np.zeros(veh.n_thrusters)
         if j >= 0:
             valves = (mid < on_start[j] + on[j]).astype(float)
         dt = b - a
@@ -287,6 +321,52 @@ def _fly_segment(seg: PlanSegment, t0: float, veh, pfx, desc, T: float, clocks: 
         plant.mass_kg -= 0.5 * used
         S[i] = S[i - 1] + res.specific_force_b_mps2 * dt
         snap(i)
+    return S, qib, st, w_at
+
+
+def _fly_segment(
+    seg: PlanSegment,
+    t0: float,
+    veh,
+    pfx,
+    desc,
+    T: float,
+    clocks: Clocks,
+    rng,
+    latency: float,
+    times: dict | None = None,
+):
+    """Step the plant through one run. Returns the IMU sample times, each
+    sample's mean specific force and mean inertial rate (body axes, at the
+    centre of mass), its mean angular acceleration, the truth at the sample
+    times, and the poses [(capture time on the IMU clock, r, q)] (captured
+    ``latency`` before their stamp)."""
+    n = desc.mean_motion_radps
+    q0 = qnormalize(np.asarray(seg.q0_hb, float))
+    plant = Plant(
+        PlantState(
+            t0, np.asarray(seg.r0_hill_m, float).copy(), np.asarray(seg.v0_hill_mps, float).copy(), q0, np.zeros(3)
+        ),
+        vehicle=veh,
+        radius_m=desc.orbit_radius_m,
+        effects=pfx,
+    )
+    # At rest in the Hill frame: the body turns with it, at theta_dot (n unless the host's orbit is eccentric).
+    thd = plant._host(t0)[2] if pfx is not None and pfx.host_eccentricity > 0.0 else n
+    plant.state.omega_bi_b_rps = rotmat(q0).T @ np.array([0.0, 0.0, thd])
+    imu_t, pose_t, t_end = _sample_times(seg, t0, T, clocks, rng, times)
+    pose_cap = pose_t - latency  # the image is taken this long before its stamp's instant
+    pose_ok = (pose_cap >= t0) & (pose_t <= t_end)
+    pose_t, pose_cap = pose_t[pose_ok], pose_cap[pose_ok]
+    on_start = t0 + np.asarray(seg.cmd_t_s, float)
+    on = np.asarray(seg.cmd_on_s, float)
+    switches = np.concatenate([on_start, (on_start[:, None] + on).ravel()])
+    grid = np.unique(
+        np.concatenate([[t0, t_end], imu_t, imu_t - T, pose_cap, switches[(switches > t0) & (switches < t_end)]])
+    )
+    grid = grid[(grid >= t0) & (grid <= t_end)]
+    mflow = pfx.mass_flow_kgps_per_valve if pfx is not None else 0.0
+    S, qib, st, w_at = _fly_grid(plant, veh, grid, on_start, on, mflow)
     idx = {t: i for i, t in enumerate(grid)}
     i1 = np.array([idx[t] for t in imu_t])
     i0 = np.array([idx[t] for t in imu_t - T])
