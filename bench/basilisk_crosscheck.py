@@ -15,6 +15,7 @@ commands and time stamps, the sensors without noise.
 
 prints the table recorded in docs/BASILISK.md.
 """
+
 from __future__ import annotations
 
 import time
@@ -66,8 +67,15 @@ def short_plan(description: dict, seconds: float, seed: int = 3) -> list:
 
 def _streams(log) -> dict:
     i, p, t = log.streams["imu"], log.streams["pose"], log.streams["truth"]
-    return {"accel_b_mps2": i["accel_b_mps2"], "omega_bi_b_rps": i["omega_bi_b_rps"], "pose_r": p["r_hill_m"],
-            "truth_r": t["r_hill_m"], "truth_v": t["v_hill_mps"], "truth_q": t["q_hb"], "truth_w": t["omega_bi_b_rps"]}
+    return {
+        "accel_b_mps2": i["accel_b_mps2"],
+        "omega_bi_b_rps": i["omega_bi_b_rps"],
+        "pose_r": p["r_hill_m"],
+        "truth_r": t["r_hill_m"],
+        "truth_v": t["v_hill_mps"],
+        "truth_q": t["q_hb"],
+        "truth_w": t["omega_bi_b_rps"],
+    }
 
 
 def _fly(engine: str, description: dict, plan: list, effects: dict) -> dict:
@@ -94,8 +102,9 @@ def _noise_free_bench_pose(description, plan, effects) -> np.ndarray:
     desc = resolve(description)
     veh, pfx = vehicle_sim._vehicle_with_effects(desc, effects)
     latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
-    out = vehicle_sim._fly_segment(seg, 0.0, veh, pfx, desc, 1.0 / (desc.imu_rate_hz or 10.0), clocks, np.random.default_rng(0),
-                                   latency)
+    out = vehicle_sim._fly_segment(
+        seg, 0.0, veh, pfx, desc, 1.0 / (desc.imu_rate_hz or 10.0), clocks, np.random.default_rng(0), latency
+    )
     pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
     lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
     return np.array([r + rotmat(q) @ (pref + lever) for _, r, q in out[5]])
@@ -123,8 +132,9 @@ def effect_params(name: str, n_thrusters: int) -> list:
     return list(p)
 
 
-def signature_agreement(description: dict, plan: list, name: str, nulls: dict | None = None,
-                        stream: str | None = None) -> dict:
+def signature_agreement(
+    description: dict, plan: list, name: str, nulls: dict | None = None, stream: str | None = None
+) -> dict:
     """The effect's signature in each engine and their difference as a share
     of the bench's signature, on the stream that shows it (``nulls``: each
     engine's streams without the effect, when already flown)."""
@@ -141,9 +151,15 @@ def signature_agreement(description: dict, plan: list, name: str, nulls: dict | 
     sig = {e: with_eff[e][stream] - nulls[e][stream] for e in ("bench", "basilisk")}
     rms_b = float(np.sqrt(np.mean(sig["bench"] ** 2)))
     rms_d = float(np.sqrt(np.mean((sig["basilisk"] - sig["bench"]) ** 2)))
-    return {"effect": name, "params": params, "stream": stream, "signature_rms": rms_b,
-            "basilisk_signature_rms": float(np.sqrt(np.mean(sig["basilisk"] ** 2))),
-            "difference_rms": rms_d, "share": rms_d / rms_b if rms_b > 0 else float("inf")}
+    return {
+        "effect": name,
+        "params": params,
+        "stream": stream,
+        "signature_rms": rms_b,
+        "basilisk_signature_rms": float(np.sqrt(np.mean(sig["basilisk"] ** 2))),
+        "difference_rms": rms_d,
+        "share": rms_d / rms_b if rms_b > 0 else float("inf"),
+    }
 
 
 def impulse_check(pulse_s: float = 0.04, thrust_n: float = 0.02, mass_kg: float = 3.0, step_s: float = 1e-3) -> dict:
@@ -176,7 +192,13 @@ def impulse_check(pulse_s: float = 0.04, thrust_n: float = 0.02, mass_kg: float 
         sc.hub.v_CN_NInit = [[0.0], [np.sqrt(earth.mu / a)], [0.0]]
         thr = thrusterDynamicEffector.ThrusterDynamicEffector()
         c = thrusterDynamicEffector.THRSimConfig()
-        c.thrLoc_B, c.thrDir_B, c.MaxThrust, c.MinOnTime, c.steadyIsp = [0.0, arm, 0.0], [1.0, 0.0, 0.0], thrust_n, 0.0, 0.0
+        c.thrLoc_B, c.thrDir_B, c.MaxThrust, c.MinOnTime, c.steadyIsp = (
+            [0.0, arm, 0.0],
+            [1.0, 0.0, 0.0],
+            thrust_n,
+            0.0,
+            0.0,
+        )
         thr.addThruster(c)
         cmd = messaging.THRArrayOnTimeCmdMsg()
         thr.cmdsInMsg.subscribeTo(cmd)
@@ -210,11 +232,13 @@ def impulse_check(pulse_s: float = 0.04, thrust_n: float = 0.02, mass_kg: float 
         w_end = np.asarray(rs.omega_BN_B)[-1]
         # Torque impulse F arm / J about z (the thruster at +y pushing +x turns the body about -z).
         out["dtheta_rate_commanded_rps"] = -thrust_n * arm * pulse_s / inertia
-        out[mode] = {"spacecraft_dv_mps": float(np.linalg.norm(np.asarray(rs.TotalAccumDV_CN_N)[-1])),
-                     "rate_change_rps": float(w_end[2]),
-                     "imu_dv_sum_mps": np.sum(dv_raw, axis=0).tolist(),
-                     "imu_dv_sum_corrected_mps": np.sum(dv_fixed, axis=0).tolist(),
-                     "imu_dtheta_sum_rad": float(np.sum(dr[:, 2]))}
+        out[mode] = {
+            "spacecraft_dv_mps": float(np.linalg.norm(np.asarray(rs.TotalAccumDV_CN_N)[-1])),
+            "rate_change_rps": float(w_end[2]),
+            "imu_dv_sum_mps": np.sum(dv_raw, axis=0).tolist(),
+            "imu_dv_sum_corrected_mps": np.sum(dv_fixed, axis=0).tolist(),
+            "imu_dtheta_sum_rad": float(np.sum(dr[:, 2])),
+        }
         out[mode]["impulse_ratio"] = out[mode]["spacecraft_dv_mps"] / out["dv_commanded_mps"]
     return out
 
@@ -234,8 +258,14 @@ def main(argv=None):
     t0 = time.time()
     desc = VEHICLES[a.vehicle]()
     plan = short_plan(desc, a.seconds)
-    res = {"vehicle": a.vehicle, "seconds": a.seconds, "basilisk_version": basilisk_version(),
-           "impulse": impulse_check(), "null": null_agreement(desc, plan), "effects": []}
+    res = {
+        "vehicle": a.vehicle,
+        "seconds": a.seconds,
+        "basilisk_version": basilisk_version(),
+        "impulse": impulse_check(),
+        "null": null_agreement(desc, plan),
+        "effects": [],
+    }
     d = quiet(desc)
     nulls = {e: _fly(e, d, plan, {}) for e in ("bench", "basilisk")}
     nulls["bench"]["pose_r"] = _noise_free_bench_pose(d, plan, {})
@@ -247,10 +277,16 @@ def main(argv=None):
         if name == "com_offset":  # it moves the pose reference point too
             res["effects"].append(signature_agreement(desc, plan, name, nulls, stream="pose_r"))
             q = res["effects"][-1]
-            print(f"{name:22s} {q['stream']:15s} signature rms {q['signature_rms']:.3e}  difference {q['difference_rms']:.3e}"
-                  f"  share {q['share']:.2e}", flush=True)
-        print(f"{name:22s} {r['stream']:15s} signature rms {r['signature_rms']:.3e}  basilisk {r['basilisk_signature_rms']:.3e}"
-              f"  difference {r['difference_rms']:.3e}  share {r['share']:.2e}", flush=True)
+            print(
+                f"{name:22s} {q['stream']:15s} signature rms {q['signature_rms']:.3e}  difference {q['difference_rms']:.3e}"
+                f"  share {q['share']:.2e}",
+                flush=True,
+            )
+        print(
+            f"{name:22s} {r['stream']:15s} signature rms {r['signature_rms']:.3e}  basilisk {r['basilisk_signature_rms']:.3e}"
+            f"  difference {r['difference_rms']:.3e}  share {r['share']:.2e}",
+            flush=True,
+        )
     res["elapsed_s"] = time.time() - t0
     print(f"{res['elapsed_s']:.0f} s")
     if a.json:

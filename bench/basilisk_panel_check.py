@@ -21,6 +21,7 @@ alone (the two engines agree on them to 2e-5, docs/BASILISK.md). Cases:
 flies the 12 kg inspector's characterisation of that seed (or its first S
 seconds) and prints the table recorded in docs/BASILISK.md.
 """
+
 from __future__ import annotations
 
 import copy
@@ -63,8 +64,9 @@ def _imu(engine: str, description: dict, plan: list, effects: dict) -> np.ndarra
     if engine == "bench":
         log, _ = vehicle_sim.simulate(description, plan, effects, seed=0, clocks=Clocks(), with_truth=False)
     else:
-        log, _ = basilisk_sim.simulate(description, plan, effects, seed=0, clocks=Clocks(), with_truth=False,
-                                       noise=False)
+        log, _ = basilisk_sim.simulate(
+            description, plan, effects, seed=0, clocks=Clocks(), with_truth=False, noise=False
+        )
     i = log.streams["imu"]
     return np.concatenate([i["omega_bi_b_rps"].ravel(), i["accel_b_mps2"].ravel()])
 
@@ -104,8 +106,11 @@ def panel_projection(description: dict, plan: list, freq_hz: float, amplitude_ra
             a, y = s[sl] * w[sl, None], sig[sl] * w[sl]
             loss, _ = nnls(a, y)
             e2 = float(y @ y)
-            out[name][stream] = {"energy": e2, "captured": float(1.0 - np.sum((a @ loss - y) ** 2) / e2) if e2 > 0 else 0.0,
-                                 "loss": loss.tolist()}
+            out[name][stream] = {
+                "energy": e2,
+                "captured": float(1.0 - np.sum((a @ loss - y) ** 2) / e2) if e2 > 0 else 0.0,
+                "loss": loss.tolist(),
+            }
     return out
 
 
@@ -131,13 +136,25 @@ def main(argv=None):
     res = panel_projection(desc, plan, a.freq, a.amplitude)
     print(f"{'case':32s} {'energy':>10s} {'captured':>9s} {'gyro':>9s} {'accel':>9s}  largest loss")
     for name, r in res.items():
-        print(f"{name:32s} {r['both']['energy']:10.4g} {r['both']['captured']:9.4f} {r['gyro']['captured']:9.4f} "
-              f"{r['accel']['captured']:9.4f}  {max(r['both']['loss']):.3f}")
+        print(
+            f"{name:32s} {r['both']['energy']:10.4g} {r['both']['captured']:9.4f} {r['gyro']['captured']:9.4f} "
+            f"{r['accel']['captured']:9.4f}  {max(r['both']['loss']):.3f}"
+        )
     print(f"{time.time() - t0:.0f} s")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"freq_hz": a.freq, "amplitude_rad": a.amplitude, "seed": a.seed, "seconds": a.seconds,
-                       "basilisk_version": basilisk_version(), "cases": res}, f, indent=1)
+            json.dump(
+                {
+                    "freq_hz": a.freq,
+                    "amplitude_rad": a.amplitude,
+                    "seed": a.seed,
+                    "seconds": a.seconds,
+                    "basilisk_version": basilisk_version(),
+                    "cases": res,
+                },
+                f,
+                indent=1,
+            )
 
 
 if __name__ == "__main__":

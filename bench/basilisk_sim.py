@@ -34,6 +34,7 @@ Time: Basilisk steps at ``STEP_S`` (1 ms); valve switches, IMU stamps and
 pose captures are put on that grid (a jittered stamp moves by at most half a
 step). Effects: ``EFFECTS_HERE`` (docs/BASILISK.md maps each to its module).
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -51,9 +52,23 @@ AIR_DENSITY_KGPM3 = 5e-13  # as the bench's differential drag
 SLOSH_FREQ_HZ, SLOSH_DAMPING = 0.3, 0.05  # as the bench's fuel slosh
 PANEL_MASS_FRACTION, PANEL_ARM_M = 0.02, 0.15  # the hinged panel (out of library): 2 % of the mass, 15 cm arm
 PANEL_DAMPING = 0.005  # the panel mode's damping ratio, as the bench's flexible mode
-EFFECTS_HERE = ("thrust_loss", "thruster_misalignment", "com_offset", "mass_depletion", "host_eccentricity",
-                "differential_j2", "differential_drag", "flex_mode", "fuel_slosh", "accel_bias", "gyro_bias",
-                "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm")
+EFFECTS_HERE = (
+    "thrust_loss",
+    "thruster_misalignment",
+    "com_offset",
+    "mass_depletion",
+    "host_eccentricity",
+    "differential_j2",
+    "differential_drag",
+    "flex_mode",
+    "fuel_slosh",
+    "accel_bias",
+    "gyro_bias",
+    "gyro_scale",
+    "imu_misalignment",
+    "camera_latency",
+    "camera_lever_arm",
+)
 
 
 def basilisk_version() -> str:
@@ -66,11 +81,13 @@ def _require_basilisk():
     try:
         import Basilisk  # noqa: F401
     except ImportError as exc:
-        raise ValueError("the Basilisk engine needs the optional extra: pip install '.[basilisk]' "
-                         f"(PyPI bsk; {exc})") from None
+        raise ValueError(
+            f"the Basilisk engine needs the optional extra: pip install '.[basilisk]' (PyPI bsk; {exc})"
+        ) from None
 
 
 # --- frames -------------------------------------------------------------------
+
 
 def mrp_to_dcm_bn(sigma) -> np.ndarray:
     """(N, 3) MRPs sigma_BN -> (N, 3, 3) [BN] (N components -> B components)."""
@@ -152,6 +169,7 @@ def imu_dv_error(accum_dv_b, sigma_bn) -> np.ndarray:
 
 # --- the hinged panel ------------------------------------------------------------
 
+
 class PanelLayout(NamedTuple):
     mass_kg: float
     arm_m: float  # hinge to the panel's centre of mass, along -x
@@ -166,16 +184,21 @@ class PanelLayout(NamedTuple):
     coupled_freq_hz: float
 
 
-def _planar_mode(hub_kg: float, hub_jz: float, arm_hub_m: float, panel_kg: float, panel_jz: float, arm_m: float,
-                 k: float):
+def _planar_mode(
+    hub_kg: float, hub_jz: float, arm_hub_m: float, panel_kg: float, panel_jz: float, arm_m: float, k: float
+):
     """The panel's mode with the hub free in the plane of the hinge: (omega^2,
     hub angle / hinge angle). Coordinates: the hub's sideways translation,
     its angle, the panel's angle; the hinge sits arm_hub_m behind the hub's
     centre of mass and the panel's centre of mass arm_m behind the hinge."""
     a, d = arm_hub_m, arm_m
-    m = np.array([[hub_kg + panel_kg, -panel_kg * a, -panel_kg * d],
-                  [-panel_kg * a, hub_jz + panel_kg * a * a, panel_kg * a * d],
-                  [-panel_kg * d, panel_kg * a * d, panel_jz + panel_kg * d * d]])
+    m = np.array(
+        [
+            [hub_kg + panel_kg, -panel_kg * a, -panel_kg * d],
+            [-panel_kg * a, hub_jz + panel_kg * a * a, panel_kg * a * d],
+            [-panel_kg * d, panel_kg * a * d, panel_jz + panel_kg * d * d],
+        ]
+    )
     kk = k * np.array([[0.0, 0.0, 0.0], [0.0, 1.0, -1.0], [0.0, -1.0, 1.0]])
     w2, v = np.linalg.eig(np.linalg.solve(m, kk))
     i = int(np.argmax(w2.real))
@@ -183,8 +206,9 @@ def _planar_mode(hub_kg: float, hub_jz: float, arm_hub_m: float, panel_kg: float
     return float(w2[i].real), float(phi / (psi - phi))
 
 
-def panel_layout(hub_mass_kg: float, com_b_m, inertia_kgm2, vehicle_mass_kg: float, freq_hz: float,
-                 amplitude_rad: float) -> PanelLayout:
+def panel_layout(
+    hub_mass_kg: float, com_b_m, inertia_kgm2, vehicle_mass_kg: float, freq_hz: float, amplitude_rad: float
+) -> PanelLayout:
     """The hinged panel of ``flex_mode`` [frequency, amplitude] as a part of
     the described vehicle: ``PANEL_MASS_FRACTION`` of its mass on a
     ``PANEL_ARM_M`` arm from a hinge about body z at the centre of mass. The
@@ -215,17 +239,32 @@ def panel_layout(hub_mass_kg: float, com_b_m, inertia_kgm2, vehicle_mass_kg: flo
     j_hub = j - (c_bs @ inertia_s @ c_bs.T + parallel(mp, r_s)) - parallel(m_hub, r_h)
     ev = np.linalg.eigvalsh(j_hub)
     if ev[0] <= 0.0 or 2.0 * ev.max() >= ev.sum():
-        raise ValueError(f"flex_mode: the vehicle's inertia {np.diag(j).round(4).tolist()} cannot hold the panel "
-                         f"({mp:.3g} kg on a {d} m arm)")
-    w2, phi_per_theta = _planar_mode(float(vehicle_mass_kg) - mp, float(j_hub[2, 2]), float(np.linalg.norm(r_h)), mp,
-                                     ip, d, 1.0)
+        raise ValueError(
+            f"flex_mode: the vehicle's inertia {np.diag(j).round(4).tolist()} cannot hold the panel "
+            f"({mp:.3g} kg on a {d} m arm)"
+        )
+    w2, phi_per_theta = _planar_mode(
+        float(vehicle_mass_kg) - mp, float(j_hub[2, 2]), float(np.linalg.norm(r_h)), mp, ip, d, 1.0
+    )
     k = (2.0 * np.pi * float(freq_hz)) ** 2 / w2
     om = 2.0 * np.pi * float(freq_hz)
-    return PanelLayout(mp, d, inertia_s, com.copy(), m_hub, com + r_h, j_hub, k, 2.0 * PANEL_DAMPING * k / om,
-                       float(amplitude_rad) / abs(phi_per_theta), float(freq_hz))
+    return PanelLayout(
+        mp,
+        d,
+        inertia_s,
+        com.copy(),
+        m_hub,
+        com + r_h,
+        j_hub,
+        k,
+        2.0 * PANEL_DAMPING * k / om,
+        float(amplitude_rad) / abs(phi_per_theta),
+        float(freq_hz),
+    )
 
 
 # --- one run --------------------------------------------------------------------
+
 
 def _host_orbit(desc, effects: dict, t0: float, mu: float):
     """Host position and velocity (inertial) at the run's start: a circular
@@ -331,8 +370,11 @@ def _add_thrusters(insp, desc, effects: dict, mdot: float) -> tuple:
     if "thruster_misalignment" in effects:
         phi = np.asarray(effects["thruster_misalignment"], float).reshape(k, 3)
         dirs = np.array([rotmat(qexp(phi[i])) @ dirs[i] for i in range(k)])
-    thrust = np.asarray(veh.thrust_n, float) * np.asarray(veh.thrust_scale, float) if np.ndim(veh.thrust_n) else \
-        np.full(k, float(veh.thrust_n)) * np.asarray(veh.thrust_scale, float)
+    thrust = (
+        np.asarray(veh.thrust_n, float) * np.asarray(veh.thrust_scale, float)
+        if np.ndim(veh.thrust_n)
+        else np.full(k, float(veh.thrust_n)) * np.asarray(veh.thrust_scale, float)
+    )
     keep = []
     for i in range(k):
         c = thrusterDynamicEffector.THRSimConfig()
@@ -609,7 +651,7 @@ def _imu_means(rec_imu, rec_ins, c_ib, imu_t, T: float, h: float) -> tuple:
     w_mean = np.zeros((i1.size, 3))
     for j, (a, b) in enumerate(zip(i0, i1)):
         q = np.array([1.0, 0.0, 0.0, 0.0])
-        for p in dr[a + 1:b + 1]:
+        for p in dr[a + 1 : b + 1]:
             q = qmul(q, qexp(p))
         w_mean[j] = qlog(q) / T
     return f_mean, w_mean
@@ -631,15 +673,25 @@ def _truth(rec_host, rec_ins, idx) -> tuple:
 
 # --- the log ----------------------------------------------------------------------
 
-def simulate(description: dict, plan: list, effects: dict | None = None, seed: int = 0,
-             clocks: Clocks | None = None, with_truth: bool = True, noise: bool = True) -> tuple:
+
+def simulate(
+    description: dict,
+    plan: list,
+    effects: dict | None = None,
+    seed: int = 0,
+    clocks: Clocks | None = None,
+    with_truth: bool = True,
+    noise: bool = True,
+) -> tuple:
     """(FlightLog, key) of ``plan`` flown in Basilisk by the described vehicle
     with ``effects`` (``noise=False``: the sensors without white noise)."""
     _require_basilisk()
     effects = dict(effects or {})
     unknown = sorted(set(effects) - set(EFFECTS_HERE))
     if unknown:
-        raise ValueError(f"effect {unknown[0]!r} not simulated by the Basilisk engine (known: {', '.join(EFFECTS_HERE)})")
+        raise ValueError(
+            f"effect {unknown[0]!r} not simulated by the Basilisk engine (known: {', '.join(EFFECTS_HERE)})"
+        )
     clocks = clocks or Clocks()
     desc = resolve(description)
     rng = np.random.default_rng(seed)
@@ -648,8 +700,9 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
     if abs(T / h - round(T / h)) > 1e-9:
         raise ValueError(f"the IMU interval {T} s is not a whole number of Basilisk steps ({h} s)")
     latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
-    out = {k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von",
-                           "tt", "tr", "tv", "tq", "tw")}
+    out = {
+        k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von", "tt", "tr", "tv", "tq", "tw")
+    }
     segments = []
     t0 = 0.0
     for seg in plan:
@@ -675,12 +728,21 @@ def simulate(description: dict, plan: list, effects: dict | None = None, seed: i
         out["tv"].append(v)
         out["tq"].append(q)
         out["tw"].append(w)
-        segments.append({"t_start_s": float(t0), "t_end_s": float(t0 + seg.duration_s), "manoeuvre": seg.manoeuvre,
-                         "starts_at_rest": bool(np.all(np.asarray(seg.v0_hill_mps) == 0.0))})
+        segments.append(
+            {
+                "t_start_s": float(t0),
+                "t_end_s": float(t0 + seg.duration_s),
+                "manoeuvre": seg.manoeuvre,
+                "starts_at_rest": bool(np.all(np.asarray(seg.v0_hill_mps) == 0.0)),
+            }
+        )
         t0 += seg.duration_s + clocks.gap_s
     log = _log_of(out, description, segments, seed, h, with_truth)
-    key = {"seed": int(seed), "engine": "basilisk",
-           "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
+    key = {
+        "seed": int(seed),
+        "engine": "basilisk",
+        "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()},
+    }
     return log, key
 
 
@@ -725,21 +787,42 @@ def _measure_poses(out: dict, desc, effects: dict, clocks: Clocks, rng, noise: b
 
 def _log_of(out: dict, description: dict, segments: list, seed: int, h: float, with_truth: bool) -> FlightLog:
     """The flight log (format 2) of the collected streams."""
-    cat = {k: np.concatenate(v) for k, v in out.items() if k in ("imu_t", "acc", "gyr", "vt", "von", "tt", "tr", "tv",
-                                                                 "tq", "tw")}
+    cat = {
+        k: np.concatenate(v)
+        for k, v in out.items()
+        if k in ("imu_t", "acc", "gyr", "vt", "von", "tt", "tr", "tv", "tq", "tw")
+    }
     pc = np.asarray(out["pc"], float)
     log_desc = dict(description)
     log_desc["segments"] = segments
-    log = FlightLog(streams={
-        "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
-        "pose": {"t_capture_s": pc, "t_delivered_s": np.asarray(out["pd"], float),
-                 "r_hill_m": np.asarray(out["pr"], float).reshape(-1, 3),
-                 "q_hb": np.asarray(out["pq"], float).reshape(-1, 4),
-                 "r_sigma_m": np.asarray(out["prs"], float), "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD)},
-        "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
-    }, config={"source": "proxops basilisk_sim", "engine": "basilisk", "basilisk_version": basilisk_version(),
-               "step_s": h, "seed": int(seed)}, description=log_desc)
+    log = FlightLog(
+        streams={
+            "imu": {"t_s": cat["imu_t"], "accel_b_mps2": cat["acc"], "omega_bi_b_rps": cat["gyr"]},
+            "pose": {
+                "t_capture_s": pc,
+                "t_delivered_s": np.asarray(out["pd"], float),
+                "r_hill_m": np.asarray(out["pr"], float).reshape(-1, 3),
+                "q_hb": np.asarray(out["pq"], float).reshape(-1, 4),
+                "r_sigma_m": np.asarray(out["prs"], float),
+                "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD),
+            },
+            "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
+        },
+        config={
+            "source": "proxops basilisk_sim",
+            "engine": "basilisk",
+            "basilisk_version": basilisk_version(),
+            "step_s": h,
+            "seed": int(seed),
+        },
+        description=log_desc,
+    )
     if with_truth:
-        log.streams["truth"] = {"t_s": cat["tt"], "r_hill_m": cat["tr"], "v_hill_mps": cat["tv"], "q_hb": cat["tq"],
-                                "omega_bi_b_rps": cat["tw"]}
+        log.streams["truth"] = {
+            "t_s": cat["tt"],
+            "r_hill_m": cat["tr"],
+            "v_hill_mps": cat["tv"],
+            "q_hb": cat["tq"],
+            "omega_bi_b_rps": cat["tw"],
+        }
     return log

@@ -1,5 +1,6 @@
 """`proxops`: the bench's command line. Each sub-command lives in its own
 module under bench/commands/ and registers itself through ``register``."""
+
 from __future__ import annotations
 
 import argparse

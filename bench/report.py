@@ -1,4 +1,5 @@
 """Small helpers shared by commands: JSON output and report folders."""
+
 from __future__ import annotations
 
 import contextlib

@@ -5,6 +5,7 @@ belongs to (the body) into the frame it points to; ``boxplus`` and
 ``boxminus`` are the body-frame perturbations the flight filter uses
 (the flight code's so3.hpp). tests/py/test_bench_so3.py checks them against
 scipy's Rotation."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -124,10 +125,15 @@ def rotvec_matrix(phi) -> np.ndarray:
 def qmul_many(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     pw, px, py, pz = p.T
     qw, qx, qy, qz = q.T
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=1)
+    return np.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ],
+        axis=1,
+    )
 
 
 def qexp_many(phi: np.ndarray) -> np.ndarray:

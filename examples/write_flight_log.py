@@ -9,6 +9,7 @@ project's simulator, in place of your own telemetry), then prints what
 `proxops diagnose OUT.h5` would be run on. Replace ``stand_in_arrays`` by
 your own.
 """
+
 from __future__ import annotations
 
 import json
@@ -17,8 +18,21 @@ import sys
 import h5py
 
 
-def write_log(path, description: dict, imu_t, accel, gyro, pose_t, pose_delivered, r_hill, q_hb, r_sigma,
-              att_sigma, valve_t=None, on_time=None) -> None:
+def write_log(
+    path,
+    description: dict,
+    imu_t,
+    accel,
+    gyro,
+    pose_t,
+    pose_delivered,
+    r_hill,
+    q_hb,
+    r_sigma,
+    att_sigma,
+    valve_t=None,
+    on_time=None,
+) -> None:
     """Every array as the format asks: float64 seconds, (N, 3) vectors,
     [w, x, y, z] unit quaternions, one on-time column per described thruster."""
     with h5py.File(path, "w") as h:
@@ -47,12 +61,29 @@ def stand_in_arrays(seed: int = 3):
     from bench.sim.vehicles import inspector_12kg
 
     desc = inspector_12kg()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=seed), {}, seed=seed,
-                      clocks=Clocks(imu_jitter_s=0.002, pose_phase_s=0.537, pose_jitter_s=0.01), with_truth=False)
+    log, _ = simulate(
+        desc,
+        characterisation_plan(desc, seed=seed),
+        {},
+        seed=seed,
+        clocks=Clocks(imu_jitter_s=0.002, pose_phase_s=0.537, pose_jitter_s=0.01),
+        with_truth=False,
+    )
     imu, pose, valves = log["imu"], log["pose"], log["valves"]
-    return (log.description, imu["t_s"], imu["accel_b_mps2"], imu["omega_bi_b_rps"], pose["t_capture_s"],
-            pose["t_delivered_s"], pose["r_hill_m"], pose["q_hb"], pose["r_sigma_m"], pose["att_sigma_rad"],
-            valves["t_s"], valves["on_time_s"])
+    return (
+        log.description,
+        imu["t_s"],
+        imu["accel_b_mps2"],
+        imu["omega_bi_b_rps"],
+        pose["t_capture_s"],
+        pose["t_delivered_s"],
+        pose["r_hill_m"],
+        pose["q_hb"],
+        pose["r_sigma_m"],
+        pose["att_sigma_rad"],
+        valves["t_s"],
+        valves["on_time_s"],
+    )
 
 
 if __name__ == "__main__":

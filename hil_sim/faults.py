@@ -14,6 +14,7 @@ a run of complete frames ending in 0x00 plus possibly a partial tail):
 
 Everything is drawn from one seeded generator, so a faulty run replays.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -44,8 +45,9 @@ class FaultConfig:
 
     @property
     def clean(self) -> bool:
-        return not any((self.ber, self.drop_rate, self.burst_rate, self.duplicate_rate,
-                        self.reorder_rate, self.stall_rate))
+        return not any(
+            (self.ber, self.drop_rate, self.burst_rate, self.duplicate_rate, self.reorder_rate, self.stall_rate)
+        )
 
     def as_dict(self):
         return asdict(self)
@@ -69,8 +71,8 @@ class FaultInjector:
         self.cfg = cfg
         self.rng = rng
         self.counts = FaultCounts()
-        self._tail = b""        # partial frame waiting for its 0x00
-        self._held = None       # frame held back for reordering
+        self._tail = b""  # partial frame waiting for its 0x00
+        self._held = None  # frame held back for reordering
         self.originals = set()  # every frame offered, as sent (to prove what is delivered was sent)
 
     def _corrupt(self, frame: bytes) -> bytes:
@@ -109,7 +111,7 @@ class FaultInjector:
         if cut < 0:
             self._tail = data
             return b""
-        self._tail = data[cut + 1:]
+        self._tail = data[cut + 1 :]
         out = []
         for frame in data[: cut + 1].split(b"\x00")[:-1]:
             frame = frame + b"\x00"

@@ -10,6 +10,7 @@ Telemetry frames are decoded with hil_sim.packets (the bench's own
 implementation of the link), so the comparison does not rely on the C++
 framing it checks.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,8 +29,19 @@ QEMU = "qemu-system-arm"
 # mps2-an500: the Cortex-M7 board of QEMU's Arm MPS2 family. -icount shift=6:
 # each instruction advances the virtual clock by 64 ns, which the firmware's
 # timer reads as 1.6 ticks (firmware/target/main.cpp).
-QEMU_ARGS = ["-M", "mps2-an500", "-nographic", "-monitor", "none", "-serial", "none",
-             "-semihosting-config", "enable=on,target=native", "-icount", "shift=6"]
+QEMU_ARGS = [
+    "-M",
+    "mps2-an500",
+    "-nographic",
+    "-monitor",
+    "none",
+    "-serial",
+    "none",
+    "-semihosting-config",
+    "enable=on,target=native",
+    "-icount",
+    "shift=6",
+]
 DEFAULT_INPUT = "firmware/data/selftest_input.bin"
 
 
@@ -49,11 +61,11 @@ def run_host(exe: str, input_path: str, timeout_s: float = 300.0) -> subprocess.
 
 @dataclass
 class SelfTestOutput:
-    frames: list = field(default_factory=list)      # (index, apid, instructions)
-    telemetry: list = field(default_factory=list)   # bytes per frame (b"" if none)
+    frames: list = field(default_factory=list)  # (index, apid, instructions)
+    telemetry: list = field(default_factory=list)  # bytes per frame (b"" if none)
     app_counters: dict = field(default_factory=dict)
-    calls: list = field(default_factory=list)       # (step, instructions)
-    counter_check: tuple | None = None              # (expected, measured)
+    calls: list = field(default_factory=list)  # (step, instructions)
+    counter_check: tuple | None = None  # (expected, measured)
     status: int | None = None
 
 
@@ -100,26 +112,26 @@ def _field_kinds(apid: int) -> list:
 #   name: [(slice of the payload's fields, absolute, relative)]
 TOLERANCES = {
     "tm_estimate": [
-        (slice(0, 3), 5e-6, 0.0),    # r_hill_m [m]
-        (slice(3, 6), 1e-6, 0.0),    # v_hill_mps [m/s]
-        (slice(6, 10), 1e-6, 0.0),   # q_hb (a component error e is an angle of about 2 e)
+        (slice(0, 3), 5e-6, 0.0),  # r_hill_m [m]
+        (slice(3, 6), 1e-6, 0.0),  # v_hill_mps [m/s]
+        (slice(6, 10), 1e-6, 0.0),  # q_hb (a component error e is an angle of about 2 e)
     ],
-    "tm_covariance_diag": [(slice(2, 17), 0.0, 1e-4)],   # variances: 0.01 %
+    "tm_covariance_diag": [(slice(2, 17), 0.0, 1e-4)],  # variances: 0.01 %
     "tm_innovation": [
-        (slice(5, 8), 5e-6, 0.0),    # innovation, position [m]
-        (slice(8, 11), 2e-6, 0.0),   # innovation, attitude [rad]
+        (slice(5, 8), 5e-6, 0.0),  # innovation, position [m]
+        (slice(8, 11), 2e-6, 0.0),  # innovation, attitude [rad]
         (slice(11, 12), 1e-4, 1e-4),  # NIS (chi2 6 dof; gate 22.5)
         (slice(12, 13), 1e-3, 1e-4),  # log-likelihood
     ],
     "tm_learner": [
-        (slice(2, 8), 1e-8, 1e-4),   # mean dv [m/s], dw [rad/s] per firing: 0.01 %
-        (slice(8, 14), 0.0, 1e-3),   # predictive variances: 0.1 %
+        (slice(2, 8), 1e-8, 1e-4),  # mean dv [m/s], dw [rad/s] per firing: 0.01 %
+        (slice(8, 14), 0.0, 1e-3),  # predictive variances: 0.1 %
     ],
-    "tm_housekeeping": [(slice(0, 3), 0.0, 1e-7)],        # uptime and CPU times: as sent
+    "tm_housekeeping": [(slice(0, 3), 0.0, 1e-7)],  # uptime and CPU times: as sent
     "tm_modal": [
-        (slice(7, 8), 0.0, 1e-4),    # rcond of M_Y
-        (slice(8, 9), 1e-4, 1e-3),   # NIS
-        (slice(9, 19), 0.0, 1e-4),   # omega: 1e-4 (1 % of the 1 % criterion; the search's grid step is 2e-3)
+        (slice(7, 8), 0.0, 1e-4),  # rcond of M_Y
+        (slice(8, 9), 1e-4, 1e-3),  # NIS
+        (slice(9, 19), 0.0, 1e-4),  # omega: 1e-4 (1 % of the 1 % criterion; the search's grid step is 2e-3)
         (slice(19, 29), 1e-9, 0.0),  # alpha [1/s]: 1e-9 (estimates below 1e-10: zero at float resolution)
         (slice(29, 39), 1e-4, 0.0),  # amplitudes (unit: the mode's peak deflection, 0.1 .. 1): 1e-4
         (slice(39, 49), 0.0, 1e-3),  # amplitude sigmas: 0.1 %
@@ -192,8 +204,10 @@ def compare(target: SelfTestOutput, host: SelfTestOutput) -> Comparison:
                 if g not in c.worst or ratio > c.worst[g][0]:
                     c.worst[g] = (ratio, d, v, i)
                 if not d <= allowed:
-                    c.failures.append(f"frame {i}: {name} field {j}: {u!r} on the target, {v!r} on the host "
-                                      f"(|diff| {d:.3g} > {allowed:.3g})")
+                    c.failures.append(
+                        f"frame {i}: {name} field {j}: {u!r} on the target, {v!r} on the host "
+                        f"(|diff| {d:.3g} > {allowed:.3g})"
+                    )
     return c
 
 
@@ -250,8 +264,7 @@ def main(argv=None):
     tgt = parse(tgt_run.stdout)
     host = parse(run_host(a.host_exe, a.input).stdout)
     print(f"instruction counter check: expected {tgt.counter_check[0]}, measured {tgt.counter_check[1]}")
-    print(f"\n{'step':66s} {'n':>5s} {'min':>10s} {'median':>10s} {'max':>10s}  "
-          f"{'median us @ %g MHz' % a.mhz:>18s}")
+    print(f"\n{'step':66s} {'n':>5s} {'min':>10s} {'median':>10s} {'max':>10s}  {'median us @ %g MHz' % a.mhz:>18s}")
     for label, n, lo, med, hi in instruction_table(tgt):
         print(f"{label:66s} {n:5d} {lo:10d} {med:10d} {hi:10d}  {med * a.cpi / a.mhz:18.1f}")
     c = compare(tgt, host)

@@ -12,6 +12,7 @@ and one attitude sigma (docs/LINK.md), so R and P0 must be isotropic per
 block; telemetry carries the covariance diagonal only, so ``P`` here is
 diagonal (NEES over the link uses that diagonal).
 """
+
 from __future__ import annotations
 
 import math
@@ -89,11 +90,12 @@ class LinkNav:
     # -- interface of fsw_bindings.NavUkf --------------------------------
     def init(self, t_s, r_hill_m, v_hill_mps, q_hb, P0):
         P0 = np.asarray(P0, float)
-        sig = [_isotropic_sigma(P0[i:i + 3, i:i + 3], f"P0[{i}:{i + 3}]") for i in (0, 3, 6)]
+        sig = [_isotropic_sigma(P0[i : i + 3, i : i + 3], f"P0[{i}:{i + 3}]") for i in (0, 3, 6)]
         if np.any(P0 - np.diag(np.diag(P0))):
             raise ValueError("P0: must be block diagonal to cross the link")
-        payload = pk.pack_payload(_RESET, 0x1, 0, *np.asarray(r_hill_m, float), *np.asarray(v_hill_mps, float),
-                                  *np.asarray(q_hb, float), *sig)
+        payload = pk.pack_payload(
+            _RESET, 0x1, 0, *np.asarray(r_hill_m, float), *np.asarray(v_hill_mps, float), *np.asarray(q_hb, float), *sig
+        )
         # A telecommand whose answer is lost is sent again (re-initialising
         # at the same time is harmless); the bench needs a first estimate and
         # covariance from this reset, not ones left from an earlier run.
@@ -111,8 +113,9 @@ class LinkNav:
         if rec.received or np.any(np.isfinite(self._est)) or np.any(np.isfinite(self._p_diag)):
             if not np.all(np.isfinite(self._est)):
                 q = np.asarray(q_hb, float)
-                self._est = np.concatenate([np.asarray(r_hill_m, float), np.asarray(v_hill_mps, float),
-                                            q / np.linalg.norm(q)])
+                self._est = np.concatenate(
+                    [np.asarray(r_hill_m, float), np.asarray(v_hill_mps, float), q / np.linalg.norm(q)]
+                )
             if not np.all(np.isfinite(self._p_diag)):
                 self._p_diag = np.diag(P0).copy()
         return rec
@@ -139,8 +142,14 @@ class LinkNav:
         self._send(_CONFIG, t_s, pk.pack_payload(_CONFIG, param_id, 0, value))
 
     # cmd_config parameter ids (fsw/include/fsw/app/flight_app.hpp, docs/LINK.md)
-    NAV_PARAMS = {"accel_sigma_mps2": 4, "gyro_sigma_rps": 5, "gate_chi2": 6, "max_delay_s": 7,
-                  "n_radps": 8, "dt_imu_s": 9}
+    NAV_PARAMS = {
+        "accel_sigma_mps2": 4,
+        "gyro_sigma_rps": 5,
+        "gate_chi2": 6,
+        "max_delay_s": 7,
+        "n_radps": 8,
+        "dt_imu_s": 9,
+    }
 
     def configure_nav(self, nav_config, t_s: float = 0.0):
         """Sends the filter settings of an fsw_bindings.NavConfig; the flight
@@ -196,8 +205,10 @@ class LinkNav:
             for item in self.deframer.feed(data):
                 if isinstance(item, pk.Rejection):
                     continue
-                if not self.link.down.cfg.clean and pk.frame(item.raw + pk.crc16(item.raw).to_bytes(2, "big")) \
-                        not in self.link.down.originals:
+                if (
+                    not self.link.down.cfg.clean
+                    and pk.frame(item.raw + pk.crc16(item.raw).to_bytes(2, "big")) not in self.link.down.originals
+                ):
                     self.delivered_not_sent += 1
                     continue
                 done = self._on_packet(item, rec) or done
@@ -230,7 +241,7 @@ class LinkNav:
             return False
         if p.apid == _COV:
             n_valid = v[0]
-            self._p_diag = np.array(v[2:2 + n_valid], float)[:9]
+            self._p_diag = np.array(v[2 : 2 + n_valid], float)[:9]
             return rec.received  # the covariance closes a step's answer
         if p.apid == _LINKC:
             self.link_counters = v

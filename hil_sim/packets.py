@@ -212,21 +212,30 @@ def range_image_segments(image_id: int, p_m, sigma_m):
         raise ValueError(f"range image: {n} points and {s_arr.size} sigmas (1..{MAX_RANGE_POINTS_PER_IMAGE}, equal)")
     bad = np.nonzero(~np.isfinite(p_arr).all(axis=1) | ~(s_arr >= 0))[0]
     if len(bad):
-        raise ValueError(f"range image: point {bad[0]} is not finite or has a negative sigma "
-                         f"(p_m {p_arr[bad[0]].tolist()}, sigma_m {s_arr[bad[0]]}); leave missing points out")
+        raise ValueError(
+            f"range image: point {bad[0]} is not finite or has a negative sigma "
+            f"(p_m {p_arr[bad[0]].tolist()}, sigma_m {s_arr[bad[0]]}); leave missing points out"
+        )
     p_m = [tuple(p) for p in p_arr.tolist()]
     sigma_m = s_arr.tolist()
     k = RANGE_POINTS_PER_SEGMENT
     n_seg = (n + k - 1) // k
     out = []
     for s in range(n_seg):
-        pts = p_m[s * k:(s + 1) * k]
-        sig = sigma_m[s * k:(s + 1) * k]
+        pts = p_m[s * k : (s + 1) * k]
+        sig = sigma_m[s * k : (s + 1) * k]
         vals = []
         for i in range(k):
             vals += [*pts[i], sig[i]] if i < len(pts) else [0.0] * 4
-        flags = (SequenceFlags.UNSEGMENTED if n_seg == 1 else SequenceFlags.FIRST_SEGMENT if s == 0
-                 else SequenceFlags.LAST_SEGMENT if s == n_seg - 1 else SequenceFlags.CONTINUATION_SEGMENT)
+        flags = (
+            SequenceFlags.UNSEGMENTED
+            if n_seg == 1
+            else SequenceFlags.FIRST_SEGMENT
+            if s == 0
+            else SequenceFlags.LAST_SEGMENT
+            if s == n_seg - 1
+            else SequenceFlags.CONTINUATION_SEGMENT
+        )
         out.append((flags, pack_payload(0x013, image_id, n, s * k, len(pts), 0, *vals)))
     return out
 
@@ -237,8 +246,9 @@ class Sender:
     def __init__(self) -> None:
         self.next_seq: Dict[int, int] = {}
 
-    def frame(self, apid: int, t_s: float, payload: bytes,
-              seq_flags: SequenceFlags = SequenceFlags.UNSEGMENTED) -> bytes:
+    def frame(
+        self, apid: int, t_s: float, payload: bytes, seq_flags: SequenceFlags = SequenceFlags.UNSEGMENTED
+    ) -> bytes:
         seq = self.next_seq.get(apid, 0)
         self.next_seq[apid] = (seq + 1) % SEQ_MODULO
         return build_frame(apid, seq, t_s, payload, seq_flags=seq_flags)
@@ -246,8 +256,15 @@ class Sender:
 
 # ----------------------------------------------------------------------------- parse
 
-HOUSEKEEPING_FIELDS = ("uptime_s", "last_step_cpu_s", "max_step_cpu_s", "cycle_count", "mode", "tx_packets",
-                       "tx_dropped")
+HOUSEKEEPING_FIELDS = (
+    "uptime_s",
+    "last_step_cpu_s",
+    "max_step_cpu_s",
+    "cycle_count",
+    "mode",
+    "tx_packets",
+    "tx_dropped",
+)
 
 
 def decode_housekeeping(payload: bytes) -> dict:
@@ -293,8 +310,17 @@ def _range_segment_ok(payload: bytes, flags: SequenceFlags) -> bool:
     return ok and all(s >= 0.0 for s in sigmas[:n])
 
 
-_FIELD_CHECKED = frozenset(("led_pose", "thruster_valves", "range_image_segment", "cmd_reset",
-                            "tm_covariance_diag", "tm_innovation", "tm_modal"))
+_FIELD_CHECKED = frozenset(
+    (
+        "led_pose",
+        "thruster_valves",
+        "range_image_segment",
+        "cmd_reset",
+        "tm_covariance_diag",
+        "tm_innovation",
+        "tm_modal",
+    )
+)
 
 
 def _fields_ok(a: ApidDef, flags: SequenceFlags, payload: bytes) -> bool:

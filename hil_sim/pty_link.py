@@ -7,6 +7,7 @@ relay in between is where link faults are injected (hil_sim/faults.py), in
 each direction separately. The relay is pumped by the bench's own loop (no
 threads), so a run with a seeded fault generator replays exactly.
 """
+
 from __future__ import annotations
 
 import errno
@@ -54,12 +55,16 @@ def find_fsw_node() -> str:
     found = shutil.which("fsw_node")
     if found:
         return found
-    raise FileNotFoundError("fsw_node not found: run `make run` (it builds and installs it) "
-                            "or set PROXOPS_FSW_NODE")
+    raise FileNotFoundError("fsw_node not found: run `make run` (it builds and installs it) or set PROXOPS_FSW_NODE")
 
 
-def open_link(faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(), seed: int = 0,
-              device: str | None = None, baud: int = BAUD):
+def open_link(
+    faults_up: FaultConfig = FaultConfig(),
+    faults_down: FaultConfig = FaultConfig(),
+    seed: int = 0,
+    device: str | None = None,
+    baud: int = BAUD,
+):
     """The HIL link: fsw_node started on a pseudo-terminal pair with the
     fault-injecting relay (PtyLink), or, with device, a flight computer on a
     serial port (DeviceLink; no fault injection there)."""
@@ -81,17 +86,27 @@ class PtyLink:
     """Starts fsw_node on one pty, opens the bench's end with pyserial, and
     relays between them with fault injection."""
 
-    def __init__(self, faults_up: FaultConfig = FaultConfig(), faults_down: FaultConfig = FaultConfig(),
-                 seed: int = 0, node_path: str | None = None, baud: int = BAUD, start_timeout_s: float = 10.0,
-                 silence_s: float = SILENCE_S):
+    def __init__(
+        self,
+        faults_up: FaultConfig = FaultConfig(),
+        faults_down: FaultConfig = FaultConfig(),
+        seed: int = 0,
+        node_path: str | None = None,
+        baud: int = BAUD,
+        start_timeout_s: float = 10.0,
+        silence_s: float = SILENCE_S,
+    ):
         rng = np.random.default_rng(seed)
-        self.up = FaultInjector(faults_up, np.random.default_rng(rng.integers(2**63)))      # bench -> flight
+        self.up = FaultInjector(faults_up, np.random.default_rng(rng.integers(2**63)))  # bench -> flight
         self.down = FaultInjector(faults_down, np.random.default_rng(rng.integers(2**63)))  # flight -> bench
         self.node_path = node_path or find_fsw_node()
         self._ma, self._sa, self.flight_device = _open_pty()
         self._mb, self._sb, self.bench_device = _open_pty()
-        self.proc = subprocess.Popen([self.node_path, "--device", self.flight_device, "--baud", str(baud)],
-                                     stdin=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [self.node_path, "--device", self.flight_device, "--baud", str(baud)],
+            stdin=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
         self._wait_ready(start_timeout_s)
         self.port = serial.Serial(self.bench_device, baudrate=baud, timeout=0)
         self.bytes_up = 0
@@ -186,8 +201,9 @@ class PtyLink:
             how = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
             raise FlightSideLost(f"the flight side stopped: fsw_node exited ({how})")
         if self._silent_wait_s > self.silence_s:
-            raise FlightSideLost(f"the flight side is silent: no telemetry from fsw_node in "
-                                 f"{self._silent_wait_s:.1f} s of waiting")
+            raise FlightSideLost(
+                f"the flight side is silent: no telemetry from fsw_node in {self._silent_wait_s:.1f} s of waiting"
+            )
 
     def node_alive(self) -> bool:
         return self.proc.poll() is None
@@ -251,8 +267,9 @@ class DeviceLink:
         try:
             self.port.write(data)
         except serial.SerialTimeoutException:
-            raise FlightSideLost(f"the flight side is not reading: {self.device} took no bytes "
-                                 f"for {self.silence_s:g} s") from None
+            raise FlightSideLost(
+                f"the flight side is not reading: {self.device} took no bytes for {self.silence_s:g} s"
+            ) from None
         except serial.SerialException as exc:
             raise FlightSideLost(f"the flight side is gone: {self.device}: {exc}") from None
         self.bytes_up += len(data)
@@ -285,8 +302,9 @@ class DeviceLink:
 
     def check_flight_side(self):
         if self._silent_wait_s > self.silence_s:
-            raise FlightSideLost(f"the flight side is silent: no telemetry on {self.device} in "
-                                 f"{self._silent_wait_s:.1f} s of waiting")
+            raise FlightSideLost(
+                f"the flight side is silent: no telemetry on {self.device} in {self._silent_wait_s:.1f} s of waiting"
+            )
 
     def node_alive(self) -> bool:
         return True

@@ -38,6 +38,7 @@ pixel-noise sigma), the detector before the refinement. Command:
 
 It prints the table and the fitted constants; ``--json`` writes them.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,8 +62,14 @@ def spot_grid(width: int = cm.WIDTH, height: int = cm.HEIGHT) -> np.ndarray:
     return np.column_stack([uu.ravel(), vv.ravel()]).astype(float)
 
 
-def draw_spots(rng: np.random.Generator, flux_range=(60.0, 150000.0), led_sigma_range=(0.05, 4.0),
-               psf_sigma_px: float = 0.8, blur_sigma_px: float = 0.0, scene: cm.Scene | None = None):
+def draw_spots(
+    rng: np.random.Generator,
+    flux_range=(60.0, 150000.0),
+    led_sigma_range=(0.05, 4.0),
+    psf_sigma_px: float = 0.8,
+    blur_sigma_px: float = 0.0,
+    scene: cm.Scene | None = None,
+):
     """One image of spots at random sub-pixel positions on the grid.
 
     Flux log-uniform in flux_range [counts]; the LED's own angular size
@@ -92,8 +99,25 @@ def measure(est, seed: int, images: int, blur_values=(0.0, 2.0), match_px: float
     brightest pixel's noise-free value before clipping), detected, err_u,
     err_v, sigma_model, area."""
     rng = np.random.default_rng(seed)
-    cols = {k: [] for k in ("blur", "flux", "sigma", "peak", "detected", "err_u", "err_v", "sigma_model", "area",
-                            "n_sat", "sigma_noise", "width", "phase_u", "phase_v")}
+    cols = {
+        k: []
+        for k in (
+            "blur",
+            "flux",
+            "sigma",
+            "peak",
+            "detected",
+            "err_u",
+            "err_v",
+            "sigma_model",
+            "area",
+            "n_sat",
+            "sigma_noise",
+            "width",
+            "phase_u",
+            "phase_v",
+        )
+    }
     max_blobs = est.config.max_blobs
     for blur in blur_values:
         for _ in range(images):
@@ -165,8 +189,13 @@ def table(d: dict) -> list[dict]:
     for blur in np.unique(d["blur"]):
         for pname, plo, phi in PEAK_CLASSES:
             for sname, slo, shi in SIGMA_CLASSES:
-                sel = (d["blur"] == blur) & (d["peak"] >= plo) & (d["peak"] < phi) & (d["sigma"] >= slo) & (
-                    d["sigma"] < shi)
+                sel = (
+                    (d["blur"] == blur)
+                    & (d["peak"] >= plo)
+                    & (d["peak"] < phi)
+                    & (d["sigma"] >= slo)
+                    & (d["sigma"] < shi)
+                )
                 n = int(sel.sum())
                 if n < 20:
                     continue
@@ -177,9 +206,13 @@ def table(d: dict) -> list[dict]:
                     e = np.concatenate([d["err_u"][det], d["err_v"][det]])
                     s = np.concatenate([d["sigma_model"][det], d["sigma_model"][det]])
                     ph = np.concatenate([d["phase_u"][det], d["phase_v"][det]])
-                    row.update(bias_px=float(np.mean(e)), rms_err_px=float(np.sqrt(np.mean(e**2))),
-                               rms_sigma_px=float(np.sqrt(np.mean(s**2))), mean_z2=float(np.mean((e / s) ** 2)),
-                               phase_bias_px=phase_bias(e, ph))
+                    row.update(
+                        bias_px=float(np.mean(e)),
+                        rms_err_px=float(np.sqrt(np.mean(e**2))),
+                        rms_sigma_px=float(np.sqrt(np.mean(s**2))),
+                        mean_z2=float(np.mean((e / s) ** 2)),
+                        phase_bias_px=phase_bias(e, ph),
+                    )
                 rows.append(row)
     return rows
 
@@ -201,9 +234,12 @@ def overall(d: dict) -> dict:
         e = np.concatenate([d["err_u"][sel], d["err_v"][sel]])
         s = np.concatenate([d["sigma_model"][sel], d["sigma_model"][sel]])
         z2 = (e / s) ** 2
-        out[f"blur_{blur:g}"] = {"detected": int(sel.sum()), "mean_z2": float(np.mean(z2)),
-                                 "frac_abs_z_below_2": float(np.mean(np.abs(e / s) < 2.0)),
-                                 "max_abs_z": float(np.max(np.abs(e / s)))}
+        out[f"blur_{blur:g}"] = {
+            "detected": int(sel.sum()),
+            "mean_z2": float(np.mean(z2)),
+            "frac_abs_z_below_2": float(np.mean(np.abs(e / s) < 2.0)),
+            "max_abs_z": float(np.max(np.abs(e / s))),
+        }
     return out
 
 
@@ -224,23 +260,33 @@ def fit(d: dict, iterations: int = 5) -> dict:
         c, _ = nnls(A * w[:, None], e2 * w)
         pred = A @ c
         w = 1.0 / np.maximum(pred, 1e-8)
-    return {"centroid_noise_scale": float(np.sqrt(c[0])), "sat_sigma_px": float(np.sqrt(c[1])),
-            "centroid_floor_px": float(np.sqrt(c[2])), "spots": int(det.sum())}
+    return {
+        "centroid_noise_scale": float(np.sqrt(c[0])),
+        "sat_sigma_px": float(np.sqrt(c[1])),
+        "centroid_floor_px": float(np.sqrt(c[2])),
+        "spots": int(det.sum()),
+    }
 
 
 def print_table(rows: list[dict]) -> None:
-    print(f"{'blur':>4} {'peak':<9} {'width':<13} {'spots':>5} {'det':>5} {'bias':>8} {'phase':>7} {'rms err':>8} "
-          f"{'rms sig':>8} {'mean z2':>8}")
+    print(
+        f"{'blur':>4} {'peak':<9} {'width':<13} {'spots':>5} {'det':>5} {'bias':>8} {'phase':>7} {'rms err':>8} "
+        f"{'rms sig':>8} {'mean z2':>8}"
+    )
     for r in rows:
         if "mean_z2" in r:
-            print(f"{r['blur_px']:>4.1f} {r['peak']:<9} {r['width']:<13} {r['spots']:>5} {r['detected']:>5} "
-                  f"{r['bias_px']:>8.4f} {r['phase_bias_px']:>7.4f} {r['rms_err_px']:>8.4f} {r['rms_sigma_px']:>8.4f} {r['mean_z2']:>8.2f}")
+            print(
+                f"{r['blur_px']:>4.1f} {r['peak']:<9} {r['width']:<13} {r['spots']:>5} {r['detected']:>5} "
+                f"{r['bias_px']:>8.4f} {r['phase_bias_px']:>7.4f} {r['rms_err_px']:>8.4f} {r['rms_sigma_px']:>8.4f} {r['mean_z2']:>8.2f}"
+            )
         else:
             print(f"{r['blur_px']:>4.1f} {r['peak']:<9} {r['width']:<13} {r['spots']:>5} {r['detected']:>5}")
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m bench.campaigns.centroid_calibration", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m bench.campaigns.centroid_calibration", description=__doc__.split("\n")[0]
+    )
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--images", type=int, default=60, help="images per blur value (130 spots each)")
     p.add_argument("--json", default=None)
@@ -260,8 +306,7 @@ def main(argv=None) -> int:
     print("fitted:", json.dumps(res["fit"]))
     flight = estimator()
     cfg = flight.config
-    res["flight_defaults"] = {k: getattr(cfg, k) for k in ("centroid_noise_scale", "sat_sigma_px",
-                                                           "centroid_floor_px")}
+    res["flight_defaults"] = {k: getattr(cfg, k) for k in ("centroid_noise_scale", "sat_sigma_px", "centroid_floor_px")}
     d = measure(flight, args.seed + 1, args.images)
     res["check"] = {"seed": args.seed + 1, "rows": table(d), "overall": overall(d)}
     print(f"refined centroid with the flight defaults {res['flight_defaults']}, seed {args.seed + 1}:")

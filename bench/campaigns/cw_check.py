@@ -1,6 +1,7 @@
 """CW linearisation check: the flight CW propagator (through the bindings)
 against exact two-body relative motion, with the error bound linearisation
 predicts."""
+
 from __future__ import annotations
 
 import fsw_bindings as fb
@@ -27,8 +28,15 @@ def run_case(state0, radius_m, n_samples=401, orbits=1.0):
     err = np.linalg.norm(cw[:, :3] - truth[:, :3], axis=1)
     rho_max = 1.05 * np.max(np.linalg.norm(truth[:, :3], axis=1))
     bound = linearisation_bound(n, t[-1], rho_max, radius_m)
-    return {"t": t, "truth": truth, "cw": cw, "pos_err_m": err, "max_pos_err_m": float(err.max()),
-            "bound_m": bound, "rho_max_m": float(rho_max)}
+    return {
+        "t": t,
+        "truth": truth,
+        "cw": cw,
+        "pos_err_m": err,
+        "max_pos_err_m": float(err.max()),
+        "bound_m": bound,
+        "rho_max_m": float(rho_max),
+    }
 
 
 def linearisation_bound(n, t_end, rho_max_m, radius_m, n_quad=2001):

@@ -16,6 +16,7 @@ kinematics) with scipy's solve_ivp (DOP853), and converted to the leader
 frame afterwards; image coordinates are projected here with rotation
 matrices (lines through two projected points, circles by Rodrigues).
 """
+
 from __future__ import annotations
 
 import math
@@ -32,9 +33,9 @@ ECC = 0.02
 FOCAL_M = 0.5
 MASS_KG = 500.0  # the paper's follower mass: gravity-only forces, so it cancels
 INERTIA = np.array([522.0, 420.0, 600.0])
-CAMERA_OFFSET_F_M = np.array([0.3, -0.2, 1.0])   # lens from follower c.m., body frame
-FEATURE_ORIGIN_L_M = np.array([0.0, 0.0, 0.8])   # leader feature frame origin from leader c.m.
-IMAGE_SIGMA_M = 1e-5                             # image-plane noise, 1-sigma (about one 10 um pixel)
+CAMERA_OFFSET_F_M = np.array([0.3, -0.2, 1.0])  # lens from follower c.m., body frame
+FEATURE_ORIGIN_L_M = np.array([0.0, 0.0, 0.8])  # leader feature frame origin from leader c.m.
+IMAGE_SIGMA_M = 1e-5  # image-plane noise, 1-sigma (about one 10 um pixel)
 
 POINTS = np.array([[1, 1, 0], [-1, 1, 0], [-1, -1, 0], [1, -1, 0]], float)
 LINE_DIR = np.array([[-1, 0, 0], [0, -1, 0], [1, 0, 0], [0, 1, 0]], float)
@@ -43,7 +44,7 @@ _H = math.sqrt(0.5)
 CIRCLE_AXIS = np.array([[0, _H, _H], [1, 0, 0]], float)
 CIRCLE_MOMENT = np.array([[-3, 1, -1], [0, 1, 0]], float)
 CIRCLE_START = np.array([[1, 3, -2], [2, 1, -1]], float)
-PHI_TRUE = np.array([0.5, 2.0, 4.0, 1.0, 3.0, 5.0])   # angles of the imaged circle points
+PHI_TRUE = np.array([0.5, 2.0, 4.0, 1.0, 3.0, 5.0])  # angles of the imaged circle points
 
 N_MEAS = 28
 CASES = {  # name: (points, lines, circles)
@@ -71,8 +72,8 @@ def qangle(a, b):
 
 # --------------------------------------------------------------------------- scenario
 def leader_nu_dot(nu):
-    p = A_M * (1 - ECC ** 2)
-    return math.sqrt(MU / p ** 3) * (1 + ECC * math.cos(nu)) ** 2
+    p = A_M * (1 - ECC**2)
+    return math.sqrt(MU / p**3) * (1 + ECC * math.cos(nu)) ** 2
 
 
 def truth0():
@@ -83,8 +84,13 @@ def truth0():
     t_c = np.array([-20.0, 35.0, 60.0])
     r = FEATURE_ORIGIN_L_M - R @ (t_c + CAMERA_OFFSET_F_M)
     n = leader_nu_dot(0.0)
-    return {"q_lf": q, "w_fl_f_rps": np.array([2e-4, -1e-4, 3e-4]), "r_l_m": r,
-            "v_l_mps": np.array([0.01, -2 * n * r[0], 0.02]), "phi_rad": PHI_TRUE.copy()}
+    return {
+        "q_lf": q,
+        "w_fl_f_rps": np.array([2e-4, -1e-4, 3e-4]),
+        "r_l_m": r,
+        "v_l_mps": np.array([0.01, -2 * n * r[0], 0.02]),
+        "phi_rad": PHI_TRUE.copy(),
+    }
 
 
 def guess(which):
@@ -98,15 +104,15 @@ def guess(which):
         q = q / np.linalg.norm(q)
         t_c = np.array([-60.0, 80.0, 100.0])
     r = FEATURE_ORIGIN_L_M - qrot(q) @ (t_c + CAMERA_OFFSET_F_M)
-    return {"q_lf": q, "w_fl_f_rps": np.zeros(3), "r_l_m": r, "v_l_mps": np.zeros(3),
-            "phi_rad": PHI_TRUE + 0.3}
+    return {"q_lf": q, "w_fl_f_rps": np.zeros(3), "r_l_m": r, "v_l_mps": np.zeros(3), "phi_rad": PHI_TRUE + 0.3}
 
 
 def initial_cov(which):
     """P0 over [dtheta, dw, dr, dv, dphi]; wider for the second guess."""
     pos_sig, att_sig = (20.0, 0.2) if which == 1 else (60.0, 0.8)
-    d = np.concatenate([np.full(3, att_sig ** 2), np.full(3, 1e-6), np.full(3, pos_sig ** 2),
-                        np.full(3, 1e-2), np.full(6, 0.25)])
+    d = np.concatenate(
+        [np.full(3, att_sig**2), np.full(3, 1e-6), np.full(3, pos_sig**2), np.full(3, 1e-2), np.full(6, 0.25)]
+    )
     return np.diag(d)
 
 
@@ -134,8 +140,8 @@ def _leader_frame(rl, vl):
 def propagate_truth(duration_s, dt_s=1.0, x0=None):
     """Relative truth at t = 0, dt, ..., duration: dict of arrays."""
     x0 = truth0() if x0 is None else x0
-    p = A_M * (1 - ECC ** 2)
-    rl0 = np.array([p / (1 + ECC), 0.0, 0.0])                  # perigee, nu0 = 0
+    p = A_M * (1 - ECC**2)
+    rl0 = np.array([p / (1 + ECC), 0.0, 0.0])  # perigee, nu0 = 0
     vl0 = math.sqrt(MU / p) * np.array([0.0, 1 + ECC, 0.0])
     C0, wL0 = _leader_frame(rl0, vl0)
     r_rel, v_rel = x0["r_l_m"], x0["v_l_mps"]
@@ -181,13 +187,13 @@ def image_coordinates(q_lf, r_l):
     """(28,) noiseless image coordinates of every feature, slots as in the flight code."""
     z = np.zeros(N_MEAS)
     for i, D in enumerate(POINTS):
-        z[2 * i:2 * i + 2] = _pinhole(_camera_point(q_lf, r_l, D))
+        z[2 * i : 2 * i + 2] = _pinhole(_camera_point(q_lf, r_l, D))
     for i, (l, m) in enumerate(zip(LINE_DIR, LINE_MOMENT)):
         p = np.cross(l, m)  # point of the line nearest the lP origin (m = p x l, |l| = 1)
         a = _pinhole(_camera_point(q_lf, r_l, p - 2 * l))
         b = _pinhole(_camera_point(q_lf, r_l, p + 2 * l))
         u = (b - a) / np.linalg.norm(b - a)
-        z[8 + 2 * i:10 + 2 * i] = a - np.dot(a, u) * u  # foot of the perpendicular from the image origin
+        z[8 + 2 * i : 10 + 2 * i] = a - np.dot(a, u) * u  # foot of the perpendicular from the image origin
     for c in range(2):
         l, m, s0 = CIRCLE_AXIS[c], CIRCLE_MOMENT[c], CIRCLE_START[c]
         p0 = np.cross(l, m)
@@ -195,7 +201,7 @@ def image_coordinates(q_lf, r_l):
             phi = PHI_TRUE[3 * c + s]
             v = s0 - p0  # Rodrigues about the axis through p0
             v_rot = v * math.cos(phi) + np.cross(l, v) * math.sin(phi) + l * np.dot(l, v) * (1 - math.cos(phi))
-            z[16 + 6 * c + 2 * s:18 + 6 * c + 2 * s] = _pinhole(_camera_point(q_lf, r_l, p0 + v_rot))
+            z[16 + 6 * c + 2 * s : 18 + 6 * c + 2 * s] = _pinhole(_camera_point(q_lf, r_l, p0 + v_rot))
     return z
 
 
@@ -225,17 +231,22 @@ def make_filter(kind, case):
     use_p, use_l, use_c = CASES[case]
     empty = np.zeros((0, 3))
     cls = fb.FeatureEkf if kind == "ekf" else fb.FeatureUkf
-    return cls(make_config(), POINTS if use_p else empty, LINE_DIR if use_l else empty,
-               LINE_MOMENT if use_l else empty, CIRCLE_AXIS if use_c else empty,
-               CIRCLE_MOMENT if use_c else empty, CIRCLE_START if use_c else empty)
+    return cls(
+        make_config(),
+        POINTS if use_p else empty,
+        LINE_DIR if use_l else empty,
+        LINE_MOMENT if use_l else empty,
+        CIRCLE_AXIS if use_c else empty,
+        CIRCLE_MOMENT if use_c else empty,
+        CIRCLE_START if use_c else empty,
+    )
 
 
 def run_filter(kind, case, which_guess, truth, z):
     """One run: error histories, pose NEES, failure counts by reason."""
     f = make_filter(kind, case)
     g = guess(which_guess)
-    rec = f.init(0.0, 0.0, g["q_lf"], g["w_fl_f_rps"], g["r_l_m"], g["v_l_mps"], g["phi_rad"],
-                 initial_cov(which_guess))
+    rec = f.init(0.0, 0.0, g["q_lf"], g["w_fl_f_rps"], g["r_l_m"], g["v_l_mps"], g["phi_rad"], initial_cov(which_guess))
     if rec.status != "ok":
         raise ValueError(f"init failed: {rec.status} ({rec.detail})")
     n = len(truth["t"])
@@ -309,7 +320,9 @@ def summarise(t, runs, n_meas_rows):
         "converged_runs": len(converged),
         "nees_pose_mean": float(np.mean(nees_ss)),
         "nees_pose_dof": 6,
-        "nis_mean": float(np.mean([v for v in nis_ss if v is not None])) if any(v is not None for v in nis_ss) else None,
+        "nis_mean": float(np.mean([v for v in nis_ss if v is not None]))
+        if any(v is not None for v in nis_ss)
+        else None,
         "nis_dof": n_meas_rows,
         "final_pos_err_m": [float(r["pos_err_m"][-1]) for r in runs],
         "failures_by_reason": failures,
@@ -342,11 +355,19 @@ def comparison(seed, duration_s=300.0, runs=3, ukf=True):
         cases[name] = s
         histories[name] = {"pos_err_m": rs[0]["pos_err_m"], "att_err_deg": rs[0]["att_err_deg"]}
     return {
-        "seed": seed, "duration_s": duration_s, "runs": runs, "dt_s": 1.0,
+        "seed": seed,
+        "duration_s": duration_s,
+        "runs": runs,
+        "dt_s": 1.0,
         "scenario": {
-            "leader_a_m": A_M, "leader_e": ECC, "focal_m": FOCAL_M, "follower_mass_kg": MASS_KG,
-            "inertia_kgm2": INERTIA.tolist(), "camera_offset_f_m": CAMERA_OFFSET_F_M.tolist(),
-            "feature_origin_l_m": FEATURE_ORIGIN_L_M.tolist(), "image_sigma_m": IMAGE_SIGMA_M,
+            "leader_a_m": A_M,
+            "leader_e": ECC,
+            "focal_m": FOCAL_M,
+            "follower_mass_kg": MASS_KG,
+            "inertia_kgm2": INERTIA.tolist(),
+            "camera_offset_f_m": CAMERA_OFFSET_F_M.tolist(),
+            "feature_origin_l_m": FEATURE_ORIGIN_L_M.tolist(),
+            "image_sigma_m": IMAGE_SIGMA_M,
             "truth0": {k: np.asarray(v).tolist() for k, v in truth0().items()},
             "convergence": {"pos_m": CONV_POS_M, "att_deg": CONV_ATT_DEG},
         },

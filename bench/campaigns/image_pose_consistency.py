@@ -3,6 +3,7 @@ docking runs flown on image poses (bench/sim/scenario_docking.py, pose_source
 "images") give the true trajectory; the host's pattern is rendered from it
 and each pose from the flight vision pipeline (bench/sim/image_pose.py) is
 compared with the truth (docs/VISION.md, "Navigation on image poses")."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -11,8 +12,9 @@ from bench.sim.image_pose import ImagePoseSensor
 from bench.sim.sensors import NoiseProfile
 
 
-def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: int = 3,
-                            range_bins_m=(0.0, 0.3, 0.4, 0.5, 0.6, 0.8)) -> dict:
+def pose_nees_along_docking(
+    seeds=(1000, 1003), render_seed: int = 7, renders: int = 3, range_bins_m=(0.0, 0.3, 0.4, 0.5, 0.6, 0.8)
+) -> dict:
     """Per-frame consistency of the image poses on the docking scenario.
 
     Each seed's docking run (pose from images) gives the true trajectory; at
@@ -48,10 +50,16 @@ def pose_nees_along_docking(seeds=(1000, 1003), render_seed: int = 7, renders: i
         if sel.any():
             bins.append({"range_m": [lo, hi], "frames": int(sel.sum()), "nees_mean": float(nees[sel].mean())})
     k = len(nees)
-    return {"seeds": list(seeds), "frames": k, "nees_mean": float(nees.mean()),
-            "nees_mean_band95_independent": [float(chi2.ppf(0.025, 6 * k) / k), float(chi2.ppf(0.975, 6 * k) / k)],
-            "nees_pos_mean": float(np.mean(npos)), "nees_att_mean": float(np.mean(natt)), "by_range": bins,
-            "status_counts": sensor.status_counts}
+    return {
+        "seeds": list(seeds),
+        "frames": k,
+        "nees_mean": float(nees.mean()),
+        "nees_mean_band95_independent": [float(chi2.ppf(0.025, 6 * k) / k), float(chi2.ppf(0.975, 6 * k) / k)],
+        "nees_pos_mean": float(np.mean(npos)),
+        "nees_att_mean": float(np.mean(natt)),
+        "by_range": bins,
+        "status_counts": sensor.status_counts,
+    }
 
 
 if __name__ == "__main__":

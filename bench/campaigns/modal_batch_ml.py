@@ -14,6 +14,7 @@ filter is not what limits convergence; the data are.
 
 Undamped modes (the plate's): a(t) = c cos(w t) + s sin(w t).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -68,8 +69,8 @@ def _relax_start(coarse, info, t, w_prior, sigma_w, w0, n_grid, cycles=3, amplit
             cg, sg = np.cos(np.outer(t, grid)), np.sin(np.outer(t, grid))
             ncc, ncs, nss = h @ (cg * cg), h @ (cg * sg), h @ (sg * sg)
             bc, bs = g @ cg, g @ sg
-            det = ncc * nss - ncs ** 2
-            gain = (nss * bc ** 2 - 2 * ncs * bc * bs + ncc * bs ** 2) / det - ((grid - w_prior[i]) / sigma_w[i]) ** 2
+            det = ncc * nss - ncs**2
+            gain = (nss * bc**2 - 2 * ncs * bc * bs + ncc * bs**2) / det - ((grid - w_prior[i]) / sigma_w[i]) ** 2
             j = int(np.argmax(gain))
             w[i] = grid[j]
             c[i], s[i] = (nss[j] * bc[j] - ncs[j] * bs[j]) / det[j], (ncc[j] * bs[j] - ncs[j] * bc[j]) / det[j]
@@ -84,7 +85,7 @@ def _residual_and_jacobian(wh, coarse, t, w_prior, sigma_w):
     m = coarse.shape[1]
 
     def residual(x):
-        w, c, s = x[:m], x[m:2 * m], x[2 * m:]
+        w, c, s = x[:m], x[m : 2 * m], x[2 * m :]
         pred = np.cos(np.outer(t, w)) * c + np.sin(np.outer(t, w)) * s
         r = np.einsum("kij,kj->ki", wh, pred - coarse)
         return np.concatenate([r.ravel(), (w - w_prior) / sigma_w])
@@ -92,7 +93,7 @@ def _residual_and_jacobian(wh, coarse, t, w_prior, sigma_w):
     def jacobian(x):
         # d pred_k,i / d(w_i, c_i, s_i) only: each parameter group's block is
         # the whitener with its columns scaled by that derivative
-        w, c, s = x[:m], x[m:2 * m], x[2 * m:]
+        w, c, s = x[:m], x[m : 2 * m], x[2 * m :]
         cw, sw = np.cos(np.outer(t, w)), np.sin(np.outer(t, w))
         blocks = [wh * d[:, None, :] for d in (t[:, None] * (-c * sw + s * cw), cw, sw)]
         jac = np.concatenate([b.reshape(-1, m) for b in blocks], axis=1)
@@ -127,8 +128,13 @@ def fit(coarse, cov, t, w_prior, sigma_w, extra_starts=(), n_grid=201, reference
 
     def linear_amplitudes(w):
         # cosine and sine amplitudes for fixed frequencies: weighted linear LS
-        basis = np.concatenate([np.cos(np.outer(t, w))[:, None, :] * np.eye(m)[None],
-                                np.sin(np.outer(t, w))[:, None, :] * np.eye(m)[None]], axis=2)
+        basis = np.concatenate(
+            [
+                np.cos(np.outer(t, w))[:, None, :] * np.eye(m)[None],
+                np.sin(np.outer(t, w))[:, None, :] * np.eye(m)[None],
+            ],
+            axis=2,
+        )
         a = np.einsum("kij,kjl->kil", wh, basis).reshape(-1, 2 * m)
         y = np.einsum("kij,kj->ki", wh, coarse).ravel()
         sol, *_ = np.linalg.lstsq(a, y, rcond=None)
@@ -136,9 +142,14 @@ def fit(coarse, cov, t, w_prior, sigma_w, extra_starts=(), n_grid=201, reference
 
     var = np.diagonal(cov, axis1=1, axis2=2)
     w_grid = _grid_start(coarse, var, t, w_prior, sigma_w, n_grid)
-    starts = [("grid", w_grid), ("prior", w_prior),
-              ("relax", _relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, n_grid,
-                                     amplitudes=linear_amplitudes))]
+    starts = [
+        ("grid", w_grid),
+        ("prior", w_prior),
+        (
+            "relax",
+            _relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, n_grid, amplitudes=linear_amplitudes),
+        ),
+    ]
     starts += [(name, np.asarray(w, float)) for name, w in extra_starts]
     best = None
     for name, w0 in starts:
@@ -146,8 +157,14 @@ def fit(coarse, cov, t, w_prior, sigma_w, extra_starts=(), n_grid=201, reference
         if best is None or cost < best[0]:
             best = (cost, x, name)
     cost, x, name = best
-    out = {"omega": x[:m], "amplitude_end": _amplitude_at(x, m, t_end), "cost": cost, "start": name,
-           "n_images": int(coarse.shape[0]), "reference": {}}
+    out = {
+        "omega": x[:m],
+        "amplitude_end": _amplitude_at(x, m, t_end),
+        "cost": cost,
+        "start": name,
+        "n_images": int(coarse.shape[0]),
+        "reference": {},
+    }
     for name, w0 in reference_starts:
         c_ref, x_ref = _descend(residual, jacobian, np.asarray(w0, float), linear_amplitudes)
         out["reference"][name] = {"cost": c_ref, "omega": x_ref[:m], "amplitude_end": _amplitude_at(x_ref, m, t_end)}
@@ -162,18 +179,26 @@ MAX_NFEV = 200
 def _descend(residual, jacobian, w0, linear_amplitudes):
     """Nonlinear least squares from frequencies w0 (amplitudes solved linearly
     first), at most MAX_NFEV evaluations."""
-    x = least_squares(residual, np.concatenate([w0, linear_amplitudes(w0)]), jac=jacobian, method="trf",
-                      max_nfev=MAX_NFEV).x
+    x = least_squares(
+        residual, np.concatenate([w0, linear_amplitudes(w0)]), jac=jacobian, method="trf", max_nfev=MAX_NFEV
+    ).x
     return 0.5 * float(np.sum(residual(x) ** 2)), x
 
 
 def _amplitude_at(x, m, t_end):
-    w, c, s = x[:m], x[m:2 * m], x[2 * m:]
+    w, c, s = x[:m], x[m : 2 * m], x[2 * m :]
     return c * np.cos(w * t_end) + s * np.sin(w * t_end)
 
 
-def end_error_ratio(runs: int = 4000, seed: int = 5, n: int = 80, dt_s: float = 60.0, omega: float = 0.006,
-                    amplitude: float = 0.7, sigma: float = 0.1) -> dict:
+def end_error_ratio(
+    runs: int = 4000,
+    seed: int = 5,
+    n: int = 80,
+    dt_s: float = 60.0,
+    omega: float = 0.006,
+    amplitude: float = 0.7,
+    sigma: float = 0.1,
+) -> dict:
     """One undamped mode, n samples in white noise, random phase per run: RMS
     error of the coefficient at the last sample from this batch fit (frequency
     unknown, a flat prior) against linear least squares with the frequency
@@ -181,7 +206,7 @@ def end_error_ratio(runs: int = 4000, seed: int = 5, n: int = 80, dt_s: float = 
     (docs/perf/modal.md)."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) * dt_s
-    cov = np.full((n, 1, 1), sigma ** 2)
+    cov = np.full((n, 1, 1), sigma**2)
     basis = np.c_[np.cos(omega * t), np.sin(omega * t)]
     e_known, e_unknown = [], []
     for _ in range(runs):
@@ -197,5 +222,7 @@ def end_error_ratio(runs: int = 4000, seed: int = 5, n: int = 80, dt_s: float = 
 
 if __name__ == "__main__":
     r = end_error_ratio()
-    print(f"{r['runs']} runs: RMS error at the last sample, frequency known {r['rms_known']:.4f}, "
-          f"unknown {r['rms_unknown']:.4f}, ratio {r['ratio']:.3f} (Cramer-Rao, large n: sqrt(2.5) = 1.581)")
+    print(
+        f"{r['runs']} runs: RMS error at the last sample, frequency known {r['rms_known']:.4f}, "
+        f"unknown {r['rms_unknown']:.4f}, ratio {r['ratio']:.3f} (Cramer-Rao, large n: sqrt(2.5) = 1.581)"
+    )

@@ -20,6 +20,7 @@ stands for its average over the prior). From it:
 
 So a run's shortfall can be read against what its own data permit.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -49,8 +50,8 @@ def fisher(t, omega, c, s, cov, sigma_w_prior=None):
     for a in range(3):
         for b in range(a, 3):
             blk = np.einsum("ki,kij,kj->ij", d[a], info, d[b])
-            j[a * m:(a + 1) * m, b * m:(b + 1) * m] = blk
-            j[b * m:(b + 1) * m, a * m:(a + 1) * m] = blk.T
+            j[a * m : (a + 1) * m, b * m : (b + 1) * m] = blk
+            j[b * m : (b + 1) * m, a * m : (a + 1) * m] = blk.T
     if sigma_w_prior is not None:
         j[:m, :m] += np.diag(1.0 / np.asarray(sigma_w_prior, float) ** 2)
     return j
@@ -58,8 +59,7 @@ def fisher(t, omega, c, s, cov, sigma_w_prior=None):
 
 def amplitude_jacobian(t_end, omega, c, s):
     """G = d a(t_end) / d(w, c, s), (m, 3m)."""
-    d = _derivatives(np.array([float(t_end)]), np.asarray(omega, float), np.asarray(c, float),
-                     np.asarray(s, float))
+    d = _derivatives(np.array([float(t_end)]), np.asarray(omega, float), np.asarray(c, float), np.asarray(s, float))
     return np.concatenate([np.diag(v[0]) for v in d], axis=1)
 
 

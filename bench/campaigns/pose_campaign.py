@@ -14,6 +14,7 @@ error is the least-squares response of the pipeline to the distortion's
 pixel displacement, dx = (J^T J)^-1 J^T (px_distorted - px_pinhole), with J
 the pipeline's own reprojection Jacobian at the truth.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -22,8 +23,15 @@ from scipy.stats import chi2
 from bench.sim import camera as cm
 from bench.so3 import boxminus
 
-STATUSES = ["Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "DegenerateGeometry", "SolverFailed",
-            "BadInput"]
+STATUSES = [
+    "Ok",
+    "TooFewLeds",
+    "AmbiguousIdentity",
+    "TargetBehindCamera",
+    "DegenerateGeometry",
+    "SolverFailed",
+    "BadInput",
+]
 GROSS_NEES = float(chi2.ppf(0.9999, 6))  # beyond this an "Ok" pose is a gross error
 RANGE_BINS_M = (0.3, 1.0, 2.0, 3.0, 4.0, 5.0)  # camera to pattern, for the per-range summary
 
@@ -36,15 +44,23 @@ def pose_error(r_meas, q_meas, r_true, q_true) -> np.ndarray:
 def run_case(est, r, q, qh, scene: cm.Scene, rng, cam: cm.Camera, t_s: float = 0.0) -> dict:
     img = cm.render(r, q, qh, scene, rng, cam)
     m = est.estimate(img, t_s, qh)
-    out = {"status": m.status, "range_m": float(np.linalg.norm(cm.led_pixels(r, q, qh, cam)[2][:4].mean(0))),
-           "n_blobs": int(m.n_blobs), "identifier_split": bool(m.identifier_split)}
+    out = {
+        "status": m.status,
+        "range_m": float(np.linalg.norm(cm.led_pixels(r, q, qh, cam)[2][:4].mean(0))),
+        "n_blobs": int(m.n_blobs),
+        "identifier_split": bool(m.identifier_split),
+    }
     if m.ok:
         e = pose_error(m.r_hill_m, m.q_hb, r, q)
         R = m.R
-        out.update(pos_err_m=float(np.linalg.norm(e[:3])), att_err_deg=float(np.degrees(np.linalg.norm(e[3:]))),
-                   nees=float(e @ np.linalg.solve(R, e)), sigma_pos_m=float(np.sqrt(np.trace(R[:3, :3]))),
-                   sigma_att_deg=float(np.degrees(np.sqrt(np.trace(R[3:, 3:])))),
-                   reproj_rms_px=float(m.reproj_rms_px))
+        out.update(
+            pos_err_m=float(np.linalg.norm(e[:3])),
+            att_err_deg=float(np.degrees(np.linalg.norm(e[3:]))),
+            nees=float(e @ np.linalg.solve(R, e)),
+            sigma_pos_m=float(np.sqrt(np.trace(R[:3, :3]))),
+            sigma_att_deg=float(np.degrees(np.sqrt(np.trace(R[3:, 3:])))),
+            reproj_rms_px=float(m.reproj_rms_px),
+        )
     return out
 
 
@@ -52,8 +68,12 @@ def summarise(cases: list[dict]) -> dict:
     n = len(cases)
     ok = [c for c in cases if c["status"] == "Ok"]
     fails = {s: sum(c["status"] == s for c in cases) for s in STATUSES if s != "Ok"}
-    s = {"cases": n, "ok": len(ok), "failure_rate": (n - len(ok)) / n if n else 0.0,
-         "failures_by_reason": {k: v for k, v in fails.items() if v}}
+    s = {
+        "cases": n,
+        "ok": len(ok),
+        "failure_rate": (n - len(ok)) / n if n else 0.0,
+        "failures_by_reason": {k: v for k, v in fails.items() if v},
+    }
     if ok:
         nees = np.array([c["nees"] for c in ok])
         pos = np.array([c["pos_err_m"] for c in ok])
@@ -90,13 +110,21 @@ def by_range(cases: list[dict], edges=RANGE_BINS_M) -> list[dict]:
         for c in sel:
             if c["status"] != "Ok":
                 fails[c["status"]] = fails.get(c["status"], 0) + 1
-        rows.append({"range_m": [lo, hi], "cases": len(sel), "ok": sum(c["status"] == "Ok" for c in sel),
-                     "failures_by_reason": fails, "nees_mean_without_gross": float(np.mean(ok)) if ok else None})
+        rows.append(
+            {
+                "range_m": [lo, hi],
+                "cases": len(sel),
+                "ok": sum(c["status"] == "Ok" for c in sel),
+                "failures_by_reason": fails,
+                "nees_mean_without_gross": float(np.mean(ok)) if ok else None,
+            }
+        )
     return rows
 
 
-def image_campaign(seed: int, runs: int, conditions: dict | None = None, cam: cm.Camera | None = None,
-                   range_m=(0.3, 5.0)) -> dict:
+def image_campaign(
+    seed: int, runs: int, conditions: dict | None = None, cam: cm.Camera | None = None, range_m=(0.3, 5.0)
+) -> dict:
     cam = cm.Camera() if cam is None else cam
     conditions = cm.CONDITIONS if conditions is None else conditions
     est = cm.make_estimator(cam)
@@ -112,8 +140,14 @@ def image_campaign(seed: int, runs: int, conditions: dict | None = None, cam: cm
             c["run"] = i
             per_cond[name].append(c)
     summary = {name: summarise(cs) for name, cs in per_cond.items()}
-    return {"seed": seed, "runs": runs, "range_m": list(range_m),
-            "pixel_sigma_px": est.config.pixel_sigma_px, "summary": summary, "cases": per_cond}
+    return {
+        "seed": seed,
+        "runs": runs,
+        "range_m": list(range_m),
+        "pixel_sigma_px": est.config.pixel_sigma_px,
+        "summary": summary,
+        "cases": per_cond,
+    }
 
 
 def distortion_experiment(seed: int, runs: int, k1_values=(0.0, -0.05, -0.1, -0.2, -0.3)) -> dict:
@@ -145,8 +179,12 @@ def distortion_experiment(seed: int, runs: int, k1_values=(0.0, -0.05, -0.1, -0.
         if len(meas):
             pm, pp = np.linalg.norm(meas[:, :3], axis=1), np.linalg.norm(pred[:, :3], axis=1)
             am, ap = np.degrees(np.linalg.norm(meas[:, 3:], axis=1)), np.degrees(np.linalg.norm(pred[:, 3:], axis=1))
-            row.update(pos_err_m_median=float(np.median(pm)), pos_pred_m_median=float(np.median(pp)),
-                       att_err_deg_median=float(np.median(am)), att_pred_deg_median=float(np.median(ap)))
+            row.update(
+                pos_err_m_median=float(np.median(pm)),
+                pos_pred_m_median=float(np.median(pp)),
+                att_err_deg_median=float(np.median(am)),
+                att_pred_deg_median=float(np.median(ap)),
+            )
             if abs(k1) > 0:
                 # Slope and correlation of measured on predicted position error, all components pooled.
                 x, y = pred[:, :3].ravel(), meas[:, :3].ravel()

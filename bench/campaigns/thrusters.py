@@ -45,6 +45,7 @@ the measured (noisy) velocity changes, pooled over all samples and the three
 axes of one kind (linear or angular): 3 N pairs. The correlation with the
 noise-free truth is reported beside it.
 """
+
 from __future__ import annotations
 
 import time
@@ -112,9 +113,7 @@ class ThrusterTruth:
     def __post_init__(self):
         c, r = self.cfg, self.rng
         self.scale = 1.0 + c.magnitude_spread * r.standard_normal(veh.N_THRUSTERS)
-        self.directions_b = np.array(
-            [_rotation(c.misalign_rad * r.standard_normal(3)) @ d for d in veh.DIRECTIONS_B]
-        )
+        self.directions_b = np.array([_rotation(c.misalign_rad * r.standard_normal(3)) @ d for d in veh.DIRECTIONS_B])
         self.degr_per_s = r.uniform(0.0, c.degradation_max_per_500s, veh.N_THRUSTERS) / 500.0
         self.propellant_kg = c.propellant_kg
         self.omega_b_rps = np.zeros(3)
@@ -209,14 +208,26 @@ def generate(seed: int, cfg: ProtocolConfig | None = None) -> dict:
     if cfg.noise_model == "component":
         y_meas = y_true * (1.0 + sig * noise)
     elif cfg.noise_model == "norm":
-        mag = np.concatenate([np.repeat(np.linalg.norm(y_true[:, sl], axis=1, keepdims=True), 3, axis=1)
-                              for sl in (slice(0, 3), slice(3, 6))], axis=1)
+        mag = np.concatenate(
+            [
+                np.repeat(np.linalg.norm(y_true[:, sl], axis=1, keepdims=True), 3, axis=1)
+                for sl in (slice(0, 3), slice(3, 6))
+            ],
+            axis=1,
+        )
         y_meas = y_true + sig * mag * noise
     else:
         raise ValueError(f"noise_model: expected 'component' or 'norm', got {cfg.noise_model!r}")
     masks = (valves.astype(int) << np.arange(8)).sum(axis=1)
-    return {"valves": valves, "masks": masks, "y_true": y_true, "y_meas": y_meas,
-            "omega_b_rps": omega, "mass_kg": mass, "t_s": np.arange(n) * cfg.dt_s}
+    return {
+        "valves": valves,
+        "masks": masks,
+        "y_true": y_true,
+        "y_meas": y_meas,
+        "omega_b_rps": omega,
+        "mass_kg": mass,
+        "t_s": np.arange(n) * cfg.dt_s,
+    }
 
 
 # --------------------------------------------------------------------------
@@ -287,8 +298,8 @@ class GprLearner:
         return out
 
     def add(self, valves, mask, y):
-        self.X = np.vstack([self.X, valves])[-self.window:]
-        self.Y = np.vstack([self.Y, y])[-self.window:]
+        self.X = np.vstack([self.X, valves])[-self.window :]
+        self.Y = np.vstack([self.Y, y])[-self.window :]
         self._cache = None
 
 
@@ -315,12 +326,21 @@ def fit_gpr_hyper(X: np.ndarray, Y: np.ndarray) -> dict:
         Yk = Y[:, sl]
         Yk = Yk / np.sqrt((Yk**2).mean(axis=0) + 1e-300)
         x0 = np.log([GPR_HAND[kind][0], 1.0, np.sqrt(GPR_HAND[kind][1])])
-        res = minimize(neg_log_marginal, x0, args=(X, Yk), method="L-BFGS-B",
-                       bounds=[(np.log(0.3), np.log(100.0)), (np.log(0.05), np.log(100.0)), (np.log(1e-3), np.log(3.0))])
+        res = minimize(
+            neg_log_marginal,
+            x0,
+            args=(X, Yk),
+            method="L-BFGS-B",
+            bounds=[(np.log(0.3), np.log(100.0)), (np.log(0.05), np.log(100.0)), (np.log(1e-3), np.log(3.0))],
+        )
         length, sf, sn = np.exp(res.x)
         out[kind] = (float(length), float(sn * sn / (sf * sf)))
-        fitted[kind] = {"length": float(length), "signal_std": float(sf), "noise_std": float(sn),
-                        "neg_log_marginal": float(res.fun)}
+        fitted[kind] = {
+            "length": float(length),
+            "signal_std": float(sf),
+            "noise_std": float(sn),
+            "neg_log_marginal": float(res.fun),
+        }
     return out, fitted
 
 
@@ -368,21 +388,30 @@ def pooled_corr(pred: np.ndarray, ref: np.ndarray, kind: str, start: int = 0) ->
     return float(np.corrcoef(pred[start:, sl].ravel(), ref[start:, sl].ravel())[0, 1])
 
 
-def evaluate(seed: int, cfg: ProtocolConfig | None = None, learners=("blr", "gpr", "gpr_tuned"),
-             progress=None) -> dict:
+def evaluate(seed: int, cfg: ProtocolConfig | None = None, learners=("blr", "gpr", "gpr_tuned"), progress=None) -> dict:
     """Run the protocol for one seed and every learner; correlations and
     timings. progress(name, done, total), if given, is called as each
     learner goes through the samples (done of total, over all learners)."""
     data = generate(seed, cfg)
-    makers = {"blr": BlrLearner, "gpr": GprLearner, "gpr_tuned": TunedGprLearner,
-              "blr_pairs": lambda: BlrLearner(pairs=True), "blr_w100": lambda: BlrLearner(window=100)}
+    makers = {
+        "blr": BlrLearner,
+        "gpr": GprLearner,
+        "gpr_tuned": TunedGprLearner,
+        "blr_pairs": lambda: BlrLearner(pairs=True),
+        "blr_w100": lambda: BlrLearner(window=100),
+    }
     results, preds = {}, {}
     for name in learners:
         learner = makers[name]()
         base = len(results) * len(data["masks"])
         total = len(learners) * len(data["masks"])
-        r = run_learner(learner, data, None if progress is None else
-                        (lambda k, n, name=name, base=base, total=total: progress(name, base + k, total)))
+        r = run_learner(
+            learner,
+            data,
+            None
+            if progress is None
+            else (lambda k, n, name=name, base=base, total=total: progress(name, base + k, total)),
+        )
         preds[name] = r["pred"]
         res = {}
         for kind in KINDS:
@@ -396,8 +425,11 @@ def evaluate(seed: int, cfg: ProtocolConfig | None = None, learners=("blr", "gpr
             res["fitted"] = learner.fitted
         results[name] = res
     results["run"] = {
-        "seed": seed, "n_samples": int(len(data["masks"])), "duration_s": float(data["t_s"][-1] + DT_S),
+        "seed": seed,
+        "n_samples": int(len(data["masks"])),
+        "duration_s": float(data["t_s"][-1] + DT_S),
         "max_rate_rps": float(np.abs(data["omega_b_rps"]).max()),
-        "mass_start_kg": float(data["mass_kg"][0]), "mass_end_kg": float(data["mass_kg"][-1]),
+        "mass_start_kg": float(data["mass_kg"][0]),
+        "mass_end_kg": float(data["mass_kg"][-1]),
     }
     return results, data, preds

@@ -2,6 +2,7 @@
 a value outside it, not finite, or not a number is refused with one line
 that names the argument (`proxops CMD: error: argument --x: ...`, exit 2)
 before anything runs or any file is touched."""
+
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,5 @@
 """`proxops cw-check`: CW against exact two-body motion over one orbit."""
+
 from __future__ import annotations
 
 import argparse
@@ -10,11 +11,24 @@ from bench.sim import orbit
 
 
 def register(sub):
-    p = sub.add_parser("cw-check", help="CW propagator vs two-body truth at 10 m over one orbit",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "cw-check",
+        help="CW propagator vs two-body truth at 10 m over one orbit",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops cw-check")
-    p.add_argument("--altitude-km", type=number(float, 100.0, 100000.0), default=500.0, help="host circular-orbit altitude [km] (100 to 100000)")
-    p.add_argument("--separation-m", type=number(float, 0.0, 100000.0, lo_open=True), default=10.0, help="initial separation [m] (> 0 to 100000)")
+    p.add_argument(
+        "--altitude-km",
+        type=number(float, 100.0, 100000.0),
+        default=500.0,
+        help="host circular-orbit altitude [km] (100 to 100000)",
+    )
+    p.add_argument(
+        "--separation-m",
+        type=number(float, 0.0, 100000.0, lo_open=True),
+        default=10.0,
+        help="initial separation [m] (> 0 to 100000)",
+    )
     p.add_argument("--json", default=None, help="write results here")
     p.set_defaults(func=main)
 
@@ -22,7 +36,7 @@ def register(sub):
 def main(args):
     radius = orbit.EARTH_RADIUS + args.altitude_km * 1e3
     n = orbit.orbit_rate(radius)
-    print(f"host orbit radius {radius/1e3:.1f} km, n = {n:.6e} rad/s, period {2*3.141592653589793/n:.1f} s")
+    print(f"host orbit radius {radius / 1e3:.1f} km, n = {n:.6e} rad/s, period {2 * 3.141592653589793 / n:.1f} s")
     print(f"{'case':28s} {'max |err| [m]':>14s} {'bound [m]':>12s}  within")
     out = {}
     for name, s0 in cw_check.cases(n, args.separation_m).items():

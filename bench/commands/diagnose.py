@@ -1,6 +1,7 @@
 """`proxops diagnose LOG --report DIR --json OUT`: where the sim-to-real gap
 lies, which unmodelled effect causes it, how far it shrinks on held-out data,
 and what the log let it examine."""
+
 from __future__ import annotations
 
 import argparse
@@ -13,24 +14,44 @@ from bench.commands.args import number, one_line_errors
 
 
 def register(sub):
-    p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a flight log (where, which, how far)",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "diagnose",
+        help="diagnose the sim-to-real gap of a flight log (where, which, how far)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops diagnose")
     p.add_argument("log", help="flight log (HDF5, format version 1 or 2, docs/FLIGHT_LOG.md)")
     p.add_argument("--report", default=None, help="write the Markdown report and plots into this folder")
-    p.add_argument("--json", default=None,
-                   help="write the diagnosis as strict JSON here (non-finite numbers as null, listed under "
-                        "non_finite_as_null); '-' for stdout")
-    p.add_argument("--calibration", default=None,
-                   help="null calibration JSON, checked against the log (default: the committed one when the log is "
-                        "the bench inspector flying the bench's manoeuvres, else one made for the log and cached)")
-    p.add_argument("--null-runs", type=number(int, 10, 100000), default=40,
-                   help="simulated flights in a calibration made for the log (10 to 100000)")
-    p.add_argument("--workers", type=number(int, 1, 1024), default=None,
-                   help="local Dask worker processes for a calibration made for the log (1 to 1024; default: all "
-                        "cores)")
-    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="make a calibration for the log on the existing Dask cluster at this address")
+    p.add_argument(
+        "--json",
+        default=None,
+        help="write the diagnosis as strict JSON here (non-finite numbers as null, listed under "
+        "non_finite_as_null); '-' for stdout",
+    )
+    p.add_argument(
+        "--calibration",
+        default=None,
+        help="null calibration JSON, checked against the log (default: the committed one when the log is "
+        "the bench inspector flying the bench's manoeuvres, else one made for the log and cached)",
+    )
+    p.add_argument(
+        "--null-runs",
+        type=number(int, 10, 100000),
+        default=40,
+        help="simulated flights in a calibration made for the log (10 to 100000)",
+    )
+    p.add_argument(
+        "--workers",
+        type=number(int, 1, 1024),
+        default=None,
+        help="local Dask worker processes for a calibration made for the log (1 to 1024; default: all cores)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="tcp://HOST:PORT",
+        help="make a calibration for the log on the existing Dask cluster at this address",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=main)
 
@@ -73,8 +94,13 @@ def main(args):
     log = read_flight_log(args.log)
     cal = _load_calibration(args.calibration) if args.calibration else None
     try:
-        res = diagnose(log, calibration=cal, progress=not args.quiet, calibration_source=args.calibration,
-                       calibration_runs=args.null_runs)
+        res = diagnose(
+            log,
+            calibration=cal,
+            progress=not args.quiet,
+            calibration_source=args.calibration,
+            calibration_runs=args.null_runs,
+        )
     except CalibrationMismatch as exc:
         raise ValueError(str(exc)) from None
     out = public(res)

@@ -2,6 +2,7 @@
 (modal estimator, range images) with the flight software behind a serial
 link: fsw_node started here on a pseudo-terminal (with optional link
 faults), or a flight computer on a real serial port (--device)."""
+
 from __future__ import annotations
 
 import argparse
@@ -17,38 +18,76 @@ BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)  # fsw_node'
 
 
 def register(sub):
-    p = sub.add_parser("hil", help="docking or plate range images over a serial link with the flight "
-                                   "executable (fsw_node on a pseudo-terminal, or a flight computer on a port)",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "hil",
+        help="docking or plate range images over a serial link with the flight "
+        "executable (fsw_node on a pseudo-terminal, or a flight computer on a port)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops hil")
     prob = number(float, 0.0, 1.0)
-    p.add_argument("--scenario", choices=["docking", "plate"], default="docking",
-                   help="docking: navigation at 10 Hz; plate: range images of the vibrating plate to the modal estimator")
-    p.add_argument("--images", type=number(int, 1, 100000), default=120,
-                   help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode; 1 to 100000)")
-    p.add_argument("--duration", type=number(float, 0.0, 1e6, lo_open=True), default=60.0,
-                   help="docking: simulated seconds, docking runs chained (> 0, <= 1e6)")
+    p.add_argument(
+        "--scenario",
+        choices=["docking", "plate"],
+        default="docking",
+        help="docking: navigation at 10 Hz; plate: range images of the vibrating plate to the modal estimator",
+    )
+    p.add_argument(
+        "--images",
+        type=number(int, 1, 100000),
+        default=120,
+        help="plate: images, one per simulated minute (120 = 3 periods of the lowest mode; 1 to 100000)",
+    )
+    p.add_argument(
+        "--duration",
+        type=number(float, 0.0, 1e6, lo_open=True),
+        default=60.0,
+        help="docking: simulated seconds, docking runs chained (> 0, <= 1e6)",
+    )
     p.add_argument("--realtime", action="store_true", help="pace the loop at 10 Hz by the wall clock")
-    p.add_argument("--ber", type=number(float, 0.0, 0.5), default=0.0,
-                   help="bit error rate on both directions (0 to 0.5)")
-    p.add_argument("--drop-rate", type=number(float, 0.0, 1.0, hi_open=True), default=0.0,
-                   help="probability that a byte is lost (0 to < 1)")
+    p.add_argument(
+        "--ber", type=number(float, 0.0, 0.5), default=0.0, help="bit error rate on both directions (0 to 0.5)"
+    )
+    p.add_argument(
+        "--drop-rate",
+        type=number(float, 0.0, 1.0, hi_open=True),
+        default=0.0,
+        help="probability that a byte is lost (0 to < 1)",
+    )
     p.add_argument("--burst-rate", type=prob, default=0.0, help="probability of a burst per frame (0 to 1)")
     p.add_argument("--duplicate-rate", type=prob, default=0.0, help="probability a frame is duplicated (0 to 1)")
-    p.add_argument("--reorder-rate", type=prob, default=0.0,
-                   help="probability a frame is held back behind the next (0 to 1)")
+    p.add_argument(
+        "--reorder-rate", type=prob, default=0.0, help="probability a frame is held back behind the next (0 to 1)"
+    )
     p.add_argument("--stall-rate", type=prob, default=0.0, help="probability of a stall per chunk (0 to 1)")
     p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=1, help="seed (0 to 2^32 - 1)")
-    p.add_argument("--learner", action="store_true",
-                   help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)")
-    p.add_argument("--device", default=None, metavar="PATH",
-                   help="a flight computer running fsw_node on this serial port (e.g. /dev/ttyUSB0) instead of "
-                        "fsw_node started here on a pseudo-terminal; no link faults then (docs/LINK.md)")
-    p.add_argument("--baud", type=int, choices=BAUDS, default=921600, metavar="N",
-                   help=f"baud rate of --device, as fsw_node --baud on the flight computer ({', '.join(map(str, BAUDS))})")
-    p.add_argument("--json", default=None, metavar="FILE",
-                   help="write the summary here as strict JSON (a non-finite number is null, listed under "
-                        "non_finite_as_null); - writes it to standard output and the printed summary to stderr")
+    p.add_argument(
+        "--learner",
+        action="store_true",
+        help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)",
+    )
+    p.add_argument(
+        "--device",
+        default=None,
+        metavar="PATH",
+        help="a flight computer running fsw_node on this serial port (e.g. /dev/ttyUSB0) instead of "
+        "fsw_node started here on a pseudo-terminal; no link faults then (docs/LINK.md)",
+    )
+    p.add_argument(
+        "--baud",
+        type=int,
+        choices=BAUDS,
+        default=921600,
+        metavar="N",
+        help=f"baud rate of --device, as fsw_node --baud on the flight computer ({', '.join(map(str, BAUDS))})",
+    )
+    p.add_argument(
+        "--json",
+        default=None,
+        metavar="FILE",
+        help="write the summary here as strict JSON (a non-finite number is null, listed under "
+        "non_finite_as_null); - writes it to standard output and the printed summary to stderr",
+    )
     p.add_argument("--report", default=None, help="report folder: plots, JSON, flight log")
     p.set_defaults(func=main)
 
@@ -57,15 +96,21 @@ def hil_summary(res: dict, args) -> dict:
     from hil_sim.run import nav_errors
 
     errs = nav_errors(res["runs"])
-    nis = np.concatenate([r.updates.nis[np.asarray(r.updates.fused, bool)]
-                          for r in res["runs"] if len(r.updates.nis)] or [np.zeros(0)])
+    nis = np.concatenate(
+        [r.updates.nis[np.asarray(r.updates.fused, bool)] for r in res["runs"] if len(r.updates.nis)] or [np.zeros(0)]
+    )
     return {
         "scenario": args.scenario,
         "duration_s": args.duration,
         "realtime": bool(args.realtime),
-        "faults": {"ber": args.ber, "drop_rate": args.drop_rate, "burst_rate": args.burst_rate,
-                   "duplicate_rate": args.duplicate_rate, "reorder_rate": args.reorder_rate,
-                   "stall_rate": args.stall_rate},
+        "faults": {
+            "ber": args.ber,
+            "drop_rate": args.drop_rate,
+            "burst_rate": args.burst_rate,
+            "duplicate_rate": args.duplicate_rate,
+            "reorder_rate": args.reorder_rate,
+            "stall_rate": args.stall_rate,
+        },
         "seed": args.seed,
         "docking_runs": len(res["runs"]),
         "docked": int(sum(r.summary.docked for r in res["runs"])),
@@ -85,10 +130,16 @@ def hil_summary(res: dict, args) -> dict:
         "telemetry_packets_accepted": res["bench_packets_accepted"],
         "bad_crc_delivered": res["bad_crc_delivered"],
         "learner_telemetry_packets": len(res["learner_outputs"]),
-        "learner_last": (None if not res["learner_outputs"] else
-                         {"t_s": res["learner_outputs"][-1][0], "n_samples": res["learner_outputs"][-1][1][0],
-                          "dv_b_mps": list(res["learner_outputs"][-1][1][2:5]),
-                          "dw_b_rps": list(res["learner_outputs"][-1][1][5:8])}),
+        "learner_last": (
+            None
+            if not res["learner_outputs"]
+            else {
+                "t_s": res["learner_outputs"][-1][0],
+                "n_samples": res["learner_outputs"][-1][1][0],
+                "dv_b_mps": list(res["learner_outputs"][-1][1][2:5]),
+                "dw_b_rps": list(res["learner_outputs"][-1][1][5:8]),
+            }
+        ),
         "faults_injected_up": res["faults_up"],
         "faults_injected_down": res["faults_down"],
         "max_pos_err_m": errs["max_pos_err_m"],
@@ -116,18 +167,29 @@ def _node_line(s: dict) -> str:
 
 
 def print_summary(s: dict):
-    print(f"HIL {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_s']:.2f} s "
-          f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked"
-          + (f", {s['docking_runs_cut_by_duration']} cut short by the end of the {s['duration_s']:g} s"
-             if s["docking_runs_cut_by_duration"] else ""))
-    print(f"  steps {s['steps']}, latency p50 {s['step_latency_p50_ms']:.3f} ms, p99 {s['step_latency_p99_ms']:.3f} ms, "
-          f"timeouts {s['step_timeouts']}")
-    print(f"  navigation: worst per-axis error {s['worst_pos_err_m']:.4f} m, {s['worst_vel_err_mps']:.4f} m/s; "
-          f"mean NIS {s['nis_mean']:.2f} (6 dof)")
+    print(
+        f"HIL {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_s']:.2f} s "
+        f"(real-time factor {s['real_time_factor']:.1f}), {s['docking_runs']} docking run(s), {s['docked']} docked"
+        + (
+            f", {s['docking_runs_cut_by_duration']} cut short by the end of the {s['duration_s']:g} s"
+            if s["docking_runs_cut_by_duration"]
+            else ""
+        )
+    )
+    print(
+        f"  steps {s['steps']}, latency p50 {s['step_latency_p50_ms']:.3f} ms, p99 {s['step_latency_p99_ms']:.3f} ms, "
+        f"timeouts {s['step_timeouts']}"
+    )
+    print(
+        f"  navigation: worst per-axis error {s['worst_pos_err_m']:.4f} m, {s['worst_vel_err_mps']:.4f} m/s; "
+        f"mean NIS {s['nis_mean']:.2f} (6 dof)"
+    )
     rej = {k: v for k, v in s["packets_rejected_by_reason"].items() if v}
     trej = {k: v for k, v in s["telemetry_rejected_by_reason"].items() if v}
-    print(f"  link: {s['packets_sent']} packets sent; flight rejected {sum(rej.values())} {rej or ''}; "
-          f"bench rejected {sum(trej.values())} telemetry {trej or ''}; bad CRC delivered {s['bad_crc_delivered']}")
+    print(
+        f"  link: {s['packets_sent']} packets sent; flight rejected {sum(rej.values())} {rej or ''}; "
+        f"bench rejected {sum(trej.values())} telemetry {trej or ''}; bad CRC delivered {s['bad_crc_delivered']}"
+    )
     print(f"  fsw_node: {_node_line(s)}")
 
 
@@ -137,22 +199,33 @@ def plate_main(args, faults) -> int:
     def progress(done, total):
         print(f"  [{done:4d} / {total} images]", file=sys.stderr, flush=True)
 
-    res = run_plate_hil(PlateHilConfig(images=args.images, seed=args.seed, faults=faults, device=_device(args),
-                                       baud=_baud(args)), progress=progress)
+    res = run_plate_hil(
+        PlateHilConfig(images=args.images, seed=args.seed, faults=faults, device=_device(args), baud=_baud(args)),
+        progress=progress,
+    )
     s = plate_hil_summary(res)
     s["scenario"] = "plate"
     s["seed"] = args.seed
     s["faults"] = faults.as_dict()
-    print(f"HIL plate: {s['images_sent']} range images ({s['lowest_mode_periods']:.1f} periods of the lowest mode), "
-          f"{s['points_sent']} points, a priori frequencies {100 * s['prior_frequency_error']:+.1f} %")
-    print(f"  answered {s['images_answered']}, fused {s['images_fused']}; images with points lost on the link "
-          f"{s['images_with_points_lost']} ({s['points_sent'] - s['points_used']} points)")
+    print(
+        f"HIL plate: {s['images_sent']} range images ({s['lowest_mode_periods']:.1f} periods of the lowest mode), "
+        f"{s['points_sent']} points, a priori frequencies {100 * s['prior_frequency_error']:+.1f} %"
+    )
+    print(
+        f"  answered {s['images_answered']}, fused {s['images_fused']}; images with points lost on the link "
+        f"{s['images_with_points_lost']} ({s['points_sent'] - s['points_used']} points)"
+    )
     rel = np.array(s["final_frequency_rel_error"])
-    print(f"  modes excited >= 0.2: {len(s['strong_modes'])}, within 1 % of their frequency at the end: "
-          f"{s['strong_modes_within_1pct']}; worst {100 * np.max(np.abs(rel[s['strong_modes']])):.2f} %"
-          if s["strong_modes"] else "  no mode excited >= 0.2")
-    print(f"  answer latency p50 {s['answer_latency_p50_ms']:.2f} ms, p99 {s['answer_latency_p99_ms']:.2f} ms; "
-          f"wall {s['wall_s']:.1f} s")
+    print(
+        f"  modes excited >= 0.2: {len(s['strong_modes'])}, within 1 % of their frequency at the end: "
+        f"{s['strong_modes_within_1pct']}; worst {100 * np.max(np.abs(rel[s['strong_modes']])):.2f} %"
+        if s["strong_modes"]
+        else "  no mode excited >= 0.2"
+    )
+    print(
+        f"  answer latency p50 {s['answer_latency_p50_ms']:.2f} ms, p99 {s['answer_latency_p99_ms']:.2f} ms; "
+        f"wall {s['wall_s']:.1f} s"
+    )
     print(f"  fsw_node: {_node_line(s)}")
     if args.json:
         _write_summary(args, s)
@@ -192,23 +265,37 @@ def _main(args):
     from hil_sim.faults import FaultConfig
     from hil_sim.run import HilConfig, run_hil
 
-    faults = FaultConfig(ber=args.ber, drop_rate=args.drop_rate, burst_rate=args.burst_rate,
-                         duplicate_rate=args.duplicate_rate, reorder_rate=args.reorder_rate,
-                         stall_rate=args.stall_rate)
+    faults = FaultConfig(
+        ber=args.ber,
+        drop_rate=args.drop_rate,
+        burst_rate=args.burst_rate,
+        duplicate_rate=args.duplicate_rate,
+        reorder_rate=args.reorder_rate,
+        stall_rate=args.stall_rate,
+    )
     if args.scenario == "plate":
         return plate_main(args, faults)
     timeout = 0.05 if faults.clean else 0.02
 
     def progress(t_done, total, run):
         summ = run.summary
-        how = ("docked" if summ.docked else
-               "cut short by the end of the run" if summ.cut_by_duration else "not docked")
-        print(f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: {how} at t = {summ.t_end_s:.1f} s",
-              file=sys.stderr, flush=True)
+        how = "docked" if summ.docked else "cut short by the end of the run" if summ.cut_by_duration else "not docked"
+        print(
+            f"  [{min(t_done, total):7.1f} / {total:.0f} s] docking run: {how} at t = {summ.t_end_s:.1f} s",
+            file=sys.stderr,
+            flush=True,
+        )
 
-    cfg = HilConfig(duration_s=args.duration, realtime=args.realtime, seed=args.seed, faults=faults,
-                    step_timeout_s=timeout, learner=getattr(args, "learner", False), device=_device(args),
-                    baud=_baud(args))
+    cfg = HilConfig(
+        duration_s=args.duration,
+        realtime=args.realtime,
+        seed=args.seed,
+        faults=faults,
+        step_timeout_s=timeout,
+        learner=getattr(args, "learner", False),
+        device=_device(args),
+        baud=_baud(args),
+    )
     res = run_hil(cfg, progress=progress)
     s = hil_summary(res, args)
     print_summary(s)

@@ -5,6 +5,7 @@ vibrating plate to the same executable's modal estimator (three periods of
 the lowest mode, a second of wall time); then the sim-to-real gap
 diagnosis of the bundled reality run (bench/gap/bundled.py), whose effect
 the diagnoser is not told, with its three answers: where, which, how far."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,11 +15,19 @@ from bench.commands.args import number, one_line_errors
 
 
 def register(sub):
-    p = sub.add_parser("run", help="the main end-to-end job (make run): HIL docking over a pseudo-terminal",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "run",
+        help="the main end-to-end job (make run): HIL docking over a pseudo-terminal",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops run")
     p.add_argument("--report", default="report", help="report folder")
-    p.add_argument("--duration", type=number(float, 0.0, 86400.0, lo_open=True), default=120.0, help="simulated seconds (> 0 to 86400)")
+    p.add_argument(
+        "--duration",
+        type=number(float, 0.0, 86400.0, lo_open=True),
+        default=120.0,
+        help="simulated seconds (> 0 to 86400)",
+    )
     p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=1)
     p.set_defaults(func=main)
 
@@ -26,18 +35,42 @@ def register(sub):
 def main(args):
     from bench.commands import hil
 
-    print(f"proxops run: docking over the HIL link (fsw_node behind a pseudo-terminal), "
-          f"{args.duration:.0f} s simulated, seed {args.seed}")
-    hil_args = argparse.Namespace(scenario="docking", duration=args.duration, realtime=False, ber=0.0,
-                                  drop_rate=0.0, burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0,
-                                  stall_rate=0.0, seed=args.seed, json=None, report=args.report, learner=True)
+    print(
+        f"proxops run: docking over the HIL link (fsw_node behind a pseudo-terminal), "
+        f"{args.duration:.0f} s simulated, seed {args.seed}"
+    )
+    hil_args = argparse.Namespace(
+        scenario="docking",
+        duration=args.duration,
+        realtime=False,
+        ber=0.0,
+        drop_rate=0.0,
+        burst_rate=0.0,
+        duplicate_rate=0.0,
+        reorder_rate=0.0,
+        stall_rate=0.0,
+        seed=args.seed,
+        json=None,
+        report=args.report,
+        learner=True,
+    )
     rc = hil.main(hil_args)
     if rc:
         return rc
     print("\nproxops run: range images of the vibrating plate to the flight modal estimator over the link")
-    plate_args = argparse.Namespace(scenario="plate", images=120, ber=0.0, drop_rate=0.0, burst_rate=0.0,
-                                    duplicate_rate=0.0, reorder_rate=0.0, stall_rate=0.0, seed=args.seed,
-                                    json=None, report=args.report)
+    plate_args = argparse.Namespace(
+        scenario="plate",
+        images=120,
+        ber=0.0,
+        drop_rate=0.0,
+        burst_rate=0.0,
+        duplicate_rate=0.0,
+        reorder_rate=0.0,
+        stall_rate=0.0,
+        seed=args.seed,
+        json=None,
+        report=args.report,
+    )
     rc = hil.main(plate_args)
     if rc:
         return rc
@@ -53,8 +86,10 @@ def diagnose_bundled(report_dir: Path) -> int:
     from bench.report import write_json
     from bench.sim.flight_log import read_flight_log
 
-    print(f"\nproxops run: sim-to-real gap diagnosis of the bundled reality run ({bundled.LOG.name}, "
-          f"effect sealed in {bundled.KEY.name})")
+    print(
+        f"\nproxops run: sim-to-real gap diagnosis of the bundled reality run ({bundled.LOG.name}, "
+        f"effect sealed in {bundled.KEY.name})"
+    )
     res = diagnose(read_flight_log(bundled.LOG), progress=False)
     page = write_report(res, report_dir, bundled.LOG.name)
     out = public(res)

@@ -3,6 +3,7 @@
 described vehicle flying a characterisation open loop, from the bench's own
 plant (bench/sim/vehicle_sim.py) or from Basilisk (bench/basilisk_sim.py, the
 optional extra `pip install .[basilisk]`)."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,24 +15,46 @@ from bench.commands.args import number, one_line_errors
 
 
 def register(sub):
-    p = sub.add_parser("simulate", help="write a simulated flight log from the bench's plant or from Basilisk",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "simulate",
+        help="write a simulated flight log from the bench's plant or from Basilisk",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops simulate")
-    p.add_argument("--engine", default="bench", choices=("bench", "basilisk"),
-                   help="bench: the bench's plant; basilisk: Basilisk's spacecraft, thrusters and IMU "
-                        "(needs pip install '.[basilisk]')")
-    p.add_argument("--vehicle", default="12kg", choices=("3kg", "12kg"),
-                   help="the described vehicle (bench/sim/vehicles.py)")
-    p.add_argument("--description", default=None,
-                   help="a flight-log description JSON file (docs/FLIGHT_LOG.md) instead of --vehicle")
-    p.add_argument("--manoeuvres", default="characterisation", choices=("characterisation",),
-                   help="every thruster alone, pulse-width modulated, then a coast (bench/gap/plans.py), flown open loop")
-    p.add_argument("--effects", default="{}",
-                   help="effects as JSON, name -> parameters (docs/EFFECTS.md), or a JSON file holding them")
+    p.add_argument(
+        "--engine",
+        default="bench",
+        choices=("bench", "basilisk"),
+        help="bench: the bench's plant; basilisk: Basilisk's spacecraft, thrusters and IMU "
+        "(needs pip install '.[basilisk]')",
+    )
+    p.add_argument(
+        "--vehicle", default="12kg", choices=("3kg", "12kg"), help="the described vehicle (bench/sim/vehicles.py)"
+    )
+    p.add_argument(
+        "--description",
+        default=None,
+        help="a flight-log description JSON file (docs/FLIGHT_LOG.md) instead of --vehicle",
+    )
+    p.add_argument(
+        "--manoeuvres",
+        default="characterisation",
+        choices=("characterisation",),
+        help="every thruster alone, pulse-width modulated, then a coast (bench/gap/plans.py), flown open loop",
+    )
+    p.add_argument(
+        "--effects",
+        default="{}",
+        help="effects as JSON, name -> parameters (docs/EFFECTS.md), or a JSON file holding them",
+    )
     p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
-    p.add_argument("--clocks", default="regular", choices=("regular", "as-real-logs"),
-                   help="regular: IMU on its ticks, a pose a second; as-real-logs: the 12 kg campaign's jittered "
-                        "IMU stamps, dropped samples and pose captures between samples")
+    p.add_argument(
+        "--clocks",
+        default="regular",
+        choices=("regular", "as-real-logs"),
+        help="regular: IMU on its ticks, a pose a second; as-real-logs: the 12 kg campaign's jittered "
+        "IMU stamps, dropped samples and pose captures between samples",
+    )
     p.add_argument("--no-truth", action="store_true", help="leave the truth stream out (a blind log)")
     p.add_argument("--out", required=True, help="the flight log to write (HDF5)")
     p.add_argument("--key", default=None, help="write the effects and seed (not in the log) to this JSON file")
@@ -89,6 +112,8 @@ def main(args):
     if args.key:
         Path(args.key).write_text(json.dumps(dict(key, engine=args.engine), indent=1) + "\n")
     n = log.streams["imu"]["t_s"].size
-    print(f"{args.out}: {args.engine} engine, {len(plan)} runs, {n} IMU samples, "
-          f"{log.streams['pose']['t_capture_s'].size} poses, {time.time() - t0:.1f} s")
+    print(
+        f"{args.out}: {args.engine} engine, {len(plan)} runs, {n} IMU samples, "
+        f"{log.streams['pose']['t_capture_s'].size} poses, {time.time() - t0:.1f} s"
+    )
     return 0

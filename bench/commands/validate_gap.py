@@ -1,5 +1,6 @@
 """`proxops validate-gap --runs N --seed S --json OUT`: blind validation of the
 gap diagnoser on drawn null, in-library and out-of-library runs."""
+
 from __future__ import annotations
 
 import argparse
@@ -9,26 +10,49 @@ from bench.commands.campaign_args import add_campaign_arguments, campaign_from, 
 
 
 def register(sub):
-    p = sub.add_parser("validate-gap", help="blind validation campaign of the gap diagnoser",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = sub.add_parser(
+        "validate-gap",
+        help="blind validation campaign of the gap diagnoser",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     one_line_errors(p, "proxops validate-gap")
     p.add_argument("--runs", type=number(int, 1, 100000), default=40, help="drawn runs (1 to 100000)")
     p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
     p.add_argument("--json", default=None, help="write the scores here (and OUT.prereg.json with the key hashes first)")
-    p.add_argument("--duration", type=number(float, 10.0, 86400.0), default=120.0, help="simulated seconds of docking per run (10 to 86400)")
-    p.add_argument("--manoeuvres", default="docking", choices=("docking", "docking+characterisation"),
-                   help="what each run flies: docking alone, or docking then a thruster characterisation "
-                        "(each valve alone 3 s, then 20 s without firing)")
-    p.add_argument("--vehicle", default="3kg", choices=("3kg", "12kg"),
-                   help="3kg: the bench inspector's docking logs; 12kg: the twelve-thruster 6U-class inspector's "
-                        "characterisation logs with jittered time stamps, pulse-width-modulated valves and pose on "
-                        "its own clock (--duration and --manoeuvres do not apply)")
-    p.add_argument("--engine", default="bench", choices=("bench", "basilisk"),
-                   help="basilisk: the 12 kg campaign with every scored log flown by Basilisk (needs "
-                        "pip install '.[basilisk]'; implies --vehicle 12kg; docs/BASILISK.md)")
-    p.add_argument("--mixtures", action="store_true",
-                   help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
-                        "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)")
+    p.add_argument(
+        "--duration",
+        type=number(float, 10.0, 86400.0),
+        default=120.0,
+        help="simulated seconds of docking per run (10 to 86400)",
+    )
+    p.add_argument(
+        "--manoeuvres",
+        default="docking",
+        choices=("docking", "docking+characterisation"),
+        help="what each run flies: docking alone, or docking then a thruster characterisation "
+        "(each valve alone 3 s, then 20 s without firing)",
+    )
+    p.add_argument(
+        "--vehicle",
+        default="3kg",
+        choices=("3kg", "12kg"),
+        help="3kg: the bench inspector's docking logs; 12kg: the twelve-thruster 6U-class inspector's "
+        "characterisation logs with jittered time stamps, pulse-width-modulated valves and pose on "
+        "its own clock (--duration and --manoeuvres do not apply)",
+    )
+    p.add_argument(
+        "--engine",
+        default="bench",
+        choices=("bench", "basilisk"),
+        help="basilisk: the 12 kg campaign with every scored log flown by Basilisk (needs "
+        "pip install '.[basilisk]'; implies --vehicle 12kg; docs/BASILISK.md)",
+    )
+    p.add_argument(
+        "--mixtures",
+        action="store_true",
+        help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
+        "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)",
+    )
     add_campaign_arguments(p)
     p.set_defaults(func=main)
 
@@ -42,15 +66,22 @@ def _campaign(args):
         from bench.gap.validate_vehicle import load_calibration
 
         # The engine keys the store too: Basilisk's runs are not the bench plant's.
-        cal, kind = load_calibration(), {"vehicle": "12kg", **({"engine": "basilisk"} if args.engine == "basilisk" else {})}
+        cal, kind = (
+            load_calibration(),
+            {"vehicle": "12kg", **({"engine": "basilisk"} if args.engine == "basilisk" else {})},
+        )
     else:
         from bench.gap import null as nullmod
 
         cal = nullmod.load(manoeuvres="docking" if args.mixtures else args.manoeuvres)
-        kind = ({"mixtures": True, "duration_s": args.duration} if args.mixtures else
-                {"manoeuvres": args.manoeuvres, "duration_s": args.duration})
-    return campaign_from(args, "validate-gap", {"runs": args.runs, "seed": args.seed, **kind,
-                                                "calibration_sha256": sha256(cal)})
+        kind = (
+            {"mixtures": True, "duration_s": args.duration}
+            if args.mixtures
+            else {"manoeuvres": args.manoeuvres, "duration_s": args.duration}
+        )
+    return campaign_from(
+        args, "validate-gap", {"runs": args.runs, "seed": args.seed, **kind, "calibration_sha256": sha256(cal)}
+    )
 
 
 def main(args):
@@ -64,8 +95,9 @@ def main(args):
     if args.mixtures:
         from bench.gap import validate_mixtures
 
-        res = validate_mixtures.run_campaign(args.runs, args.seed, args.json, duration_s=args.duration,
-                                             campaign=campaign, manoeuvres=args.manoeuvres)
+        res = validate_mixtures.run_campaign(
+            args.runs, args.seed, args.json, duration_s=args.duration, campaign=campaign, manoeuvres=args.manoeuvres
+        )
         if args.json:
             write_json(args.json, res, strict=True)
         print(f"mixture runs {res['runs']} (seed {res['seed']}, {res['elapsed_s']:.0f} s on {where})")
@@ -84,8 +116,9 @@ def main(args):
         res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
         res["manoeuvres"] = "characterisation (12 kg)"
     else:
-        res = run_campaign(args.runs, args.seed, args.json, duration_s=args.duration, manoeuvres=args.manoeuvres,
-                           campaign=campaign)
+        res = run_campaign(
+            args.runs, args.seed, args.json, duration_s=args.duration, manoeuvres=args.manoeuvres, campaign=campaign
+        )
     if args.json:
         from pathlib import Path
 
@@ -100,21 +133,30 @@ def main(args):
         print(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")
     for s, v in res.get("in_library_by_scale_separable", {}).items():
         t1 = "-" if v["top1_separable"] is None else f"{v['top1_separable']:.2f}"
-        print(f"  {s}, runs whose data separate the effect from every other candidate: top-1 {t1} "
-              f"(n = {v['n_separable']}; not separable: {v['n_not_separable']}, "
-              + ", ".join(f"{e} {n}" for e, n in v["not_separable_by_effect"].items()) + ")")
+        print(
+            f"  {s}, runs whose data separate the effect from every other candidate: top-1 {t1} "
+            f"(n = {v['n_separable']}; not separable: {v['n_not_separable']}, "
+            + ", ".join(f"{e} {n}" for e, n in v["not_separable_by_effect"].items())
+            + ")"
+        )
     if "out_of_library" in res:
         o = res["out_of_library"]
-        print(f"out-of-library: unexplained {o['unexplained_rate']:.2f}, not detected {o['not_detected_rate']:.2f}, "
-              f"confident misattribution {o['confident_misattribution_rate']:.2f} (n = {o['n']})")
+        print(
+            f"out-of-library: unexplained {o['unexplained_rate']:.2f}, not detected {o['not_detected_rate']:.2f}, "
+            f"confident misattribution {o['confident_misattribution_rate']:.2f} (n = {o['n']})"
+        )
     b = res["beyond_detection_limit"]
-    print(f"beyond the detection limit of their run (scored apart): {b['n']} runs, "
-          + ", ".join(f"{e} {v['detected']}/{v['n']} detected" for e, v in b["by_effect"].items()))
+    print(
+        f"beyond the detection limit of their run (scored apart): {b['n']} runs, "
+        + ", ".join(f"{e} {v['detected']}/{v['n']} detected" for e, v in b["by_effect"].items())
+    )
     sh = res["shrink_heldout"]
     print(f"held-out shrink median: true effect {sh['true_effect_median']}, wrong effect {sh['wrong_effect_median']}")
     print(f"95 % interval coverage: {res['interval_coverage_95']['fraction']}")
     if "no_valves_stream" in res:
         nv = res["no_valves_stream"]
-        print(f"runs without a valves stream: {nv['n']}, answer said the dynamics were not examined in "
-              f"{nv['said_dynamics_not_examined']}")
+        print(
+            f"runs without a valves stream: {nv['n']}, answer said the dynamics were not examined in "
+            f"{nv['said_dynamics_not_examined']}"
+        )
     return 0

@@ -6,6 +6,7 @@ A number is shown only where the JSON has it as measured: no shrink or
 interval that is not finite or not measurable, and none for a candidate the
 verdict rejected.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,11 +25,13 @@ def where_text(out: dict) -> str | None:
     loc = out["location"]
     w = loc["where"] or {}
     acts = loc.get("effect_acts_while")
-    regime = (f"the effect acts mostly while {acts['peak']}" if acts and acts.get("peak")
-              else f"strongest while {w.get('regime_peak')}")
+    regime = (
+        f"the effect acts mostly while {acts['peak']}"
+        if acts and acts.get("peak")
+        else f"strongest while {w.get('regime_peak')}"
+    )
     kind = loc.get("dynamics_or_sensor")
-    return (f"{w.get('stream')} {w.get('axis')} ({w.get('stat')}); {regime}"
-            + (f"; a {kind} gap" if kind else ""))
+    return f"{w.get('stream')} {w.get('axis')} ({w.get('stat')}); {regime}" + (f"; a {kind} gap" if kind else "")
 
 
 def which_text(out: dict) -> str | None:
@@ -39,12 +42,17 @@ def which_text(out: dict) -> str | None:
         return "unexplained: no effect in the library accounts for the gap on held-out data"
     if v == "partly_explained":
         names = " + ".join(m["effect"] for m in out.get("effects") or [])
-        return (f"{names} (partly explained: each accounts for part of the gap on held-out data; "
-                "a remainder no effect in the library accounts for stays)")
+        return (
+            f"{names} (partly explained: each accounts for part of the gap on held-out data; "
+            "a remainder no effect in the library accounts for stays)"
+        )
     if len(out.get("effects") or []) > 1:
-        alts = "; ".join(f"{a['replace']} cannot be told from {a['with']}" for a in out.get("ambiguous_with", [])
-                         if "replace" in a)
-        return " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together" + (f"; {alts}" if alts else "") + ")"
+        alts = "; ".join(
+            f"{a['replace']} cannot be told from {a['with']}" for a in out.get("ambiguous_with", []) if "replace" in a
+        )
+        return (
+            " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together" + (f"; {alts}" if alts else "") + ")"
+        )
     best = out["attribution"][0]
     amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []))
     return f"{best['effect']} ({v}" + (f"; cannot be told apart from {amb}" if amb else "") + ")"
@@ -56,8 +64,11 @@ def fitted_text(out: dict) -> str | None:
     members = out.get("effects") or [out["attribution"][0]]
     parts = []
     for m in members:
-        pars = ", ".join(f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in m["parameters"].items()
-                         if _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"])
+        pars = ", ".join(
+            f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}"
+            for k, v in m["parameters"].items()
+            if _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"]
+        )
         if pars:
             parts.append((f"{m['effect']}: " if len(members) > 1 else "") + pars)
     return "fitted (beyond 2 sigma): " + "; ".join(parts) if parts else None
@@ -75,36 +86,50 @@ def how_far_lines(out: dict) -> list:
         lines = []
         together = "with it" if len(es["members"]) == 1 else f"with all {len(es['members'])} together"
         if sh.get("measurable", True) and _finite(sh.get("fraction")) and _finite(*sh.get("ci95", [None, None])):
-            lines.append(f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
-                         f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] {together}")
+            lines.append(
+                f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
+                f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] {together}"
+            )
         for m in es["members"]:
             if len(es["members"]) == 1:
                 lines.append(f"{m['effect']}: held-out log-likelihood +{m['adds_dll_heldout']:.1f}")
                 continue
             add = f"{100 * m['adds_shrink']:.0f} % of the shrink" if _finite(m.get("adds_shrink")) else "its share"
-            lines.append(f"{m['effect']} adds {add} beside the others (held-out log-likelihood "
-                         f"+{m['adds_dll_heldout']:.1f})")
+            lines.append(
+                f"{m['effect']} adds {add} beside the others (held-out log-likelihood +{m['adds_dll_heldout']:.1f})"
+            )
         if partly:
             rem = es.get("remainder_where") or {}
-            left = (f"{100 * (1 - sh['fraction']):.0f} % of the held-out deficit left; "
-                    if sh.get("measurable", True) and _finite(sh.get("fraction")) else "")
-            lines.append(f"remainder: {left}gap map |z| {es['map_max_abs_z_after']:.1f} after the fit, strongest in "
-                         f"{rem.get('stream')} {rem.get('axis')} ({rem.get('stat')}) while {rem.get('regime_peak')}")
+            left = (
+                f"{100 * (1 - sh['fraction']):.0f} % of the held-out deficit left; "
+                if sh.get("measurable", True) and _finite(sh.get("fraction"))
+                else ""
+            )
+            lines.append(
+                f"remainder: {left}gap map |z| {es['map_max_abs_z_after']:.1f} after the fit, strongest in "
+                f"{rem.get('stream')} {rem.get('axis')} ({rem.get('stat')}) while {rem.get('regime_peak')}"
+            )
         return lines
     best = out["attribution"][0]
     sh = best["shrink_heldout"]
     lines = []
     if sh.get("measurable", True) and _finite(sh.get("fraction")) and _finite(*sh.get("ci95", [None, None])):
-        lines.append(f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
-                     f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] with {best['effect']}")
+        lines.append(
+            f"held-out deficit shrinks {100 * sh['fraction']:.0f} % "
+            f"[95 % CI {100 * sh['ci95'][0]:.0f}, {100 * sh['ci95'][1]:.0f}] with {best['effect']}"
+        )
     else:
-        lines.append(f"held-out shrink not measurable: the held-out blocks' deficit does not stand out of its noise "
-                     f"(the effect is named from the training fit and the held-out likelihood gain "
-                     f"{best['evidence']['dll_heldout']:.1f})")
+        lines.append(
+            f"held-out shrink not measurable: the held-out blocks' deficit does not stand out of its noise "
+            f"(the effect is named from the training fit and the held-out likelihood gain "
+            f"{best['evidence']['dll_heldout']:.1f})"
+        )
     r = out.get("shrink_heldout_runs")
     if r and _finite(r.get("fraction")) and _finite(*r.get("ci95", [None, None])):
-        lines.append(f"on held-out runs ({r['heldout_runs']} of {r['runs']}, fitted on the others): "
-                     f"{100 * r['fraction']:.0f} % [95 % CI {100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}]")
+        lines.append(
+            f"on held-out runs ({r['heldout_runs']} of {r['runs']}, fitted on the others): "
+            f"{100 * r['fraction']:.0f} % [95 % CI {100 * r['ci95'][0]:.0f}, {100 * r['ci95'][1]:.0f}]"
+        )
     elif r and r.get("runs", 0) >= 2:
         lines.append(f"on held-out runs: not measured ({r.get('reason', 'no deficit left there to shrink')})")
     return lines

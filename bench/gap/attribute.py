@@ -18,6 +18,7 @@ and the dynamics channel, IMU against the valve model (bench/gap/dyn.py).
    (Laplace's approximation, each parameter with a Cauchy prior at its
    typical size), by which the confirmed candidates are ranked.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -128,8 +129,7 @@ def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
             if progress:
                 progress()
     Jd_full = _dyn_jac(ctx, name)
-    Jd = (Jd_full[ctx.train_dyn].reshape(-1, c.n_params) if Jd_full is not None
-          else np.zeros((n_dyn, c.n_params)))
+    Jd = Jd_full[ctx.train_dyn].reshape(-1, c.n_params) if Jd_full is not None else np.zeros((n_dyn, c.n_params))
     return np.vstack([Jn, Jd]), Jd_full
 
 
@@ -282,8 +282,11 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
         ub, lb = c.bound / c.scale, c.lower / c.scale
         u0 = np.clip(np.nan_to_num(fit.theta / sc), 0.999 * lb, 0.999 * ub)
         kw = dict(max_nfev=max_nfev * (c.n_params + 1), diff_step=1e-3)
-        sol = (least_squares(resid, u0, method="trf", bounds=(lb, ub), **kw) if np.isfinite(ub)
-               else least_squares(resid, u0, method="lm", **kw))
+        sol = (
+            least_squares(resid, u0, method="trf", bounds=(lb, ub), **kw)
+            if np.isfinite(ub)
+            else least_squares(resid, u0, method="lm", **kw)
+        )
         theta = sol.x * sc
         J_u = sol.jac
         sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
@@ -298,7 +301,8 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
         e1 = ad[ctx.train_dyn].ravel()
         dll += 0.5 * float(e0 @ e0 - e1 @ e1)
     n_obs = int(np.isfinite(nominal.white[ctx.train_nav]).all(axis=1).sum()) * 6 + (
-        int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0)
+        int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0
+    )
     fit.theta, fit.sigma, fit.dll_train = theta, sigma, dll
     fit.bic = 2 * dll - max(fit.rank, 1) * np.log(max(n_obs, 2))
     fit.ln_bf = ln_bayes_factor(2 * dll, theta / c.scale, J_u, c.nonnegative)

@@ -11,6 +11,7 @@ Regenerate both (seeded, so the files reproduce):
 A longer log with the same effect (for timing the diagnosis of a 10-minute log):
     python -m bench.gap.bundled --duration 600 --log LOG600.h5 --key KEY600.json
 """
+
 from __future__ import annotations
 
 import argparse

@@ -11,6 +11,7 @@ channel (bench/gap/dyn.py), whose closed-form Jacobians cover them and the
 IMU effects (``nav=False``: dynamics channel only). The flexible mode has
 no candidate yet (``NOT_MODELLED``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -62,8 +63,7 @@ def _rate_derivative(d: LogData) -> np.ndarray:
     run's final rate. Differences over the time stamps (jitter, dropped samples)."""
 
     seg = getattr(d, "imu_seg", None)
-    seg = seg if seg is not None else np.concatenate(
-        [[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
+    seg = seg if seg is not None else np.concatenate([[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
     return rate_derivative(d.gyro, d.imu_t, seg)
 
 
@@ -85,8 +85,9 @@ def _ecc(theta, d: LogData) -> Corrections:
 def _j2(theta, d: LogData) -> Corrections:
     # Differential J2 over a short arc: a gravity-gradient-like symmetric,
     # trace-free matrix K (5 parameters, [1/s^2]) acting on the position.
-    k = np.array([[theta[0], theta[2], theta[3]], [theta[2], theta[1], theta[4]],
-                  [theta[3], theta[4], -theta[0] - theta[1]]])
+    k = np.array(
+        [[theta[0], theta[2], theta[3]], [theta[2], theta[1], theta[4]], [theta[3], theta[4], -theta[0] - theta[1]]]
+    )
     return Corrections(hill_accel=d.ref_r @ k.T)
 
 
@@ -124,6 +125,7 @@ _BUILDERS = {
     "differential_drag": _drag,
 }
 
+
 def candidates_of(d: LogData) -> dict:
     """The candidate models for the vehicle a prepared log describes."""
     if d.desc is None:
@@ -136,8 +138,9 @@ def _candidates_cached(n_thrusters: int, envelope_m: float, max_mass_flow_kgps: 
     return candidates_for(n_thrusters, envelope_m, max_mass_flow_kgps)
 
 
-def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None,
-                   max_mass_flow_kgps: float | None = None) -> dict:
+def candidates_for(
+    n_thrusters: int = 8, envelope_m: float | None = None, max_mass_flow_kgps: float | None = None
+) -> dict:
     """The candidate models for a vehicle with ``n_thrusters`` valves (the
     per-valve effects have one parameter, or three, per valve) whose largest
     dimension is ``envelope_m`` (bounds the camera's lever arm: a camera
@@ -158,38 +161,122 @@ def candidates_for(n_thrusters: int = 8, envelope_m: float | None = None,
     return out
 
 
-CANDIDATES = {c.name: c for c in (
-    Candidate("thrust_loss", "dynamics", tuple(f"loss_{i} [1]" for i in range(8)), 0.1,
-              "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a loss changes the rate "
-              "along the valve's torque, a tilt across it (python -m bench.gap.characterise)", bound=0.9, nav=False,
-              nonnegative=True),
-    Candidate("thruster_misalignment", "dynamics", tuple(f"phi_{i}{a} [rad]" for i in range(8) for a in "xyz"), 0.05,
-              "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a tilt changes the rate "
-              "across the valve's torque, a loss along it (python -m bench.gap.characterise)", bound=0.5, nav=False),
-    Candidate("mass_depletion", "dynamics", ("mdot [kg/s per open valve]",), 1e-3,
-              "a long firing: the acceleration per valve grows as propellant is used", bound=0.02, nav=False,
-              nonnegative=True),
-    Candidate("com_offset", "dynamics", ("c_x [m]", "c_y [m]", "c_z [m]"), 0.01,
-              "fast slews with pure couples: the accelerometer's lever arm reads w x (w x c) and wdot x c", bound=0.1),
-    Candidate("accel_bias", "sensor", ("b_x [m/s^2]", "b_y [m/s^2]", "b_z [m/s^2]"), 3e-4,
-              "a slew during a coast: a body-fixed bias turns with the body, a Hill-frame acceleration does not", bound=1e-2),
-    Candidate("gyro_bias", "sensor", ("b_x [rad/s]", "b_y [rad/s]", "b_z [rad/s]"), 1e-3,
-              "hold attitude, then slew about each axis at two rates: a bias is rate-independent", bound=5e-2),
-    Candidate("gyro_scale", "sensor", ("s_x [1]", "s_y [1]", "s_z [1]"), 0.05,
-              "slew about each axis at two rates: a scale error grows with the rate", bound=0.5),
-    Candidate("imu_misalignment", "sensor", ("e_x [rad]", "e_y [rad]", "e_z [rad]"), 0.01,
-              "fire single-axis translations and slews: misalignment couples axes", bound=0.5),
-    Candidate("camera_latency", "sensor", ("tau [s]",), 0.2,
-              "fast translation and slew at constant range: latency scales with the speed", bound=3.0),
-    Candidate("camera_lever_arm", "sensor", ("l_x [m]", "l_y [m]", "l_z [m]"), 0.02,
-              "slew at a fixed position: a lever arm moves the measured position with the attitude", bound=0.3),
-    Candidate("host_eccentricity", "dynamics", ("e cos M0 [1]", "e sin M0 [1]"), 0.02,
-              "a long coast at larger radial offset: the terms scale with position and orbit phase", bound=0.3),
-    Candidate("differential_j2", "dynamics", ("K_xx", "K_yy", "K_xy", "K_xz", "K_yz [1/s^2]"), 1e-5,
-              "coasts at offsets along each Hill axis: a gradient scales with the offset", bound=1e-3),
-    Candidate("differential_drag", "dynamics", ("a_inspector_y [m/s^2]", "a_host_y [m/s^2]"), 1e-4,
-              "a coast near the host: drag is constant along-track, independent of position and attitude; "
-              "a slew shows the inspector's own drag turning in the accelerometer", bound=1e-2),
-)}
+CANDIDATES = {
+    c.name: c
+    for c in (
+        Candidate(
+            "thrust_loss",
+            "dynamics",
+            tuple(f"loss_{i} [1]" for i in range(8)),
+            0.1,
+            "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a loss changes the rate "
+            "along the valve's torque, a tilt across it (python -m bench.gap.characterise)",
+            bound=0.9,
+            nav=False,
+            nonnegative=True,
+        ),
+        Candidate(
+            "thruster_misalignment",
+            "dynamics",
+            tuple(f"phi_{i}{a} [rad]" for i in range(8) for a in "xyz"),
+            0.05,
+            "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a tilt changes the rate "
+            "across the valve's torque, a loss along it (python -m bench.gap.characterise)",
+            bound=0.5,
+            nav=False,
+        ),
+        Candidate(
+            "mass_depletion",
+            "dynamics",
+            ("mdot [kg/s per open valve]",),
+            1e-3,
+            "a long firing: the acceleration per valve grows as propellant is used",
+            bound=0.02,
+            nav=False,
+            nonnegative=True,
+        ),
+        Candidate(
+            "com_offset",
+            "dynamics",
+            ("c_x [m]", "c_y [m]", "c_z [m]"),
+            0.01,
+            "fast slews with pure couples: the accelerometer's lever arm reads w x (w x c) and wdot x c",
+            bound=0.1,
+        ),
+        Candidate(
+            "accel_bias",
+            "sensor",
+            ("b_x [m/s^2]", "b_y [m/s^2]", "b_z [m/s^2]"),
+            3e-4,
+            "a slew during a coast: a body-fixed bias turns with the body, a Hill-frame acceleration does not",
+            bound=1e-2,
+        ),
+        Candidate(
+            "gyro_bias",
+            "sensor",
+            ("b_x [rad/s]", "b_y [rad/s]", "b_z [rad/s]"),
+            1e-3,
+            "hold attitude, then slew about each axis at two rates: a bias is rate-independent",
+            bound=5e-2,
+        ),
+        Candidate(
+            "gyro_scale",
+            "sensor",
+            ("s_x [1]", "s_y [1]", "s_z [1]"),
+            0.05,
+            "slew about each axis at two rates: a scale error grows with the rate",
+            bound=0.5,
+        ),
+        Candidate(
+            "imu_misalignment",
+            "sensor",
+            ("e_x [rad]", "e_y [rad]", "e_z [rad]"),
+            0.01,
+            "fire single-axis translations and slews: misalignment couples axes",
+            bound=0.5,
+        ),
+        Candidate(
+            "camera_latency",
+            "sensor",
+            ("tau [s]",),
+            0.2,
+            "fast translation and slew at constant range: latency scales with the speed",
+            bound=3.0,
+        ),
+        Candidate(
+            "camera_lever_arm",
+            "sensor",
+            ("l_x [m]", "l_y [m]", "l_z [m]"),
+            0.02,
+            "slew at a fixed position: a lever arm moves the measured position with the attitude",
+            bound=0.3,
+        ),
+        Candidate(
+            "host_eccentricity",
+            "dynamics",
+            ("e cos M0 [1]", "e sin M0 [1]"),
+            0.02,
+            "a long coast at larger radial offset: the terms scale with position and orbit phase",
+            bound=0.3,
+        ),
+        Candidate(
+            "differential_j2",
+            "dynamics",
+            ("K_xx", "K_yy", "K_xy", "K_xz", "K_yz [1/s^2]"),
+            1e-5,
+            "coasts at offsets along each Hill axis: a gradient scales with the offset",
+            bound=1e-3,
+        ),
+        Candidate(
+            "differential_drag",
+            "dynamics",
+            ("a_inspector_y [m/s^2]", "a_host_y [m/s^2]"),
+            1e-4,
+            "a coast near the host: drag is constant along-track, independent of position and attitude; "
+            "a slew shows the inspector's own drag turning in the accelerometer",
+            bound=1e-2,
+        ),
+    )
+}
 
 NOT_MODELLED = ("flex_mode",)

@@ -26,6 +26,7 @@ that characterisation, at the same effect:
 Both lambda (the signature's energy) and delta2 grow as size^2, so the
 size at which the characterisation separates is size * sqrt(10.8 / delta2).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -56,9 +57,14 @@ def compare(seed: int, effect: str, size: float, fire_s: float, coast_s: float, 
     out = {"seed": seed, "effect": effect, "size": size}
     for name, r in (("docking", dock), ("characterisation", char)):
         lam, d2 = r["lambda"], r["delta2_min"]
-        out[name] = {"lambda": lam, "closest": r["closest"], "delta2": d2, f"delta2_{rival}": r["delta2"][rival],
-                     "fraction": d2 / lam if lam > 0 else float("nan"),
-                     "size_to_separate": size * float(np.sqrt(10.8 / d2)) if d2 > 0 else float("inf")}
+        out[name] = {
+            "lambda": lam,
+            "closest": r["closest"],
+            "delta2": d2,
+            f"delta2_{rival}": r["delta2"][rival],
+            "fraction": d2 / lam if lam > 0 else float("nan"),
+            "size_to_separate": size * float(np.sqrt(10.8 / d2)) if d2 > 0 else float("inf"),
+        }
     out["characterisation"]["duration_s"] = scripts_duration_s(scripts)
     out["docking"]["duration_s"] = docking_s
     return out
@@ -75,21 +81,31 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     rows = []
-    print(f"{a.effect} at size {a.size:g}; characterisation: each valve alone {a.fire:g} s, then {a.coast:g} s coast",
-          file=sys.stderr)
-    print(f"seed | run | s | lambda | closest | delta2 | delta2/lambda | size for delta2 = 10.8 | "
-          f"delta2 against {RIVAL[a.effect]}")
+    print(
+        f"{a.effect} at size {a.size:g}; characterisation: each valve alone {a.fire:g} s, then {a.coast:g} s coast",
+        file=sys.stderr,
+    )
+    print(
+        f"seed | run | s | lambda | closest | delta2 | delta2/lambda | size for delta2 = 10.8 | "
+        f"delta2 against {RIVAL[a.effect]}"
+    )
     for seed in range(a.seed0, a.seed0 + a.seeds):
         r = compare(seed, a.effect, a.size, a.fire, a.coast)
         rows.append(r)
         for name in ("docking", "characterisation"):
             x = r[name]
-            print(f"{seed} | {name} | {x['duration_s']:.0f} | {x['lambda']:.1f} | {x['closest']} | {x['delta2']:.2f} | "
-                  f"{x['fraction']:.3f} | {x['size_to_separate']:.3g} | {x['delta2_' + RIVAL[a.effect]]:.2f}", flush=True)
+            print(
+                f"{seed} | {name} | {x['duration_s']:.0f} | {x['lambda']:.1f} | {x['closest']} | {x['delta2']:.2f} | "
+                f"{x['fraction']:.3f} | {x['size_to_separate']:.3g} | {x['delta2_' + RIVAL[a.effect]]:.2f}",
+                flush=True,
+            )
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"command": "python -m bench.gap.characterise " + " ".join(argv or sys.argv[1:]), "rows": rows},
-                      f, indent=1)
+            json.dump(
+                {"command": "python -m bench.gap.characterise " + " ".join(argv or sys.argv[1:]), "rows": rows},
+                f,
+                indent=1,
+            )
     return 0
 
 

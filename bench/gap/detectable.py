@@ -35,6 +35,7 @@ not detectable in that run. A probe that changes the run's length (the
 chained approaches split elsewhere, no common rows to compare) is retried at
 a quarter of its size.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -74,7 +75,8 @@ def residuals_of(log, ctx_ref=None):
         e, rows_ok = training_residuals(ctx)
         return ctx, e, rows_ok
     if ctx.nominal.white.shape != ctx_ref.nominal.white.shape or (
-            ctx.ch is not None and ctx.ch.e0.shape != ctx_ref.ch.e0.shape):
+        ctx.ch is not None and ctx.ch.e0.shape != ctx_ref.ch.e0.shape
+    ):
         raise ValueError("effect run and effect-free run differ in their streams' lengths")
     w = ctx.nominal.white[ctx_ref.train_nav]
     parts = [np.nan_to_num(w, nan=0.0)]
@@ -119,8 +121,17 @@ def _bench_simulate(seed: int, duration_s: float, then_scripts: list | None):
     return simulate
 
 
-def _probe(simulate, name: str, params: list, size: float, with_candidate: bool, thr_logp: float, thr_map: float,
-           power: float, k_all: int) -> dict:
+def _probe(
+    simulate,
+    name: str,
+    params: list,
+    size: float,
+    with_candidate: bool,
+    thr_logp: float,
+    thr_map: float,
+    power: float,
+    k_all: int,
+) -> dict:
     """The noncentrality the effect at ``params`` gives the diagnoser's test
     in this run, and the noncentrality the test needs for ``power``."""
     from scipy.stats import chi2, norm
@@ -142,7 +153,7 @@ def _probe(simulate, name: str, params: list, size: float, with_candidate: bool,
         U, sv, _ = np.linalg.svd(J, full_matrices=False)
         U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]
         lam = float(np.sum((U.T @ s) ** 2))
-        c = float(chi2.isf(10.0 ** -thr_logp, k))
+        c = float(chi2.isf(10.0**-thr_logp, k))
         lam_req = required_noncentrality(k, c, power)
     else:
         # No candidate: the gap map is the test. A cell's z moves by dz with the
@@ -152,8 +163,14 @@ def _probe(simulate, name: str, params: list, size: float, with_candidate: bool,
         lam = float(max((abs(z1[key] - z0[key]) for key in z0.keys() & z1.keys()), default=0.0) ** 2)
         k, c = k_all, thr_map
         lam_req = float((thr_map + norm.isf(1.0 - power)) ** 2)
-    return {"size": float(size), "lambda": lam, "lambda_required": lam_req, "k": int(k), "threshold": c,
-            "n_obs": int(e0.size)}
+    return {
+        "size": float(size),
+        "lambda": lam,
+        "lambda_required": lam_req,
+        "k": int(k),
+        "threshold": c,
+        "n_obs": int(e0.size),
+    }
 
 
 def _search(probe, spec) -> tuple:
@@ -202,9 +219,17 @@ def _search(probe, spec) -> tuple:
     return answer, probes
 
 
-def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, calibration: dict,
-                        simulate=None, power: float = POWER, then_scripts: list | None = None,
-                        max_size: float | None = None) -> dict:
+def min_detectable_size(
+    seed: int,
+    name: str,
+    unit_params,
+    duration_s: float,
+    calibration: dict,
+    simulate=None,
+    power: float = POWER,
+    then_scripts: list | None = None,
+    max_size: float | None = None,
+) -> dict:
     """The size of effect ``name`` along ``unit_params`` (a draw at size 1)
     that the diagnoser's screen detects with probability ``power`` in the
     run of ``seed`` with the effect at that size. Returns the size and how it
@@ -231,17 +256,25 @@ def min_detectable_size(seed: int, name: str, unit_params, duration_s: float, ca
     k_all = spec.n_params
 
     def probe(size: float) -> dict:
-        return _probe(simulate, name, spec.at(unit_params, size).tolist(), size, with_candidate, thr, thr_map,
-                      power, k_all)
+        return _probe(
+            simulate, name, spec.at(unit_params, size).tolist(), size, with_candidate, thr, thr_map, power, k_all
+        )
 
     answer, probes = _search(probe, spec)
     last = next((q for q in reversed(probes) if q.get("lambda") is not None), {})
-    return {"effect": name, "size": answer["size"] if answer else float("nan"), "detectable": answer is not None,
-            "test": "screen" if with_candidate else "gap map", "k": int(last.get("k", k_all)),
-            "threshold_2dll": float(last.get("threshold", np.nan)),
-            "lambda_required": float(last.get("lambda_required", np.nan)),
-            "lambda_at_size": float(answer["lambda"]) if answer else float("nan"),
-            "n_obs": int(last.get("n_obs", 0)), "power": power, "probes": probes}
+    return {
+        "effect": name,
+        "size": answer["size"] if answer else float("nan"),
+        "detectable": answer is not None,
+        "test": "screen" if with_candidate else "gap map",
+        "k": int(last.get("k", k_all)),
+        "threshold_2dll": float(last.get("threshold", np.nan)),
+        "lambda_required": float(last.get("lambda_required", np.nan)),
+        "lambda_at_size": float(answer["lambda"]) if answer else float("nan"),
+        "n_obs": int(last.get("n_obs", 0)),
+        "power": power,
+        "probes": probes,
+    }
 
 
 def _settled(probes: list) -> bool:
@@ -255,6 +288,9 @@ def _answer(probes: list, max_size: float) -> dict | None:
     """The smallest probed size whose run reaches the required noncentrality
     (that run is the one the campaign flies at 1x, so its power is known);
     without one, None (beyond the largest sensible size)."""
-    ok = [p for p in probes if p.get("lambda") is not None and p["lambda"] >= p["lambda_required"]
-          and p["size"] <= max_size]
+    ok = [
+        p
+        for p in probes
+        if p.get("lambda") is not None and p["lambda"] >= p["lambda_required"] and p["size"] <= max_size
+    ]
     return min(ok, key=lambda p: p["size"]) if ok else None

@@ -9,6 +9,7 @@ diagnosis (bench/gap/diagnose.py) compares them with the null calibration's
 thresholds; the null calibrations (bench/gap/null.py, bench/gap/log_null.py)
 compute the same two numbers on simulated logs without any effect.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,8 +38,15 @@ def map_cells(d: LogData, p: Pass) -> list:
     res = p.res
     if res is None:
         idx = np.flatnonzero(ok)
-        res = ReplayResult(d.pose_tc[idx], idx, p.innovation[idx], np.zeros((idx.size, 6, 6)), p.nis[idx],
-                           p.loglik[idx], np.ones(idx.size, bool))
+        res = ReplayResult(
+            d.pose_tc[idx],
+            idx,
+            p.innovation[idx],
+            np.zeros((idx.size, 6, 6)),
+            p.nis[idx],
+            p.loglik[idx],
+            np.ones(idx.size, bool),
+        )
     return localise.gap_map(d, res, white=p.white[ok])
 
 

@@ -13,6 +13,7 @@ read against the null calibration (bench/gap/null.py), which gives the
 distribution of the largest |z| over the whole map on simulated-on-simulated
 logs, so each cell's p-value is family-wise.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -92,8 +93,9 @@ def gap_map(d: LogData, res: ReplayResult, white: np.ndarray | None = None) -> l
                     continue
                 base = {"stream": stream, "axis": "xyz"[a], "frame": axes.split()[1][1:-1], "regime": regime, "n": n}
                 cells.append({**base, "stat": "mean", "z": float(e.mean() * np.sqrt(n)), "value": float(e.mean())})
-                cells.append({**base, "stat": "variance", "z": float((e @ e - n) / np.sqrt(2 * n)),
-                              "value": float(e @ e / n)})
+                cells.append(
+                    {**base, "stat": "variance", "z": float((e @ e - n) / np.sqrt(2 * n)), "value": float(e @ e / n)}
+                )
                 if regime == "all":
                     z, lag = _lag_z(e)
                     cells.append({**base, "stat": "lag", "z": float(z), "value": int(lag)})
@@ -122,8 +124,14 @@ def summarise(cells: list, null_max_z: np.ndarray | None, top: int = 5) -> dict:
     if ranked:
         b = ranked[0]
         reg = {r: max((abs(c["z"]) for c in cells if c["regime"] == r), default=0.0) for r in REGIMES[1:]}
-        where = {"stream": b["stream"], "axis": b["axis"], "frame": b["frame"], "stat": b["stat"],
-                 "regime_peak": max(reg, key=reg.get) if reg else "all", "regime_max_abs_z": reg}
+        where = {
+            "stream": b["stream"],
+            "axis": b["axis"],
+            "frame": b["frame"],
+            "stat": b["stat"],
+            "regime_peak": max(reg, key=reg.get) if reg else "all",
+            "regime_max_abs_z": reg,
+        }
     return {"top_cells": out, "where": where}
 
 
@@ -177,15 +185,23 @@ def dyn_cells(d: LogData, ch, rows: np.ndarray | None = None) -> list:
                     x = raw_g[mg, a]
                     # Differences of white noise: variance 2, lag-1 covariance -1.
                     p = int(np.sum(mg[:-1] & mg[1:] & adj[:-1]))
-                    cells.append({**base, "stat": "mean", "z": float(x.sum() / np.sqrt(2 * n - 2 * p)),
-                                  "value": float(x.mean())})
-                    cells.append({**base, "stat": "variance", "z": float((x @ x - 2 * n) / np.sqrt(8 * n + 4 * p)),
-                                  "value": float(x @ x / (2 * n))})
+                    cells.append(
+                        {**base, "stat": "mean", "z": float(x.sum() / np.sqrt(2 * n - 2 * p)), "value": float(x.mean())}
+                    )
+                    cells.append(
+                        {
+                            **base,
+                            "stat": "variance",
+                            "z": float((x @ x - 2 * n) / np.sqrt(8 * n + 4 * p)),
+                            "value": float(x @ x / (2 * n)),
+                        }
+                    )
                     continue
                 e = e_all[m, a]
                 cells.append({**base, "stat": "mean", "z": float(e.mean() * np.sqrt(n)), "value": float(e.mean())})
-                cells.append({**base, "stat": "variance", "z": float((e @ e - n) / np.sqrt(2 * n)),
-                              "value": float(e @ e / n)})
+                cells.append(
+                    {**base, "stat": "variance", "z": float((e @ e - n) / np.sqrt(2 * n)), "value": float(e @ e / n)}
+                )
                 if regime == "all":
                     z, lag = _lag_z(e)
                     cells.append({**base, "stat": "lag", "z": float(z), "value": int(lag)})
@@ -194,8 +210,14 @@ def dyn_cells(d: LogData, ch, rows: np.ndarray | None = None) -> list:
     return cells
 
 
-def signature_regimes(d: LogData, ch, nominal_white: np.ndarray, after_white: np.ndarray, res: ReplayResult | None,
-                      after_dyn: np.ndarray | None) -> dict:
+def signature_regimes(
+    d: LogData,
+    ch,
+    nominal_white: np.ndarray,
+    after_white: np.ndarray,
+    res: ReplayResult | None,
+    after_dyn: np.ndarray | None,
+) -> dict:
     """Where a fitted effect acts: its signature's energy per row (the change
     it makes to the residuals, gyro rows as raw differences) in each regime.
     Returns {regime: mean energy per row} and the regime where it peaks."""

@@ -27,6 +27,7 @@ Made on demand and cached (``cache_dir``, default ~/.cache/proxops) under
 the SHA-256 of everything it depends on; the answer carries its size, wall
 time and whether it came from the cache.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -75,7 +76,9 @@ def plan_of(log):
             von = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
         else:
             mask = np.asarray(valves["mask"]).astype(np.int64)
-            von = ((mask[:, None] >> np.arange(desc.n_thrusters)[None, :]) & 1) * np.asarray(valves["interval_s"], float)[:, None]
+            von = ((mask[:, None] >> np.arange(desc.n_thrusters)[None, :]) & 1) * np.asarray(
+                valves["interval_s"], float
+            )[:, None]
     pose_seg = d.imu_seg[np.clip(d.pose_tick, 0, d.imu_t.size - 1)]
     for s in seg_ids:
         it = d.imu_t[d.imu_seg == s]
@@ -100,8 +103,13 @@ def fingerprint(log, runs: int, seed: int) -> str:
     """SHA-256 of everything a calibration for ``log`` depends on."""
     description, plan, times, d = plan_of(log)
     h = hashlib.sha256()
-    h.update(json.dumps({"v": VERSION, "runs": runs, "seed": seed, "description": description,
-                         "has_valves": log.has("valves")}, sort_keys=True, default=str).encode())
+    h.update(
+        json.dumps(
+            {"v": VERSION, "runs": runs, "seed": seed, "description": description, "has_valves": log.has("valves")},
+            sort_keys=True,
+            default=str,
+        ).encode()
+    )
     for p, tm in zip(plan, times):
         for a in (p.r0_hill_m, p.q0_hb, p.cmd_t_s, p.cmd_on_s, tm["imu_t"], tm["pose_t"], tm["pose_delay"]):
             h.update(np.ascontiguousarray(np.asarray(a, float)).tobytes())
@@ -147,8 +155,9 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("PROXOPS_CACHE", Path.home() / ".cache" / "proxops")) / "null_calibration"
 
 
-def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: int | None = None,
-                      cache_dir=None, progress: bool = True) -> dict:
+def calibrate_for_log(
+    log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: int | None = None, cache_dir=None, progress: bool = True
+) -> dict:
     """The null calibration for ``log`` (from the cache when it was made before).
     Its runs are a campaign (bench/runner/runner.py) on the cluster the
     process was configured with, each kept as it finishes next to the cache
@@ -174,21 +183,37 @@ def calibrate_for_log(log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: 
     except OSError:
         store = None
     recs = Campaign(store, workers=workers, progress=progress).map(
-        "null", _one, seeds, idents=[{"seed": s} for s in seeds], shared=(log, prepared),
-        label="null calibration for the log")
+        "null",
+        _one,
+        seeds,
+        idents=[{"seed": s} for s in seeds],
+        shared=(log, prepared),
+        label="null calibration for the log",
+    )
     failed = [r for r in recs if not r["ok"]]
     if failed:
-        raise ValueError(f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
-                           f"seed {failed[0]['seed']}: {failed[0]['error']})")
+        raise ValueError(
+            f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
+            f"seed {failed[0]['seed']}: {failed[0]['error']})"
+        )
     rows = results(recs)
     z = np.array([r["map_max_abs_z"] for r in rows])
     b = np.array([r["screen_logp"] for r in rows])
     thr = {"map_max_abs_z": frechet_threshold(z), "screen_logp": frechet_threshold(b)}
-    cal = {"thresholds": thr, "method": "parametric bootstrap of the log's own flight, Frechet tail per statistic",
-           "false_alarm_target_each": FA_EACH, "runs": int(runs), "seed": int(seed), "fingerprint": key,
-           "for_log": True, "null_map_max_abs_z": z.tolist(), "null_screen_logp": b.tolist(),
-           "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
-           "elapsed_s": time.time() - t0, "version": VERSION}
+    cal = {
+        "thresholds": thr,
+        "method": "parametric bootstrap of the log's own flight, Frechet tail per statistic",
+        "false_alarm_target_each": FA_EACH,
+        "runs": int(runs),
+        "seed": int(seed),
+        "fingerprint": key,
+        "for_log": True,
+        "null_map_max_abs_z": z.tolist(),
+        "null_screen_logp": b.tolist(),
+        "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
+        "elapsed_s": time.time() - t0,
+        "version": VERSION,
+    }
     try:
         cdir.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
@@ -217,26 +242,34 @@ def _bench_like(desc, ref=None) -> list:
     if desc.n_thrusters != ref.n_thrusters:
         diffs.append(f"{desc.n_thrusters} thrusters, not {ref.n_thrusters}")
     else:
-        for name, a, b in (("thruster positions", [t.position_b_m for t in desc.thrusters], [t.position_b_m for t in ref.thrusters]),
-                           ("thruster directions", [t.direction_b for t in desc.thrusters], [t.direction_b for t in ref.thrusters]),
-                           ("thrusts", [t.thrust_n for t in desc.thrusters], [t.thrust_n for t in ref.thrusters])):
+        for name, a, b in (
+            ("thruster positions", [t.position_b_m for t in desc.thrusters], [t.position_b_m for t in ref.thrusters]),
+            ("thruster directions", [t.direction_b for t in desc.thrusters], [t.direction_b for t in ref.thrusters]),
+            ("thrusts", [t.thrust_n for t in desc.thrusters], [t.thrust_n for t in ref.thrusters]),
+        ):
             if not np.allclose(a, b, rtol=1e-6, atol=1e-9):
                 diffs.append(f"other {name}")
-    for name, a, b in (("mass", desc.mass_kg, ref.mass_kg), ("inertia", desc.inertia_kgm2, ref.inertia_kgm2),
-                       ("centre of mass", desc.com_b_m, ref.com_b_m), ("IMU mounting", desc.imu_q_body_imu, ref.imu_q_body_imu),
-                       ("IMU position", desc.imu_position_b_m, ref.imu_position_b_m),
-                       ("accelerometer noise", desc.accel_sigma_mps2, ref.accel_sigma_mps2),
-                       ("gyro noise", desc.gyro_sigma_rps, ref.gyro_sigma_rps),
-                       ("pose reference point", desc.pose_reference_b_m, ref.pose_reference_b_m),
-                       ("accelerometer bias stability", desc.accel_bias_stability_mps2, ref.accel_bias_stability_mps2),
-                       ("gyro bias stability", desc.gyro_bias_stability_rps, ref.gyro_bias_stability_rps)):
+    for name, a, b in (
+        ("mass", desc.mass_kg, ref.mass_kg),
+        ("inertia", desc.inertia_kgm2, ref.inertia_kgm2),
+        ("centre of mass", desc.com_b_m, ref.com_b_m),
+        ("IMU mounting", desc.imu_q_body_imu, ref.imu_q_body_imu),
+        ("IMU position", desc.imu_position_b_m, ref.imu_position_b_m),
+        ("accelerometer noise", desc.accel_sigma_mps2, ref.accel_sigma_mps2),
+        ("gyro noise", desc.gyro_sigma_rps, ref.gyro_sigma_rps),
+        ("pose reference point", desc.pose_reference_b_m, ref.pose_reference_b_m),
+        ("accelerometer bias stability", desc.accel_bias_stability_mps2, ref.accel_bias_stability_mps2),
+        ("gyro bias stability", desc.gyro_bias_stability_rps, ref.gyro_bias_stability_rps),
+    ):
         if not np.allclose(a, b, rtol=1e-6, atol=1e-12):
             diffs.append(f"another {name}")
     rate, ref_rate = desc.imu_rate_hz or 10.0, ref.imu_rate_hz or 10.0
     if abs(rate - ref_rate) > 1e-9:
         diffs.append(f"IMU at {rate:g} Hz, not {ref_rate:g} Hz")
-    for name, a, b in (("pose clock offset", desc.pose_time_offset_s, ref.pose_time_offset_s),
-                       ("pose latency", desc.pose_latency_s, ref.pose_latency_s)):
+    for name, a, b in (
+        ("pose clock offset", desc.pose_time_offset_s, ref.pose_time_offset_s),
+        ("pose latency", desc.pose_latency_s, ref.pose_latency_s),
+    ):
         if abs(a - b) > 1e-9:
             diffs.append(f"another {name}")
     return diffs
@@ -248,12 +281,16 @@ def check_supplied(cal: dict, log, d, source: str) -> None:
     for k in ("map_max_abs_z", "screen_logp"):
         v = thr.get(k) if isinstance(thr, dict) else None
         if not isinstance(v, (int, float)) or not np.isfinite(v):
-            raise CalibrationMismatch(f"{source}: thresholds.{k} missing or not a finite number: not a null calibration")
+            raise CalibrationMismatch(
+                f"{source}: thresholds.{k} missing or not a finite number: not a null calibration"
+            )
     if cal.get("for_log"):
         key = fingerprint(log, int(cal.get("runs", DEFAULT_RUNS)), int(cal.get("seed", 7100)))
         if cal.get("fingerprint") != key:
-            raise CalibrationMismatch(f"{source}: made for another log (its fingerprint {str(cal.get('fingerprint'))[:12]}, "
-                                      f"this log's {key[:12]}): vehicle, sensors, valve commands or time stamps differ")
+            raise CalibrationMismatch(
+                f"{source}: made for another log (its fingerprint {str(cal.get('fingerprint'))[:12]}, "
+                f"this log's {key[:12]}): vehicle, sensors, valve commands or time stamps differ"
+            )
         return
     from bench.sim.log_description import DescriptionError, resolve
 
@@ -264,16 +301,25 @@ def check_supplied(cal: dict, log, d, source: str) -> None:
     diffs = _bench_like(d.desc, ref)
     if diffs:
         whose = f"the {cal.get('vehicle', 'described')} vehicle" if ref is not None else "the bench's 3 kg inspector"
-        raise CalibrationMismatch(f"{source}: made for {whose}; this log's vehicle and sensors differ "
-                                  f"({'; '.join(diffs)}). Leave out --calibration to make one for the log")
+        raise CalibrationMismatch(
+            f"{source}: made for {whose}; this log's vehicle and sensors differ "
+            f"({'; '.join(diffs)}). Leave out --calibration to make one for the log"
+        )
     flown = d.desc.manoeuvres()
     cal_m = cal.get("manoeuvres", "docking")
     if flown and "+".join(m for m in ("docking", "characterisation") if m in flown) != cal_m:
         raise CalibrationMismatch(f"{source}: made for logs that fly {cal_m}; this log flies {'+'.join(flown)}")
 
 
-def choose(log, d, supplied: dict | None = None, source: str | None = None, runs: int = DEFAULT_RUNS,
-           progress: bool = False, cache_dir=None) -> tuple:
+def choose(
+    log,
+    d,
+    supplied: dict | None = None,
+    source: str | None = None,
+    runs: int = DEFAULT_RUNS,
+    progress: bool = False,
+    cache_dir=None,
+) -> tuple:
     """(calibration, note): the calibration the diagnosis of ``log`` uses and
     a note for the answer. A supplied one is checked against the log; without
     one, the committed calibration when the log is the bench's vehicle and
@@ -286,16 +332,34 @@ def choose(log, d, supplied: dict | None = None, source: str | None = None, runs
     diffs = _bench_like(d.desc)
     flown = d.desc.manoeuvres()
     known = "+".join(m for m in ("docking", "characterisation") if m in flown)
-    if not diffs and (not flown or (set(flown) <= {"docking", "characterisation"} and known in nullmod.DATA_BY_MANOEUVRES)):
+    if not diffs and (
+        not flown or (set(flown) <= {"docking", "characterisation"} and known in nullmod.DATA_BY_MANOEUVRES)
+    ):
         cal = nullmod.load(manoeuvres=known or "docking")
-        note = None if flown else ("manoeuvres not stated in the log: thresholds from the committed null calibration "
-                                   "of docking logs")
-        return cal, {"source": f"committed ({known or 'docking'} logs of the bench inspector)", "runs": cal.get("runs"),
-                     "note": note}
-    why = ("; ".join(diffs[:3]) + (f" and {len(diffs) - 3} more differences from the bench inspector"
-                                   if len(diffs) > 3 else "")) if diffs else f"manoeuvres {'+'.join(flown)}"
+        note = (
+            None
+            if flown
+            else ("manoeuvres not stated in the log: thresholds from the committed null calibration of docking logs")
+        )
+        return cal, {
+            "source": f"committed ({known or 'docking'} logs of the bench inspector)",
+            "runs": cal.get("runs"),
+            "note": note,
+        }
+    why = (
+        (
+            "; ".join(diffs[:3])
+            + (f" and {len(diffs) - 3} more differences from the bench inspector" if len(diffs) > 3 else "")
+        )
+        if diffs
+        else f"manoeuvres {'+'.join(flown)}"
+    )
     cal = calibrate_for_log(log, runs=runs, progress=progress, cache_dir=cache_dir)
-    return cal, {"source": "made for this log", "runs": cal["runs"], "elapsed_s": cal["elapsed_s"],
-                 "from_cache": cal.get("from_cache"),
-                 "note": f"null calibration made for this log ({why}): {cal['runs']} simulated flights of its own "
-                         f"commands, " + ("from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s")}
+    return cal, {
+        "source": "made for this log",
+        "runs": cal["runs"],
+        "elapsed_s": cal["elapsed_s"],
+        "from_cache": cal.get("from_cache"),
+        "note": f"null calibration made for this log ({why}): {cal['runs']} simulated flights of its own "
+        f"commands, " + ("from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s"),
+    }

@@ -17,6 +17,7 @@ it (the empirical quantile, a little beyond the largest value when there are
 few runs); the stored ``false_alarm_rate`` is the fraction of the null runs
 that either statistic flags.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,10 @@ from pathlib import Path
 import numpy as np
 
 DATA = Path(__file__).resolve().parent / "data" / "null_calibration.json"
-DATA_BY_MANOEUVRES = {"docking": DATA,
-                      "docking+characterisation": DATA.with_name("null_calibration_characterisation.json")}
+DATA_BY_MANOEUVRES = {
+    "docking": DATA,
+    "docking+characterisation": DATA.with_name("null_calibration_characterisation.json"),
+}
 FA_EACH = 0.005
 
 
@@ -73,15 +76,27 @@ def _threshold(values: np.ndarray, fa: float) -> float:
     return float(0.5 * (v[k] + v[k + 1]))
 
 
-def calibrate(seeds, duration_s: float = 120.0, workers: int | None = None, progress: bool = True,
-              manoeuvres: str = "docking", campaign=None) -> dict:
+def calibrate(
+    seeds,
+    duration_s: float = 120.0,
+    workers: int | None = None,
+    progress: bool = True,
+    manoeuvres: str = "docking",
+    campaign=None,
+) -> dict:
     from bench.runner.runner import all_failed, failures, new_campaign, results
 
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
     seeds = [int(s) for s in seeds]
-    recs = campaign.map("null", run_statistics, seeds, idents=[{"seed": s} for s in seeds],
-                        shared=(duration_s, manoeuvres), label="null calibration")
+    recs = campaign.map(
+        "null",
+        run_statistics,
+        seeds,
+        idents=[{"seed": s} for s in seeds],
+        shared=(duration_s, manoeuvres),
+        label="null calibration",
+    )
     all_failed(recs)
     rows = [r for r in results(recs) if r is not None]
     if not rows:
@@ -90,10 +105,20 @@ def calibrate(seeds, duration_s: float = 120.0, workers: int | None = None, prog
     b = np.array([r["screen_logp"] for r in rows])
     thr = {"map_max_abs_z": _threshold(z, FA_EACH), "screen_logp": _threshold(b, FA_EACH)}
     fa = float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"])))
-    return {"thresholds": thr, "false_alarm_rate": fa, "false_alarm_target_each": FA_EACH, "runs": len(rows),
-            "duration_s": duration_s, "manoeuvres": manoeuvres, "seeds": [r["seed"] for r in rows],
-            "null_map_max_abs_z": z.tolist(), "null_screen_logp": b.tolist(), "elapsed_s": time.time() - t0,
-            **({"failed_runs": failures(recs)} if failures(recs) else {}), "command": None}
+    return {
+        "thresholds": thr,
+        "false_alarm_rate": fa,
+        "false_alarm_target_each": FA_EACH,
+        "runs": len(rows),
+        "duration_s": duration_s,
+        "manoeuvres": manoeuvres,
+        "seeds": [r["seed"] for r in rows],
+        "null_map_max_abs_z": z.tolist(),
+        "null_screen_logp": b.tolist(),
+        "elapsed_s": time.time() - t0,
+        **({"failed_runs": failures(recs)} if failures(recs) else {}),
+        "command": None,
+    }
 
 
 def main(argv=None):
@@ -103,17 +128,23 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--duration", type=float, default=120.0)
-    ap.add_argument("--manoeuvres", default="docking", choices=tuple(DATA_BY_MANOEUVRES),
-                    help="what the null logs fly (bench/gap/validate.py)")
+    ap.add_argument(
+        "--manoeuvres",
+        default="docking",
+        choices=tuple(DATA_BY_MANOEUVRES),
+        help="what the null logs fly (bench/gap/validate.py)",
+    )
     ap.add_argument("--out", default=None, help="default: the committed calibration for --manoeuvres")
     add_campaign_arguments(ap)
     a = ap.parse_args(argv)
-    campaign = campaign_from(a, "null-calibration", {"runs": a.runs, "seed": a.seed, "duration_s": a.duration,
-                                                     "manoeuvres": a.manoeuvres})
+    campaign = campaign_from(
+        a, "null-calibration", {"runs": a.runs, "seed": a.seed, "duration_s": a.duration, "manoeuvres": a.manoeuvres}
+    )
     seeds = np.random.default_rng(a.seed).integers(0, 2**31, a.runs)
     cal = calibrate(seeds, a.duration, manoeuvres=a.manoeuvres, campaign=campaign)
-    cal["command"] = (f"python -m bench.gap.null --runs {a.runs} --seed {a.seed} --duration {a.duration:g}"
-                      + (f" --manoeuvres {a.manoeuvres}" if a.manoeuvres != "docking" else ""))
+    cal["command"] = f"python -m bench.gap.null --runs {a.runs} --seed {a.seed} --duration {a.duration:g}" + (
+        f" --manoeuvres {a.manoeuvres}" if a.manoeuvres != "docking" else ""
+    )
     out = Path(a.out) if a.out else DATA_BY_MANOEUVRES[a.manoeuvres]
     if a.summarise_only and cal["runs"] < a.runs:
         print(f"{cal['runs']} of {a.runs} runs stored: {out} left as it is")

@@ -9,6 +9,7 @@ parameters), so the timing covers the attribution and, with two or more,
 the selection of a set. Prints the log's size, the answer and the median
 wall time of the repeats.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,7 +38,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--effects", default="{}", help='effects in the log, e.g. \'{"gyro_bias": [1e-3, 0, 0]}\'')
+    ap.add_argument("--effects", default="{}", help="effects in the log, e.g. '{\"gyro_bias\": [1e-3, 0, 0]}'")
     a = ap.parse_args(argv)
     import json
 
@@ -53,11 +54,15 @@ def main(argv=None):
         t0 = time.perf_counter()
         r = diagnose(log, calibration=cal, calibration_source="12 kg calibration")
         times.append(time.perf_counter() - t0)
-    print(f"log: {t[-1] - t[0]:.0f} s, {t.size} IMU samples, {log['pose']['t_capture_s'].size} poses, "
-          f"{log['valves']['t_s'].size} valve commands; verdict {r['verdict']}"
-          + (f" ({' + '.join(m['effect'] for m in r['effects'])})" if r["effects"] else ""))
-    print(f"diagnosis wall time: median {np.median(times):.1f} s over {a.repeats} (min {min(times):.1f}, "
-          f"max {max(times):.1f})")
+    print(
+        f"log: {t[-1] - t[0]:.0f} s, {t.size} IMU samples, {log['pose']['t_capture_s'].size} poses, "
+        f"{log['valves']['t_s'].size} valve commands; verdict {r['verdict']}"
+        + (f" ({' + '.join(m['effect'] for m in r['effects'])})" if r["effects"] else "")
+    )
+    print(
+        f"diagnosis wall time: median {np.median(times):.1f} s over {a.repeats} (min {min(times):.1f}, "
+        f"max {max(times):.1f})"
+    )
 
 
 if __name__ == "__main__":

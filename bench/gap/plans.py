@@ -11,6 +11,7 @@ scores on the others, and a thruster fired once would be seen by one only),
 each run from rest at a seeded start about 1.5 m from the host with a
 seeded attitude.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,9 +31,17 @@ DT_S = 0.1  # control interval of the docking scenario (bench/sim/scenario_docki
 LEAD_S = 2.0  # valves closed until the first pose has initialised navigation
 
 
-def characterisation_plan(description: dict, seed: int = 0, fire_s: float = 1.0, coast_s: float = 5.0,
-                          lead_s: float = 1.5, duty: float = 0.4, cycle_s: float = 0.1, per_run: int = 4,
-                          passes: int = 2) -> list:
+def characterisation_plan(
+    description: dict,
+    seed: int = 0,
+    fire_s: float = 1.0,
+    coast_s: float = 5.0,
+    lead_s: float = 1.5,
+    duty: float = 0.4,
+    cycle_s: float = 0.1,
+    per_run: int = 4,
+    passes: int = 2,
+) -> list:
     desc = resolve(description)
     k = desc.n_thrusters
     rng = np.random.default_rng([int(seed), 0x91A7])

@@ -26,6 +26,7 @@ and the pose updates at the null; summing them would only add their noise
 limit). The cells are chosen on the training blocks, before any candidate is
 fitted, and are the same for every candidate, right or wrong.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -72,16 +73,30 @@ def shrink(nis_before: np.ndarray, nis_after: np.ndarray, seed: int = 0) -> dict
         b0 = deficit(nis_before[i])
         if b0 > 0:
             boots.append(1.0 - deficit(nis_after[i]) / b0)
-    lo, hi = (np.percentile(boots, [2.5, 97.5]) if len(boots) > 20 else (float("nan"), float("nan")))
-    return {"fraction": float(frac), "ci95": [float(lo), float(hi)], "deficit_before": d0, "deficit_after": d1,
-            "n_heldout": int(n)}
+    lo, hi = np.percentile(boots, [2.5, 97.5]) if len(boots) > 20 else (float("nan"), float("nan"))
+    return {
+        "fraction": float(frac),
+        "ci95": [float(lo), float(hi)],
+        "deficit_before": d0,
+        "deficit_after": d1,
+        "n_heldout": int(n),
+    }
 
 
 CHUNK_S = 5.0
 
 
-def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_after=None, seed: int = 0,
-                    cells: list | None = None, lab_dyn=None) -> dict:
+def shrink_combined(
+    t_nav,
+    nis_before,
+    nis_after,
+    t_dyn=None,
+    q_before=None,
+    q_after=None,
+    seed: int = 0,
+    cells: list | None = None,
+    lab_dyn=None,
+) -> dict:
     """Shrink of the held-out deficit over both channels, the navigation
     updates (1/2 (NIS - 6)) and the dynamics rows (1/2 (|e|^2 - 3)), with a
     95 % bootstrap interval over 5 s chunks of held-out time. ``cells``
@@ -107,12 +122,18 @@ def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_a
     d0, d1 = float(cb.sum()), float(ca.sum())
     frac = 1.0 - d1 / d0 if d0 > 0 else float("nan")
     # The deficit's spread under the null: var(1/2 (chi2_k - k)) = k / 2 per row.
-    dof = np.concatenate([np.full(np.asarray(nis_before).size, 6.0)] + (
-        [np.full(np.asarray(q_before).size, 3.0)] if (t_dyn is not None and q_before is not None) else []))[ok]
+    dof = np.concatenate(
+        [np.full(np.asarray(nis_before).size, 6.0)]
+        + ([np.full(np.asarray(q_before).size, 3.0)] if (t_dyn is not None and q_before is not None) else [])
+    )[ok]
     sd0 = float(np.sqrt(0.5 * dof.sum()))
-    base = {"deficit_before": d0, "deficit_after": d1, "deficit_null_sd": sd0,
-            "measurable": bool(d0 > 2.0 * sd0),
-            "cells": [CELL_NAMES[c] for c in cells] if cells else "all"}
+    base = {
+        "deficit_before": d0,
+        "deficit_after": d1,
+        "deficit_null_sd": sd0,
+        "measurable": bool(d0 > 2.0 * sd0),
+        "cells": [CELL_NAMES[c] for c in cells] if cells else "all",
+    }
     if t.size == 0:
         return {"fraction": frac, "ci95": [float("nan")] * 2, **base, "n_chunks": 0}
     chunk = np.floor((t - t.min()) / CHUNK_S).astype(int)
@@ -126,7 +147,7 @@ def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_a
         B0, B1 = sb[idx].sum(axis=1), sa[idx].sum(axis=1)
         good = B0 > 0
         boots = 1.0 - B1[good] / B0[good]
-    lo, hi = (np.percentile(boots, [2.5, 97.5]) if len(boots) > 20 else (float("nan"), float("nan")))
+    lo, hi = np.percentile(boots, [2.5, 97.5]) if len(boots) > 20 else (float("nan"), float("nan"))
     return {"fraction": float(frac), "ci95": [float(lo), float(hi)], **base, "n_chunks": int(ids.size)}
 
 
@@ -135,8 +156,12 @@ def shrink_combined(t_nav, nis_before, nis_after, t_dyn=None, q_before=None, q_a
 # split by regime: whitening the differenced gyro integrates it back, so a
 # torque error made while firing stays in the coasting rows after.)
 CELL_NAV, CELL_ACCEL_COAST, CELL_ACCEL_FIRE, CELL_GYRO = 0, 1, 2, 3
-CELL_NAMES = {CELL_NAV: "pose updates", CELL_ACCEL_COAST: "accelerometer, coasting",
-              CELL_ACCEL_FIRE: "accelerometer, firing", CELL_GYRO: "gyro"}
+CELL_NAMES = {
+    CELL_NAV: "pose updates",
+    CELL_ACCEL_COAST: "accelerometer, coasting",
+    CELL_ACCEL_FIRE: "accelerometer, firing",
+    CELL_GYRO: "gyro",
+}
 
 
 def dyn_cell_labels(ch) -> np.ndarray:

@@ -21,6 +21,7 @@ from one nominal replay (``reference``): the latency and Hill-frame terms
 are small corrections linearised about it, so they cost no Python work per
 step. Everything is precomputed with numpy; the loop only calls the filter.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -35,6 +36,7 @@ MU_EARTH = 3.986004418e14
 
 
 # --- the log in replay form --------------------------------------------------
+
 
 @dataclass
 class LogData:
@@ -109,12 +111,30 @@ def prepare(log) -> LogData:
     accel = _accel_at_com(accel, gyro, t, imu_seg, valves, desc)
     p = _poses_on_ticks(log["pose"], t, dt, imu_seg, seg_desc, desc, dropped)
     truth = {k: np.asarray(v) for k, v in log["truth"].items()} if log.has("truth") else None
-    return LogData(imu_t=t, accel=accel, gyro=gyro, pose_tc=p["tc"], pose_tf=p["tf"], pose_r=p["r"], pose_q=p["q"],
-                   pose_R=p["R"], pose_tick=p["tick"], pose_start=p["start"], valves=valves, dt_s=dt,
-                   n_radps=desc.mean_motion_radps, t_init=float(max(t[0] - dt, p["tc"][0])), truth=truth,
-                   config=dict(log.config or {}), desc=desc, imu_seg=imu_seg, pose_align_s=p["align"],
-                   pose_v0_sigma=p["v0"], dropped=dropped,
-                   valve_stream=dict(log["valves"]) if log.has("valves") else None)
+    return LogData(
+        imu_t=t,
+        accel=accel,
+        gyro=gyro,
+        pose_tc=p["tc"],
+        pose_tf=p["tf"],
+        pose_r=p["r"],
+        pose_q=p["q"],
+        pose_R=p["R"],
+        pose_tick=p["tick"],
+        pose_start=p["start"],
+        valves=valves,
+        dt_s=dt,
+        n_radps=desc.mean_motion_radps,
+        t_init=float(max(t[0] - dt, p["tc"][0])),
+        truth=truth,
+        config=dict(log.config or {}),
+        desc=desc,
+        imu_seg=imu_seg,
+        pose_align_s=p["align"],
+        pose_v0_sigma=p["v0"],
+        dropped=dropped,
+        valve_stream=dict(log["valves"]) if log.has("valves") else None,
+    )
 
 
 def _runs(t: np.ndarray, dt: float, desc):
@@ -204,8 +224,17 @@ def _poses_on_ticks(pose: dict, t, dt, imu_seg, seg_desc, desc, dropped: dict) -
                 v0[i] = POSE_V0_SIGMA_MOVING_MPS
     else:
         start = segment_starts(tc_tick, pr, rs, t)
-    return {"tc": tc_tick, "tf": np.maximum(td, tc_tick), "r": pr, "q": pq, "R": R, "tick": j - 1, "start": start,
-            "align": align, "v0": v0}
+    return {
+        "tc": tc_tick,
+        "tf": np.maximum(td, tc_tick),
+        "r": pr,
+        "q": pq,
+        "R": R,
+        "tick": j - 1,
+        "start": start,
+        "align": align,
+        "v0": v0,
+    }
 
 
 def _drop(dropped: dict, why: str, mask) -> None:
@@ -281,6 +310,7 @@ def segment_starts(tc: np.ndarray, r: np.ndarray, r_sigma: np.ndarray, imu_t: np
 
 # --- corrections --------------------------------------------------------------
 
+
 @dataclass
 class Corrections:
     accel_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -296,14 +326,27 @@ class Corrections:
     accel_extra_b: np.ndarray | None = None
 
     def add(self, other: "Corrections") -> "Corrections":
-        h = self.hill_accel if other.hill_accel is None else (
-            other.hill_accel if self.hill_accel is None else self.hill_accel + other.hill_accel)
-        x = self.accel_extra_b if other.accel_extra_b is None else (
-            other.accel_extra_b if self.accel_extra_b is None else self.accel_extra_b + other.accel_extra_b)
-        return Corrections(self.accel_bias + other.accel_bias, self.accel_scale + other.accel_scale,
-                           self.gyro_bias + other.gyro_bias, self.gyro_scale + other.gyro_scale,
-                           self.imu_misalign + other.imu_misalign, self.latency_s + other.latency_s,
-                           self.lever_arm_b + other.lever_arm_b, h, x)
+        h = (
+            self.hill_accel
+            if other.hill_accel is None
+            else (other.hill_accel if self.hill_accel is None else self.hill_accel + other.hill_accel)
+        )
+        x = (
+            self.accel_extra_b
+            if other.accel_extra_b is None
+            else (other.accel_extra_b if self.accel_extra_b is None else self.accel_extra_b + other.accel_extra_b)
+        )
+        return Corrections(
+            self.accel_bias + other.accel_bias,
+            self.accel_scale + other.accel_scale,
+            self.gyro_bias + other.gyro_bias,
+            self.gyro_scale + other.gyro_scale,
+            self.imu_misalign + other.imu_misalign,
+            self.latency_s + other.latency_s,
+            self.lever_arm_b + other.lever_arm_b,
+            h,
+            x,
+        )
 
 
 def corrected_inputs(d: LogData, c: Corrections | None):
@@ -355,6 +398,7 @@ def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, late
 
 # --- the replay ----------------------------------------------------------------
 
+
 @dataclass
 class ReplayResult:
     t: np.ndarray  # capture time of each fused pose (M',)
@@ -394,8 +438,9 @@ def nav_config(d: LogData, gate_chi2: float = 0.0):
     return nc
 
 
-def replay(d: LogData, c: Corrections | None = None, record_states: bool = False,
-           gate_chi2: float = 0.0) -> ReplayResult:
+def replay(
+    d: LogData, c: Corrections | None = None, record_states: bool = False, gate_chi2: float = 0.0
+) -> ReplayResult:
     import fsw_bindings as fb
 
     acc, gyr, pr, pq = corrected_inputs(d, c)
@@ -449,8 +494,9 @@ def replay(d: LogData, c: Corrections | None = None, record_states: bool = False
                 ll[j] = rec.log_likelihood
             j += 1
     sel = np.flatnonzero(ok)
-    return ReplayResult(t=tc[sel], index=sel, innovation=innov[sel], S=S[sel], nis=nis[sel], loglik=ll[sel],
-                        ok=ok[sel], states=states)
+    return ReplayResult(
+        t=tc[sel], index=sel, innovation=innov[sel], S=S[sel], nis=nis[sel], loglik=ll[sel], ok=ok[sel], states=states
+    )
 
 
 def reference(d: LogData) -> ReplayResult:

@@ -22,6 +22,7 @@ Each member's share: the held-out shrink of the joint fit, and what it
 adds beside the others (the joint shrink minus the shrink with that member's
 parameters set to zero and the others kept).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -66,8 +67,12 @@ def _stacked(ctx: Context, fits_by: dict, names: list) -> tuple:
     """(J, lower, upper) of the names' stacked screening Jacobians, in units
     of each candidate's scale."""
     J = np.hstack([fits_by[n].J_u for n in names])
-    lo = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).lower / candidate(ctx.d, n).scale) for n in names])
-    hi = np.concatenate([np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).bound / candidate(ctx.d, n).scale) for n in names])
+    lo = np.concatenate(
+        [np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).lower / candidate(ctx.d, n).scale) for n in names]
+    )
+    hi = np.concatenate(
+        [np.full(fits_by[n].J_u.shape[1], candidate(ctx.d, n).bound / candidate(ctx.d, n).scale) for n in names]
+    )
     return J, lo, hi
 
 
@@ -168,8 +173,12 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
     sc = np.concatenate([np.full(c.n_params, c.scale) for c in cands])
     lb = np.concatenate([np.full(c.n_params, c.lower / c.scale) for c in cands])
     ub = np.concatenate([np.full(c.n_params, c.bound / c.scale) for c in cands])
-    jd = [fits_by[n].Jd_full if getattr(fits_by[n], "Jd_full", None) is not None else
-          (ctx.ch.jacobian(n) if ctx.ch is not None else None) for n in names]
+    jd = [
+        fits_by[n].Jd_full
+        if getattr(fits_by[n], "Jd_full", None) is not None
+        else (ctx.ch.jacobian(n) if ctx.ch is not None else None)
+        for n in names
+    ]
     e_dyn0 = ctx.ch.e0 if ctx.ch is not None else None
     any_nav = any(c.nav for c in cands)
     rows_ok = np.isfinite(nominal.white[ctx.train_nav]).all(axis=1)
@@ -177,7 +186,7 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
     def split(theta):
         out, i = {}, 0
         for n, k in zip(names, sizes):
-            out[n] = theta[i:i + k]
+            out[n] = theta[i : i + k]
             i += k
         return out
 
@@ -211,8 +220,9 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
         return np.concatenate(parts)
 
     u0 = np.clip(np.nan_to_num(np.concatenate([fits_by[n].theta for n in names]) / sc), 0.999 * lb, 0.999 * ub)
-    sol = least_squares(resid, u0, method="trf", bounds=(lb, ub), max_nfev=max_nfev * (u0.size + 1) if any_nav else None,
-                        diff_step=1e-3)
+    sol = least_squares(
+        resid, u0, method="trf", bounds=(lb, ub), max_nfev=max_nfev * (u0.size + 1) if any_nav else None, diff_step=1e-3
+    )
     theta = sol.x * sc
     sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
     after = run_pass(d, corr(theta)) if any_nav else nominal
@@ -237,7 +247,13 @@ def without(sf: SetFit, ctx: Context, name: str):
 
 def as_fit(sf: SetFit) -> Fit:
     """The joint fit in the single-candidate form the report reads."""
-    f = Fit("+".join(sf.names), "set", np.concatenate([sf.theta[n] for n in sf.names]),
-            np.concatenate([sf.sigma[n] for n in sf.names]), 0.0, 0.0)
+    f = Fit(
+        "+".join(sf.names),
+        "set",
+        np.concatenate([sf.theta[n] for n in sf.names]),
+        np.concatenate([sf.sigma[n] for n in sf.names]),
+        0.0,
+        0.0,
+    )
     f.after_nav, f.after_dyn, f.dll_train, f.confirmed = sf.after_nav, sf.after_dyn, sf.dll_train, True
     return f

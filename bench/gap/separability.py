@@ -21,6 +21,7 @@ delta2 >= (2 z_0.95)^2 = 10.8. Below that the data cannot separate the two,
 whatever the diagnoser does, and the manoeuvre that would separate them is
 the candidate's ``separate_by``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,8 +30,15 @@ from bench.gap.attribute import DELTA2_95
 from bench.gap.candidates import candidates_of
 
 
-def separability(seed: int, name: str, effects: dict, duration_s: float, in_library: bool,
-                 scripts: list | None = None, then_scripts: list | None = None) -> dict:
+def separability(
+    seed: int,
+    name: str,
+    effects: dict,
+    duration_s: float,
+    in_library: bool,
+    scripts: list | None = None,
+    then_scripts: list | None = None,
+) -> dict:
     """delta2 of effect ``name`` (parameters ``effects``) in the run of
     ``seed`` against every library candidate; the closest competitor.
     ``scripts``: fly these valve scripts (bench.sim.reality.simulate_runs) instead
@@ -40,8 +48,9 @@ def separability(seed: int, name: str, effects: dict, duration_s: float, in_libr
     return separability_of_logs(log0, log1, name, in_library)
 
 
-def twin_logs(seed: int, effects: dict, duration_s: float, scripts: list | None = None,
-              then_scripts: list | None = None) -> tuple:
+def twin_logs(
+    seed: int, effects: dict, duration_s: float, scripts: list | None = None, then_scripts: list | None = None
+) -> tuple:
     """(log without the effects, log with them): the run of ``seed`` flown
     with ``effects``, and its valve commands replayed open loop without them
     (common random numbers), so the two differ by the effects alone."""
@@ -85,8 +94,13 @@ def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
         r = s - fit(c, s)
         d2[c] = float(r @ r)
     closest = min(d2, key=d2.get) if d2 else None
-    return {"lambda": lam, "delta2": d2, "closest": closest, "delta2_min": d2[closest] if closest else float("nan"),
-            "separable": bool(closest is None or d2[closest] >= DELTA2_95)}
+    return {
+        "lambda": lam,
+        "delta2": d2,
+        "closest": closest,
+        "delta2_min": d2[closest] if closest else float("nan"),
+        "separable": bool(closest is None or d2[closest] >= DELTA2_95),
+    }
 
 
 def _stacked_fit(jac: dict, d, names: list, v: np.ndarray) -> np.ndarray:
@@ -140,14 +154,20 @@ def set_separability_of_logs(log0, log1, true_in: list) -> dict:
     closest = min(d2, key=d2.get) if d2 else None
     r_lib = s - _stacked_fit(jac, d, list(jac), s)
     out_part = float(r_lib @ r_lib)
-    return {"lambda": float(p_true @ p_true), "delta2": d2, "closest": closest,
-            "delta2_min": d2[closest] if closest else float("nan"),
-            "separable": bool(closest is None or d2[closest] >= DELTA2_95),
-            "beyond_library_delta2": out_part, "beyond_library_separable": bool(out_part >= DELTA2_95)}
+    return {
+        "lambda": float(p_true @ p_true),
+        "delta2": d2,
+        "closest": closest,
+        "delta2_min": d2[closest] if closest else float("nan"),
+        "separable": bool(closest is None or d2[closest] >= DELTA2_95),
+        "beyond_library_delta2": out_part,
+        "beyond_library_separable": bool(out_part >= DELTA2_95),
+    }
 
 
-def set_separability(seed: int, effects: dict, true_in: list, duration_s: float,
-                     then_scripts: list | None = None) -> dict:
+def set_separability(
+    seed: int, effects: dict, true_in: list, duration_s: float, then_scripts: list | None = None
+) -> dict:
     """set_separability_of_logs on the run of ``seed`` with ``effects`` and
     the same flight without them (common random numbers)."""
     log0, log1 = twin_logs(seed, effects, duration_s, then_scripts=then_scripts)

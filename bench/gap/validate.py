@@ -19,6 +19,7 @@ by effect and size, false alarms on null runs, "unexplained" on
 out-of-library runs, held-out shrink with the true effect fitted and with a
 wrong one, and the coverage of the fitted parameters' 95 % intervals.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -35,16 +36,34 @@ from bench.runner.runner import new_campaign  # noqa: F401  (re-exported for the
 
 FRACTIONS = {"null": 0.2, "in_library": 0.6, "out_of_library": 0.2}
 SCALES = (1.0, 2.0)
-USER_CONFIG_KEYS = ("orbit_radius_m", "dt_imu_s", "accel_sigma_mps2", "gyro_sigma_rps", "pose_period_s", "noise",
-                    "vehicle", "gate_chi2")
+USER_CONFIG_KEYS = (
+    "orbit_radius_m",
+    "dt_imu_s",
+    "accel_sigma_mps2",
+    "gyro_sigma_rps",
+    "pose_period_s",
+    "noise",
+    "vehicle",
+    "gate_chi2",
+)
 # Effects whose simulated parameters are the diagnoser's parameters (same
 # definition and sign), so the fitted intervals can be scored.
-SAME_PARAMETERS = ("accel_bias", "gyro_bias", "gyro_scale", "imu_misalignment", "camera_latency",
-                   "camera_lever_arm", "com_offset", "thrust_loss", "mass_depletion")
+SAME_PARAMETERS = (
+    "accel_bias",
+    "gyro_bias",
+    "gyro_scale",
+    "imu_misalignment",
+    "camera_latency",
+    "camera_lever_arm",
+    "com_offset",
+    "thrust_loss",
+    "mass_depletion",
+)
 
 
-def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str | None, prereg: dict,
-                        label: str) -> tuple:
+def sized_and_diagnosed(
+    campaign, drawn: list, size_fn, run_fn, shared, out: str | None, prereg: dict, label: str
+) -> tuple:
     """The two stages of a blind validation through ``campaign``
     (bench/runner/runner.py): each drawn run's size, the key hashes
     written to ``<out>.prereg.json``, then each run's diagnosis. Returns
@@ -69,9 +88,14 @@ def sized_and_diagnosed(campaign, drawn: list, size_fn, run_fn, shared, out: str
     done = [i for i, (k, a) in enumerate(zip(keys, answers)) if k is not None and a is not None]
     if not done:
         raise ValueError("no finished runs to score" + (f" ({campaign.store.path})" if campaign.store.path else ""))
-    info = {"runs_drawn": len(drawn), "runs_scored": len(done), "failed_runs": failures(sized) + failures(diagnosed),
-            "missing_runs": sorted(set(missing(sized)) | set(i for i in missing(diagnosed) if keys[i] is not None)),
-            "store": None if campaign.store.path is None else str(campaign.store.path), "where": campaign.where()}
+    info = {
+        "runs_drawn": len(drawn),
+        "runs_scored": len(done),
+        "failed_runs": failures(sized) + failures(diagnosed),
+        "missing_runs": sorted(set(missing(sized)) | set(i for i in missing(diagnosed) if keys[i] is not None)),
+        "store": None if campaign.store.path is None else str(campaign.store.path),
+        "where": campaign.where(),
+    }
     return [keys[i] for i in done], [answers[i] for i in done], hashes, info
 
 
@@ -103,8 +127,17 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     for run, j in enumerate(order):
         cat, eff, scale = plan[j]
         unit = None if eff is None else [float(x) for x in EFFECTS[eff].draw_fn(rng, 1.0)]
-        keys.append({"run": run, "seed": int(rng.integers(0, 2**31)), "category": cat, "effect": eff,
-                     "scale": scale, "unit": unit, "effects": {}})
+        keys.append(
+            {
+                "run": run,
+                "seed": int(rng.integers(0, 2**31)),
+                "category": cat,
+                "effect": eff,
+                "scale": scale,
+                "unit": unit,
+                "effects": {},
+            }
+        )
         if manoeuvres != "docking":  # keys of docking-only campaigns hash as they always did
             keys[-1]["manoeuvres"] = manoeuvres
     return keys
@@ -123,8 +156,15 @@ def _size_one(key, run_ctx):
     # The largest size that is physical on the bench inspector (its lever
     # arms and its valves' mass flow).
     spec = replace(EFFECTS[key["effect"]], max_size=max_size_for(key["effect"], resolve(None)))
-    md = min_detectable_size(key["seed"], key["effect"], key["unit"], duration_s, calibration,
-                             then_scripts=then_scripts(key), max_size=spec.max_size)
+    md = min_detectable_size(
+        key["seed"],
+        key["effect"],
+        key["unit"],
+        duration_s,
+        calibration,
+        then_scripts=then_scripts(key),
+        max_size=spec.max_size,
+    )
     key["min_detectable"] = md["size"]
     key["detectable"] = md["detectable"]
     key["lambda_at_min_detectable"] = md.get("lambda_at_size")
@@ -143,8 +183,9 @@ def simulate(key: dict, duration_s: float):
     if reality_available():
         from bench.sim.reality import simulate_log_with_key
 
-        log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,
-                                       then_scripts=then_scripts(key))
+        log, _ = simulate_log_with_key(
+            key["seed"], key["effects"], duration_s=duration_s, with_truth=False, then_scripts=then_scripts(key)
+        )
         return log
     if then_scripts(key) is not None:
         raise ValueError("a characterisation needs bench.sim.reality")
@@ -196,8 +237,12 @@ def forced_fit(internal: dict, name: str) -> dict:
         return {"theta": f.theta.tolist(), "sigma": f.sigma.tolist(), "shrink": float("nan"), "measurable": False}
     confirm(internal["ctx"], f)
     sh = internal["held_shrink"](f.after_nav, f.after_dyn)
-    return {"theta": f.theta.tolist(), "sigma": f.sigma.tolist(), "shrink": sh["fraction"],
-            "measurable": sh["measurable"]}
+    return {
+        "theta": f.theta.tolist(),
+        "sigma": f.sigma.tolist(),
+        "shrink": sh["fraction"],
+        "measurable": sh["measurable"],
+    }
 
 
 def _run_one(key, run_ctx):
@@ -210,13 +255,19 @@ def _run_one(key, run_ctx):
     t_sim = time.time() - t0
     res = diagnose(log, calibration=calibration)
     pub = public(res)
-    out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"],
-           "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
-           "ranking": [r["effect"] for r in pub["attribution"]],
-           "shrink_best": pub["shrink_heldout"]["fraction"] if pub["shrink_heldout"] else None,
-           "map_max_abs_z": pub["statistics"]["map_max_abs_z"], "screen_logp_max": pub["statistics"]["screen_logp_max"],
-           "screen_top": pub["screening"][0]["effect"] if pub["screening"] else None,
-           "t_sim_s": t_sim, "t_diagnose_s": pub["elapsed_s"]}
+    out = {
+        "run": key["run"],
+        "gap_detected": pub["gap_detected"],
+        "verdict": pub["verdict"],
+        "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
+        "ranking": [r["effect"] for r in pub["attribution"]],
+        "shrink_best": pub["shrink_heldout"]["fraction"] if pub["shrink_heldout"] else None,
+        "map_max_abs_z": pub["statistics"]["map_max_abs_z"],
+        "screen_logp_max": pub["statistics"]["screen_logp_max"],
+        "screen_top": pub["screening"][0]["effect"] if pub["screening"] else None,
+        "t_sim_s": t_sim,
+        "t_diagnose_s": pub["elapsed_s"],
+    }
     # Scoring fits (after the answer is frozen): the true effect and a wrong one.
     it = res["_internal"]
     eff = key["effect"]
@@ -230,8 +281,14 @@ def _run_one(key, run_ctx):
         # Could this run's data tell its effect from each candidate at all?
         from bench.gap.separability import separability
 
-        sep = separability(key["seed"], eff, key["effects"], duration_s, key["category"] == "in_library",
-                           then_scripts=then_scripts(key))
+        sep = separability(
+            key["seed"],
+            eff,
+            key["effects"],
+            duration_s,
+            key["category"] == "in_library",
+            then_scripts=then_scripts(key),
+        )
         out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable")}
     return out
 
@@ -267,9 +324,13 @@ def score(keys: list, answers: list) -> dict:
     beyond = [(k, by[k["run"]]) for k in keys if k["effect"] is not None and not k.get("detectable", True)]
     outl = [by[k["run"]] for k in keys if k["category"] == "out_of_library" and k.get("detectable", True)]
     inl = [(k, by[k["run"]]) for k in keys if k["category"] == "in_library" and k.get("detectable", True)]
-    res = {"runs": len(keys), "confusion": confusion,
-           "false_alarm_rate": float(np.mean([a["gap_detected"] for a in null])) if null else None,
-           "n_null": len(null), "beyond_detection_limit": _beyond_limit(beyond)}
+    res = {
+        "runs": len(keys),
+        "confusion": confusion,
+        "false_alarm_rate": float(np.mean([a["gap_detected"] for a in null])) if null else None,
+        "n_null": len(null),
+        "beyond_detection_limit": _beyond_limit(beyond),
+    }
     if outl:
         res["out_of_library"] = _out_of_library(outl)
     res["in_library_by_scale"] = _by_scale(inl)
@@ -285,13 +346,19 @@ def score(keys: list, answers: list) -> dict:
     # Shrink is scored where the held-out deficit stands out of its null spread.
     true_sh = [a["true_fit"]["shrink"] for _, a in inl if "true_fit" in a and a["true_fit"].get("measurable")]
     wrong_sh = [a["wrong_fit"]["shrink"] for _, a in inl if "wrong_fit" in a and a["wrong_fit"].get("measurable")]
-    res["shrink_heldout"] = {"true_effect_median": float(np.median(true_sh)) if true_sh else None, "n_true": len(true_sh),
-                             "wrong_effect_median": float(np.median(wrong_sh)) if wrong_sh else None, "n_wrong": len(wrong_sh),
-                             "n_in_library": len(inl)}
+    res["shrink_heldout"] = {
+        "true_effect_median": float(np.median(true_sh)) if true_sh else None,
+        "n_true": len(true_sh),
+        "wrong_effect_median": float(np.median(wrong_sh)) if wrong_sh else None,
+        "n_wrong": len(wrong_sh),
+        "n_in_library": len(inl),
+    }
     res["interval_coverage_95"] = _coverage(inl)
-    res["timing_s"] = {"simulate_median": float(np.median([a["t_sim_s"] for a in answers])),
-                       "diagnose_median": float(np.median([a["t_diagnose_s"] for a in answers])),
-                       "diagnose_max": float(np.max([a["t_diagnose_s"] for a in answers]))}
+    res["timing_s"] = {
+        "simulate_median": float(np.median([a["t_sim_s"] for a in answers])),
+        "diagnose_median": float(np.median([a["t_diagnose_s"] for a in answers])),
+        "diagnose_max": float(np.max([a["t_diagnose_s"] for a in answers])),
+    }
     return res
 
 
@@ -311,9 +378,12 @@ def _out_of_library(outl: list) -> dict:
         "n": len(outl),
         "unexplained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "unexplained" for a in outl])),
         "not_detected_rate": float(np.mean([not a["gap_detected"] for a in outl])),
-        "confident_misattribution_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "explained" for a in outl])),
-        "partly_explained_rate": float(np.mean([a["gap_detected"] and a["verdict"] == "partly_explained"
-                                                for a in outl])),
+        "confident_misattribution_rate": float(
+            np.mean([a["gap_detected"] and a["verdict"] == "explained" for a in outl])
+        ),
+        "partly_explained_rate": float(
+            np.mean([a["gap_detected"] and a["verdict"] == "partly_explained" for a in outl])
+        ),
     }
 
 
@@ -322,8 +392,11 @@ def _by_scale(inl: list) -> dict:
     for s in SCALES:
         sel = [(k, a) for k, a in inl if k["scale"] == s]
         if sel:
-            by_scale[f"{s:g}x"] = {"n": len(sel), "detection": float(np.mean([a["gap_detected"] for _, a in sel])),
-                                   "top1": float(np.mean([_top1(k, a) for k, a in sel]))}
+            by_scale[f"{s:g}x"] = {
+                "n": len(sel),
+                "detection": float(np.mean([a["gap_detected"] for _, a in sel])),
+                "top1": float(np.mean([_top1(k, a) for k, a in sel])),
+            }
     return by_scale
 
 
@@ -338,12 +411,16 @@ def _by_scale_separable(inl: list) -> dict:
         nsel = [(k, a) for k, a in inl if k["scale"] == s and a.get("separability", {}).get("separable") is False]
         if sel or nsel:
             sep_scale[f"{s:g}x"] = {
-                "n_separable": len(sel), "n_not_separable": len(nsel),
+                "n_separable": len(sel),
+                "n_not_separable": len(nsel),
                 "top1_separable": float(np.mean([_top1(k, a) for k, a in sel])) if sel else None,
-                "not_separable_by_effect": {e: sum(1 for k, _ in nsel if k["effect"] == e)
-                                            for e in sorted({k["effect"] for k, _ in nsel})},
-                "closest_when_not_separable": {c: sum(1 for _, a in nsel if a["separability"]["closest"] == c)
-                                               for c in sorted({a["separability"]["closest"] for _, a in nsel})},
+                "not_separable_by_effect": {
+                    e: sum(1 for k, _ in nsel if k["effect"] == e) for e in sorted({k["effect"] for k, _ in nsel})
+                },
+                "closest_when_not_separable": {
+                    c: sum(1 for _, a in nsel if a["separability"]["closest"] == c)
+                    for c in sorted({a["separability"]["closest"] for _, a in nsel})
+                },
             }
     return sep_scale
 
@@ -363,44 +440,92 @@ def _coverage(inl: list) -> dict:
     return {"fraction": inside / total if total else None, "n_parameters": total, "effects": list(SAME_PARAMETERS)}
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, duration_s: float = 120.0,
-                 progress: bool = True, manoeuvres: str = "docking", campaign=None) -> dict:
+def run_campaign(
+    n_runs: int,
+    seed: int,
+    out: str | None,
+    workers: int | None = None,
+    duration_s: float = 120.0,
+    progress: bool = True,
+    manoeuvres: str = "docking",
+    campaign=None,
+) -> dict:
     from bench.gap import null as nullmod
 
     cal = nullmod.load(manoeuvres=manoeuvres)
     if not cal:
-        raise FileNotFoundError(f"no null calibration for {manoeuvres!r} logs "
-                                f"(python -m bench.gap.null --manoeuvres {manoeuvres})")
+        raise FileNotFoundError(
+            f"no null calibration for {manoeuvres!r} logs (python -m bench.gap.null --manoeuvres {manoeuvres})"
+        )
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
     keys, answers, hashes, info = sized_and_diagnosed(
-        campaign, draw_campaign(n_runs, seed, manoeuvres), _size_one, _run_one, (duration_s, cal), out,
-        {"seed": seed, "runs": n_runs, "manoeuvres": manoeuvres}, "validate-gap")
+        campaign,
+        draw_campaign(n_runs, seed, manoeuvres),
+        _size_one,
+        _run_one,
+        (duration_s, cal),
+        out,
+        {"seed": seed, "runs": n_runs, "manoeuvres": manoeuvres},
+        "validate-gap",
+    )
     res = score(keys, answers)
-    res.update({"seed": seed, "duration_s": duration_s, "manoeuvres": manoeuvres, "workers": workers,
-                "elapsed_s": time.time() - t0, "campaign": info,
-                "calibration": {"runs": cal.get("runs"), "false_alarm_rate": cal.get("false_alarm_rate"),
-                                "thresholds": cal.get("thresholds")},
-                "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
-                "command": f"proxops validate-gap --runs {n_runs} --seed {seed} --duration {duration_s:g}"
-                           + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})
+    res.update(
+        {
+            "seed": seed,
+            "duration_s": duration_s,
+            "manoeuvres": manoeuvres,
+            "workers": workers,
+            "elapsed_s": time.time() - t0,
+            "campaign": info,
+            "calibration": {
+                "runs": cal.get("runs"),
+                "false_alarm_rate": cal.get("false_alarm_rate"),
+                "thresholds": cal.get("thresholds"),
+            },
+            "keys_match_preregistration": True,
+            "key_sha256": hashes,
+            "keys": keys,
+            "answers": answers,
+            "command": f"proxops validate-gap --runs {n_runs} --seed {seed} --duration {duration_s:g}"
+            + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else ""),
+        }
+    )
     return res
 
 
 def runs_table(res: dict) -> str:
     """One CSV line per run: the drawn key (after scoring) beside the answer."""
     by = {a["run"]: a for a in res["answers"]}
-    lines = ["run,seed,category,effect,scale,min_detectable,size,detectable,gap_detected,verdict,top1,"
-             "map_max_abs_z,screen_logp_max,true_fit_shrink,wrong_fit_effect,wrong_fit_shrink,"
-             "lambda_at_min_detectable,signature_lambda,closest_candidate,delta2_closest"]
+    lines = [
+        "run,seed,category,effect,scale,min_detectable,size,detectable,gap_detected,verdict,top1,"
+        "map_max_abs_z,screen_logp_max,true_fit_shrink,wrong_fit_effect,wrong_fit_shrink,"
+        "lambda_at_min_detectable,signature_lambda,closest_candidate,delta2_closest"
+    ]
     for k in res["keys"]:
         a = by[k["run"]]
         tf, wf = a.get("true_fit", {}), a.get("wrong_fit", {})
-        vals = [k["run"], k["seed"], k["category"], k["effect"] or "", k["scale"], k.get("min_detectable", ""),
-                k.get("size", ""), k.get("detectable", ""), a["gap_detected"], a["verdict"], a["top1"] or "",
-                f"{a['map_max_abs_z']:.4g}", f"{a['screen_logp_max']:.4g}", tf.get("shrink", ""),
-                wf.get("effect", ""), wf.get("shrink", ""), k.get("lambda_at_min_detectable", ""),
-                a.get("separability", {}).get("lambda", ""), a.get("separability", {}).get("closest", "") or "",
-                a.get("separability", {}).get("delta2_min", "")]
+        vals = [
+            k["run"],
+            k["seed"],
+            k["category"],
+            k["effect"] or "",
+            k["scale"],
+            k.get("min_detectable", ""),
+            k.get("size", ""),
+            k.get("detectable", ""),
+            a["gap_detected"],
+            a["verdict"],
+            a["top1"] or "",
+            f"{a['map_max_abs_z']:.4g}",
+            f"{a['screen_logp_max']:.4g}",
+            tf.get("shrink", ""),
+            wf.get("effect", ""),
+            wf.get("shrink", ""),
+            k.get("lambda_at_min_detectable", ""),
+            a.get("separability", {}).get("lambda", ""),
+            a.get("separability", {}).get("closest", "") or "",
+            a.get("separability", {}).get("delta2_min", ""),
+        ]
         lines.append(",".join(str(v) for v in vals))
     return "\n".join(lines) + "\n"

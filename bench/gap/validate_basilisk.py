@@ -17,6 +17,7 @@ calibration the diagnosis thresholds with (the 12 kg vehicle's, made on the
 bench's plant). A null Basilisk log that the diagnosis flags is therefore a
 disagreement between the engines, scored as a false alarm.
 """
+
 from __future__ import annotations
 
 import time
@@ -31,8 +32,14 @@ def simulate_key(key: dict, effects: dict | None = None):
     from bench.gap.plans import characterisation_plan
 
     desc = vv.description()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=key["seed"]), key["effects"] if effects is None else effects,
-                      seed=key["seed"], clocks=vv.clocks_for(key["seed"]), with_truth=False)
+    log, _ = simulate(
+        desc,
+        characterisation_plan(desc, seed=key["seed"]),
+        key["effects"] if effects is None else effects,
+        seed=key["seed"],
+        clocks=vv.clocks_for(key["seed"]),
+        with_truth=False,
+    )
     if key.get("no_valves"):
         log.streams.pop("valves")
     log.config = {}
@@ -44,8 +51,9 @@ def run_one(key: dict, calibration: dict) -> dict:
     return vv._run_one(key, calibration, simulate_key)
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True,
-                 campaign=None) -> dict:
+def run_campaign(
+    n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True, campaign=None
+) -> dict:
     from bench.basilisk_sim import basilisk_version
     from bench.runner.runner import new_campaign
 
@@ -53,19 +61,40 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = 
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
     keys, answers, hashes, info = sized_and_diagnosed(
-        campaign, vv.draw_campaign(n_runs, seed), vv._size_one, run_one, cal, out,
-        {"seed": seed, "runs": n_runs, "vehicle": vv.VEHICLE, "engine": "basilisk"}, "validate-gap (Basilisk logs)")
+        campaign,
+        vv.draw_campaign(n_runs, seed),
+        vv._size_one,
+        run_one,
+        cal,
+        out,
+        {"seed": seed, "runs": n_runs, "vehicle": vv.VEHICLE, "engine": "basilisk"},
+        "validate-gap (Basilisk logs)",
+    )
     res = score(keys, answers)
     no_valves = [(k, a) for k, a in zip(keys, answers) if k["no_valves"]]
     res["no_valves_stream"] = {
         "n": len(no_valves),
-        "said_dynamics_not_examined": int(sum(any(x.startswith("dynamics") for x in a["not_examined"])
-                                              for _, a in no_valves))}
-    res.update({"seed": seed, "vehicle": vv.VEHICLE, "engine": "basilisk", "basilisk_version": basilisk_version(),
-                "workers": workers, "elapsed_s": time.time() - t0, "campaign": info,
-                "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
-                "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
-                "command": f"proxops validate-gap --engine basilisk --runs {n_runs} --seed {seed}"})
+        "said_dynamics_not_examined": int(
+            sum(any(x.startswith("dynamics") for x in a["not_examined"]) for _, a in no_valves)
+        ),
+    }
+    res.update(
+        {
+            "seed": seed,
+            "vehicle": vv.VEHICLE,
+            "engine": "basilisk",
+            "basilisk_version": basilisk_version(),
+            "workers": workers,
+            "elapsed_s": time.time() - t0,
+            "campaign": info,
+            "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
+            "keys_match_preregistration": True,
+            "key_sha256": hashes,
+            "keys": keys,
+            "answers": answers,
+            "command": f"proxops validate-gap --engine basilisk --runs {n_runs} --seed {seed}",
+        }
+    )
     return res
 
 
@@ -82,15 +111,25 @@ def refly(campaign_result: dict, effect: str, calibration: dict | None = None, p
     for i, (key, before) in enumerate(pairs):
         t0 = time.time()
         after = run_one(key, cal)
-        rows.append({"run": key["run"], "effects": key["effects"], "scale": key["scale"],
-                     "before": {f: before.get(f) for f in ("verdict", "gap_detected", "top1", "map_max_abs_z")},
-                     "after": {f: after.get(f) for f in ("verdict", "gap_detected", "top1", "map_max_abs_z")},
-                     "answer": after})
+        rows.append(
+            {
+                "run": key["run"],
+                "effects": key["effects"],
+                "scale": key["scale"],
+                "before": {f: before.get(f) for f in ("verdict", "gap_detected", "top1", "map_max_abs_z")},
+                "after": {f: after.get(f) for f in ("verdict", "gap_detected", "top1", "map_max_abs_z")},
+                "answer": after,
+            }
+        )
         if progress:
             import sys
 
-            print(f"  run {key['run']} ({i + 1} of {len(pairs)}): {_said(before)} -> {_said(after)}, "
-                  f"{time.time() - t0:.0f} s", file=sys.stderr, flush=True)
+            print(
+                f"  run {key['run']} ({i + 1} of {len(pairs)}): {_said(before)} -> {_said(after)}, "
+                f"{time.time() - t0:.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def counts(which):
         out = {}
@@ -99,8 +138,14 @@ def refly(campaign_result: dict, effect: str, calibration: dict | None = None, p
             out[s] = out.get(s, 0) + 1
         return out
 
-    return {"effect": effect, "seed": campaign_result.get("seed"), "n": len(rows), "before": counts("before"),
-            "after": counts("after"), "runs": rows}
+    return {
+        "effect": effect,
+        "seed": campaign_result.get("seed"),
+        "n": len(rows),
+        "before": counts("before"),
+        "after": counts("after"),
+        "runs": rows,
+    }
 
 
 def _said(answer: dict) -> str:
@@ -114,8 +159,10 @@ def main(argv=None):
 
     from bench.basilisk_sim import basilisk_version
 
-    ap = argparse.ArgumentParser(description="Fly one effect's runs of a finished Basilisk campaign again with the "
-                                             "current engine: the answers before and after")
+    ap = argparse.ArgumentParser(
+        description="Fly one effect's runs of a finished Basilisk campaign again with the "
+        "current engine: the answers before and after"
+    )
     ap.add_argument("what", choices=("refly",))
     ap.add_argument("campaign", help="the campaign's result with keys and answers (--json OUT, or its .full.json.gz)")
     ap.add_argument("--effect", required=True)
@@ -127,8 +174,10 @@ def main(argv=None):
     t0 = time.time()
     res = refly(src, a.effect)
     res.update({"source": a.campaign, "basilisk_version": basilisk_version(), "elapsed_s": time.time() - t0})
-    print(f"{a.effect}, {res['n']} runs of seed {res['seed']}: before {res['before']}, after {res['after']}; "
-          f"{res['elapsed_s']:.0f} s")
+    print(
+        f"{a.effect}, {res['n']} runs of seed {res['seed']}: before {res['before']}, after {res['after']}; "
+        f"{res['elapsed_s']:.0f} s"
+    )
     if a.json:
         from bench.report import write_json
 

@@ -20,6 +20,7 @@ Scores:
 A run with a member that no sensible size makes detectable in it is scored
 apart.
 """
+
 from __future__ import annotations
 
 import sys
@@ -37,8 +38,9 @@ def draw_mixtures(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
     from bench.sim.effects import EFFECTS
 
     rng = np.random.default_rng(seed)
-    inlib = sorted(n for n, s in EFFECTS.items() if s.in_library and not s.needs_images and s.detectable
-                   and not s.needs_truth)
+    inlib = sorted(
+        n for n, s in EFFECTS.items() if s.in_library and not s.needs_images and s.detectable and not s.needs_truth
+    )
     outlib = sorted(n for n, s in EFFECTS.items() if not s.in_library and not s.needs_images)
     keys = []
     for run in range(n_runs):
@@ -50,10 +52,18 @@ def draw_mixtures(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
             effs = list(rng.choice(inlib, 3, replace=False))
         else:
             effs = [str(rng.choice(inlib)), str(rng.choice(outlib))]
-        keys.append({"run": run, "seed": int(rng.integers(0, 2**31)), "category": "mixture", "kind": kind,
-                     "scale": scale, "members": [str(e) for e in effs],
-                     "units": {str(e): [float(x) for x in EFFECTS[e].draw_fn(rng, 1.0)] for e in effs},
-                     "effects": {}})
+        keys.append(
+            {
+                "run": run,
+                "seed": int(rng.integers(0, 2**31)),
+                "category": "mixture",
+                "kind": kind,
+                "scale": scale,
+                "members": [str(e) for e in effs],
+                "units": {str(e): [float(x) for x in EFFECTS[e].draw_fn(rng, 1.0)] for e in effs},
+                "effects": {},
+            }
+        )
     if manoeuvres != "docking":  # (docking keys hash as they did before manoeuvres were a choice)
         keys = [dict(k, manoeuvres=manoeuvres) for k in keys]
     order = rng.permutation(n_runs)
@@ -73,8 +83,15 @@ def _size_one(key, run_ctx):
     key["min_detectable"], key["effects"] = {}, {}
     for e in key["members"]:
         spec = replace(EFFECTS[e], max_size=max_size_for(e, resolve(None)))
-        md = min_detectable_size(key["seed"], e, key["units"][e], duration_s, calibration,
-                                 then_scripts=then_scripts(key), max_size=spec.max_size)
+        md = min_detectable_size(
+            key["seed"],
+            e,
+            key["units"][e],
+            duration_s,
+            calibration,
+            then_scripts=then_scripts(key),
+            max_size=spec.max_size,
+        )
         size = key["scale"] * md["size"] if md["detectable"] else spec.max_size
         size = float(min(size, spec.max_size))
         key["min_detectable"][e] = md["size"] if md["detectable"] else None
@@ -92,18 +109,28 @@ def _run_one(key, run_ctx):
     from bench.sim.effects import EFFECTS
     from bench.sim.reality import simulate_log_with_key
 
-    log, _ = simulate_log_with_key(key["seed"], key["effects"], duration_s=duration_s, with_truth=False,
-                                   then_scripts=then_scripts(key))
+    log, _ = simulate_log_with_key(
+        key["seed"], key["effects"], duration_s=duration_s, with_truth=False, then_scripts=then_scripts(key)
+    )
     res = diagnose(blind(log), calibration=calibration)
     pub = public(res)
     named = [m["effect"] for m in pub["effects"]] if pub["gap_detected"] else []
     truth_in = sorted(e for e in key["members"] if EFFECTS[e].in_library)
     # An ambiguous answer names the sets the data cannot tell apart: the first
     # is the answer, the others its alternatives.
-    alternatives = [sorted(a["set"]) if "set" in a else [a["effect"]] for a in pub["ambiguous_with"]] \
-        if pub["verdict"] == "ambiguous" else []
-    out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"], "named": named,
-           "alternatives": alternatives, "t_diagnose_s": pub["elapsed_s"]}
+    alternatives = (
+        [sorted(a["set"]) if "set" in a else [a["effect"]] for a in pub["ambiguous_with"]]
+        if pub["verdict"] == "ambiguous"
+        else []
+    )
+    out = {
+        "run": key["run"],
+        "gap_detected": pub["gap_detected"],
+        "verdict": pub["verdict"],
+        "named": named,
+        "alternatives": alternatives,
+        "t_diagnose_s": pub["elapsed_s"],
+    }
     it = res["_internal"]
     ctx = it["ctx"]
     fits = {f.name: f for f in it["fits"]}
@@ -118,8 +145,10 @@ def _run_one(key, run_ctx):
     from bench.gap.separability import set_separability
 
     sep = set_separability(key["seed"], key["effects"], truth_in, duration_s, then_scripts=then_scripts(key))
-    out["separability"] = {k: sep.get(k) for k in ("lambda", "closest", "delta2_min", "separable",
-                                                    "beyond_library_delta2", "beyond_library_separable")}
+    out["separability"] = {
+        k: sep.get(k)
+        for k in ("lambda", "closest", "delta2_min", "separable", "beyond_library_delta2", "beyond_library_separable")
+    }
     return out
 
 
@@ -129,7 +158,8 @@ def _separable(key: dict, answer: dict) -> bool:
     (answers scored before separability was measured count as separable)."""
     sep = answer.get("separability") or {}
     return bool(sep.get("separable", True)) and (
-        key["kind"] != "in+out" or bool(sep.get("beyond_library_separable", True)))
+        key["kind"] != "in+out" or bool(sep.get("beyond_library_separable", True))
+    )
 
 
 def _scores(sel: list, kind: str) -> dict:
@@ -150,10 +180,17 @@ def _scores(sel: list, kind: str) -> dict:
             remainder.append(a["gap_detected"] and a["verdict"] in ("unexplained", "partly_explained"))
     if not sel:
         return {"n": 0}
-    return {"n": len(sel), "exact_set": float(np.mean(exact)), "exact_set_among_named": float(np.mean(among)),
-            "named_are_real": float(np.mean(real)),
-            **({"out_of_library_left_unexplained": float(np.mean(remainder)), "n_in_out": len(remainder)}
-               if remainder else {})}
+    return {
+        "n": len(sel),
+        "exact_set": float(np.mean(exact)),
+        "exact_set_among_named": float(np.mean(among)),
+        "named_are_real": float(np.mean(real)),
+        **(
+            {"out_of_library_left_unexplained": float(np.mean(remainder)), "n_in_out": len(remainder)}
+            if remainder
+            else {}
+        ),
+    }
 
 
 def score_mixtures(keys: list, answers: list) -> dict:
@@ -167,13 +204,15 @@ def score_mixtures(keys: list, answers: list) -> dict:
             if not sel:
                 continue
             row = _scores(sel, kind)
-            row.update({f"{m}_separable": v for m, v in _scores(
-                [(k, a) for k, a in sel if _separable(k, a)], kind).items()})
+            row.update(
+                {f"{m}_separable": v for m, v in _scores([(k, a) for k, a in sel if _separable(k, a)], kind).items()}
+            )
             res["by_kind_scale"][f"{kind} {s:g}x"] = row
     for s in SCALES:
         res[f"at_{s:g}x"] = _scores([(k, by[k["run"]]) for k in keys if k["scale"] == s], "all")
         res[f"at_{s:g}x"]["separable"] = _scores(
-            [(k, by[k["run"]]) for k in keys if k["scale"] == s and _separable(k, by[k["run"]])], "all")
+            [(k, by[k["run"]]) for k in keys if k["scale"] == s and _separable(k, by[k["run"]])], "all"
+        )
     # The joint shrink of the true set measures how much of the gap the set
     # explains; in an in + out run the out-of-library part is not the set's
     # to explain, so those runs are reported apart.
@@ -181,10 +220,15 @@ def score_mixtures(keys: list, answers: list) -> dict:
     res["true_set_shrink"] = {}
     for label, kinds in (("in-library sets", ("pair", "triple")), ("in + out", ("in+out",))):
         for s in SCALES:
-            sh = [a["true_set_shrink"] for a in answers if a.get("true_set_measurable") and a["run"] in scored
-                  and scored[a["run"]]["kind"] in kinds and scored[a["run"]]["scale"] == s]
-            res["true_set_shrink"][f"{label} {s:g}x"] = {"median": float(np.median(sh)) if sh else None,
-                                                         "n": len(sh)}
+            sh = [
+                a["true_set_shrink"]
+                for a in answers
+                if a.get("true_set_measurable")
+                and a["run"] in scored
+                and scored[a["run"]]["kind"] in kinds
+                and scored[a["run"]]["scale"] == s
+            ]
+            res["true_set_shrink"][f"{label} {s:g}x"] = {"median": float(np.median(sh)) if sh else None, "n": len(sh)}
     sh = [a["true_set_shrink"] for a in answers if a.get("true_set_measurable") and a["run"] in scored]
     res["true_set_shrink_median"] = float(np.median(sh)) if sh else None
     res["n_shrink_measurable"] = len(sh)
@@ -202,44 +246,76 @@ def summary_lines(res: dict) -> list:
     separate their set (bench/gap/separability.py set_separability)."""
     lines = []
     for k, v in res["by_kind_scale"].items():
-        extra = (f", out-of-library part left as a remainder {_pct(v, 'out_of_library_left_unexplained')}"
-                 if "out_of_library_left_unexplained" in v else "")
-        lines.append(f"{k}: exact set {_pct(v, 'exact_set')}, named are real {_pct(v, 'named_are_real')}{extra} "
-                     f"(n = {v['n']}; separable: exact {_pct(v, 'exact_set_separable')} of "
-                     f"{v.get('n_separable', 0)})")
+        extra = (
+            f", out-of-library part left as a remainder {_pct(v, 'out_of_library_left_unexplained')}"
+            if "out_of_library_left_unexplained" in v
+            else ""
+        )
+        lines.append(
+            f"{k}: exact set {_pct(v, 'exact_set')}, named are real {_pct(v, 'named_are_real')}{extra} "
+            f"(n = {v['n']}; separable: exact {_pct(v, 'exact_set_separable')} of "
+            f"{v.get('n_separable', 0)})"
+        )
     for s in SCALES:
         a = res.get(f"at_{s:g}x")
         if not a or not a.get("n"):
             continue
         sep = a["separable"]
-        lines.append(f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')} (among the sets an ambiguous "
-                     f"answer names: {_pct(a, 'exact_set_among_named')}), named are real "
-                     f"{_pct(a, 'named_are_real')}, remainder {_pct(a, 'out_of_library_left_unexplained')} "
-                     f"(n = {a['n']}); where the data separate the set: {_pct(sep, 'exact_set')}, "
-                     f"{_pct(sep, 'named_are_real')}, {_pct(sep, 'out_of_library_left_unexplained')} "
-                     f"(n = {sep.get('n', 0)})")
+        lines.append(
+            f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')} (among the sets an ambiguous "
+            f"answer names: {_pct(a, 'exact_set_among_named')}), named are real "
+            f"{_pct(a, 'named_are_real')}, remainder {_pct(a, 'out_of_library_left_unexplained')} "
+            f"(n = {a['n']}); where the data separate the set: {_pct(sep, 'exact_set')}, "
+            f"{_pct(sep, 'named_are_real')}, {_pct(sep, 'out_of_library_left_unexplained')} "
+            f"(n = {sep.get('n', 0)})"
+        )
     for k, v in res.get("true_set_shrink", {}).items():
         med = "-" if v["median"] is None else f"{v['median']:.2f}"
         lines.append(f"held-out shrink of the true set refitted jointly, {k}: median {med} (n = {v['n']})")
     return lines
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, duration_s: float = 120.0,
-                 progress: bool = True, campaign=None, manoeuvres: str = "docking") -> dict:
+def run_campaign(
+    n_runs: int,
+    seed: int,
+    out: str | None,
+    workers: int | None = None,
+    duration_s: float = 120.0,
+    progress: bool = True,
+    campaign=None,
+    manoeuvres: str = "docking",
+) -> dict:
     from bench.gap import null as nullmod
 
     cal = nullmod.load(manoeuvres=manoeuvres)
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
     keys, answers, hashes, info = sized_and_diagnosed(
-        campaign, draw_mixtures(n_runs, seed, manoeuvres), _size_one, _run_one, (duration_s, cal), out,
-        {"seed": seed, "runs": n_runs, "mixtures": True, "manoeuvres": manoeuvres}, "validate-gap mixtures")
+        campaign,
+        draw_mixtures(n_runs, seed, manoeuvres),
+        _size_one,
+        _run_one,
+        (duration_s, cal),
+        out,
+        {"seed": seed, "runs": n_runs, "mixtures": True, "manoeuvres": manoeuvres},
+        "validate-gap mixtures",
+    )
     res = score_mixtures(keys, answers)
-    res.update({"seed": seed, "duration_s": duration_s, "workers": workers, "elapsed_s": time.time() - t0,
-                "campaign": info, "keys_match_preregistration": True, "keys": keys, "answers": answers,
-                "manoeuvres": manoeuvres,
-                "command": f"proxops validate-gap --mixtures --runs {n_runs} --seed {seed}"
-                           + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else "")})
+    res.update(
+        {
+            "seed": seed,
+            "duration_s": duration_s,
+            "workers": workers,
+            "elapsed_s": time.time() - t0,
+            "campaign": info,
+            "keys_match_preregistration": True,
+            "keys": keys,
+            "answers": answers,
+            "manoeuvres": manoeuvres,
+            "command": f"proxops validate-gap --mixtures --runs {n_runs} --seed {seed}"
+            + (f" --manoeuvres {manoeuvres}" if manoeuvres != "docking" else ""),
+        }
+    )
     return res
 
 
@@ -248,13 +324,19 @@ def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = 
 # bench.gap.validate_mixtures pairs; docs/results/2026-11-26-several-effects.md).
 _RNG_TILT = np.random.default_rng(5)
 PAIRS = {
-    "thrust loss on one valve + gyro bias": {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],
-                                             "gyro_bias": [2e-3, -1.5e-3, 1e-3]},
+    "thrust loss on one valve + gyro bias": {
+        "thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],
+        "gyro_bias": [2e-3, -1.5e-3, 1e-3],
+    },
     "centre-of-mass offset + camera latency": {"com_offset": [0.01, -0.008, 0.006], "camera_latency": [1.0]},
-    "thruster misalignment + accelerometer bias": {"thruster_misalignment": (0.03 * _RNG_TILT.normal(size=24)).tolist(),
-                                                   "accel_bias": [8e-4, -6e-4, 4e-4]},
-    "thrust loss on one valve + flexible panel": {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],
-                                                  "flex_mode": [0.3, 0.012]},
+    "thruster misalignment + accelerometer bias": {
+        "thruster_misalignment": (0.03 * _RNG_TILT.normal(size=24)).tolist(),
+        "accel_bias": [8e-4, -6e-4, 4e-4],
+    },
+    "thrust loss on one valve + flexible panel": {
+        "thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0],
+        "flex_mode": [0.3, 0.012],
+    },
 }
 
 
@@ -268,8 +350,12 @@ def _pair_answer(effects: dict, seed: int) -> dict:
     pub = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres=key["manoeuvres"])))
     es = pub.get("effect_set") or {}
     shares = {m["effect"]: m.get("adds_shrink") for m in es.get("members", [])}
-    return {"verdict": pub["verdict"], "named": [m["effect"] for m in pub["effects"]], "shares": shares,
-            "shrink": (es.get("shrink_heldout") or {}).get("fraction")}
+    return {
+        "verdict": pub["verdict"],
+        "named": [m["effect"] for m in pub["effects"]],
+        "shares": shares,
+        "shrink": (es.get("shrink_heldout") or {}).get("fraction"),
+    }
 
 
 def pairs(seed: int = 11) -> list:
@@ -278,8 +364,11 @@ def pairs(seed: int = 11) -> list:
     for name, eff in PAIRS.items():
         alone = {e: _pair_answer({e: v}, seed) for e, v in eff.items()}
         out.append({"pair": name, "effects": eff, "alone": alone, "together": _pair_answer(eff, seed)})
-        print(f"{name}: alone {[a['verdict'] + ' ' + '+'.join(a['named']) for a in alone.values()]}; together "
-              f"{out[-1]['together']['verdict']} {'+'.join(out[-1]['together']['named'])}", file=sys.stderr)
+        print(
+            f"{name}: alone {[a['verdict'] + ' ' + '+'.join(a['named']) for a in alone.values()]}; together "
+            f"{out[-1]['together']['verdict']} {'+'.join(out[-1]['together']['named'])}",
+            file=sys.stderr,
+        )
     return out
 
 

@@ -21,6 +21,7 @@ any other vehicle or sensors.
 Effects that the vehicle simulator does not produce (a drifting IMU clock,
 LED occlusion, a lens) are not drawn.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,9 +35,21 @@ from bench.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and
 VEHICLE = "12kg"
 CAL_PATH = Path(__file__).resolve().parent / "data" / "null_calibration_12kg.json"
 NO_VALVES_FRACTION = 0.1
-IN_LIBRARY = ("accel_bias", "camera_latency", "camera_lever_arm", "com_offset", "differential_drag",
-              "differential_j2", "gyro_bias", "gyro_scale", "host_eccentricity", "imu_misalignment",
-              "mass_depletion", "thrust_loss", "thruster_misalignment")
+IN_LIBRARY = (
+    "accel_bias",
+    "camera_latency",
+    "camera_lever_arm",
+    "com_offset",
+    "differential_drag",
+    "differential_j2",
+    "gyro_bias",
+    "gyro_scale",
+    "host_eccentricity",
+    "imu_misalignment",
+    "mass_depletion",
+    "thrust_loss",
+    "thruster_misalignment",
+)
 OUT_OF_LIBRARY = ("flex_mode", "fuel_slosh")
 
 
@@ -50,8 +63,13 @@ def clocks_for(seed: int):
     from bench.sim.vehicle_sim import Clocks
 
     rng = np.random.default_rng([int(seed), 0xC10C])
-    return Clocks(imu_jitter_s=0.05 * 0.05, imu_drop_frac=0.02, pose_phase_s=float(rng.uniform(0.05, 0.95)),
-                  pose_jitter_s=0.005, pose_delay_s=0.2)
+    return Clocks(
+        imu_jitter_s=0.05 * 0.05,
+        imu_drop_frac=0.02,
+        pose_phase_s=float(rng.uniform(0.05, 0.95)),
+        pose_jitter_s=0.005,
+        pose_delay_s=0.2,
+    )
 
 
 def unit_draw(rng, name: str, k: int) -> list:
@@ -74,8 +92,14 @@ def simulate_key(key: dict, effects: dict | None = None):
     from bench.sim.vehicle_sim import simulate
 
     desc = description()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=key["seed"]), key["effects"] if effects is None else effects,
-                      seed=key["seed"], clocks=clocks_for(key["seed"]), with_truth=False)
+    log, _ = simulate(
+        desc,
+        characterisation_plan(desc, seed=key["seed"]),
+        key["effects"] if effects is None else effects,
+        seed=key["seed"],
+        clocks=clocks_for(key["seed"]),
+        with_truth=False,
+    )
     if key.get("no_valves"):
         log.streams.pop("valves")
     log.config = {}
@@ -90,15 +114,27 @@ def draw_campaign(n_runs: int, seed: int) -> list:
     n_in = n_runs - n_null - n_out
     plan = [("null", None, 0.0)] * n_null
     plan += [("in_library", IN_LIBRARY[i % len(IN_LIBRARY)], SCALES[(i // len(IN_LIBRARY)) % 2]) for i in range(n_in)]
-    plan += [("out_of_library", OUT_OF_LIBRARY[i % len(OUT_OF_LIBRARY)], SCALES[(i // len(OUT_OF_LIBRARY)) % 2])
-             for i in range(n_out)]
+    plan += [
+        ("out_of_library", OUT_OF_LIBRARY[i % len(OUT_OF_LIBRARY)], SCALES[(i // len(OUT_OF_LIBRARY)) % 2])
+        for i in range(n_out)
+    ]
     keys = []
     for run, j in enumerate(rng.permutation(len(plan))):
         cat, eff, scale = plan[j]
         unit = None if eff is None else unit_draw(rng, eff, k)
-        keys.append({"run": run, "seed": int(rng.integers(0, 2**31)), "category": cat, "effect": eff, "scale": scale,
-                     "unit": unit, "effects": {}, "vehicle": VEHICLE,
-                     "no_valves": bool(rng.uniform() < NO_VALVES_FRACTION)})
+        keys.append(
+            {
+                "run": run,
+                "seed": int(rng.integers(0, 2**31)),
+                "category": cat,
+                "effect": eff,
+                "scale": scale,
+                "unit": unit,
+                "effects": {},
+                "vehicle": VEHICLE,
+                "no_valves": bool(rng.uniform() < NO_VALVES_FRACTION),
+            }
+        )
     return keys
 
 
@@ -140,11 +176,18 @@ def _run_one(key, calibration, simulate=None):
     t_sim = time.time() - t0
     res = diagnose(log, calibration=calibration, calibration_source="the 12 kg vehicle's null calibration")
     pub = public(res)
-    out = {"run": key["run"], "gap_detected": pub["gap_detected"], "verdict": pub["verdict"],
-           "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
-           "ranking": [r["effect"] for r in pub["attribution"]],
-           "map_max_abs_z": pub["statistics"]["map_max_abs_z"], "screen_logp_max": pub["statistics"]["screen_logp_max"],
-           "not_examined": pub["examined"]["not_examined"], "t_sim_s": t_sim, "t_diagnose_s": pub["elapsed_s"]}
+    out = {
+        "run": key["run"],
+        "gap_detected": pub["gap_detected"],
+        "verdict": pub["verdict"],
+        "top1": pub["attribution"][0]["effect"] if pub["attribution"] else None,
+        "ranking": [r["effect"] for r in pub["attribution"]],
+        "map_max_abs_z": pub["statistics"]["map_max_abs_z"],
+        "screen_logp_max": pub["statistics"]["screen_logp_max"],
+        "not_examined": pub["examined"]["not_examined"],
+        "t_sim_s": t_sim,
+        "t_diagnose_s": pub["elapsed_s"],
+    }
     it = res["_internal"]
     eff = key["effect"]
     cands = candidates_of(it["d"])
@@ -161,31 +204,55 @@ def _run_one(key, calibration, simulate=None):
 
 def load_calibration() -> dict:
     if not CAL_PATH.exists():
-        raise FileNotFoundError(f"no null calibration for the {VEHICLE} vehicle "
-                                f"(python -m bench.gap.validate_vehicle calibrate)")
+        raise FileNotFoundError(
+            f"no null calibration for the {VEHICLE} vehicle (python -m bench.gap.validate_vehicle calibrate)"
+        )
     return json.loads(CAL_PATH.read_text())
 
 
-def run_campaign(n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True,
-                 campaign=None) -> dict:
+def run_campaign(
+    n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True, campaign=None
+) -> dict:
     cal = load_calibration()
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
     keys, answers, hashes, info = sized_and_diagnosed(
-        campaign, draw_campaign(n_runs, seed), _size_one, _run_one, cal, out,
-        {"seed": seed, "runs": n_runs, "vehicle": VEHICLE}, "validate-gap")
+        campaign,
+        draw_campaign(n_runs, seed),
+        _size_one,
+        _run_one,
+        cal,
+        out,
+        {"seed": seed, "runs": n_runs, "vehicle": VEHICLE},
+        "validate-gap",
+    )
     res = score(keys, answers)
     no_valves = [(k, a) for k, a in zip(keys, answers) if k["no_valves"]]
     res["no_valves_stream"] = {
         "n": len(no_valves),
-        "said_dynamics_not_examined": int(sum(any(x.startswith("dynamics") for x in a["not_examined"])
-                                              for _, a in no_valves)),
-        "answers": [{"effect": k["effect"], "verdict": a["verdict"] if a["gap_detected"] else "no_gap",
-                     "top1": a["top1"]} for k, a in no_valves]}
-    res.update({"seed": seed, "vehicle": VEHICLE, "workers": workers, "elapsed_s": time.time() - t0,
-                "campaign": info, "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
-                "keys_match_preregistration": True, "key_sha256": hashes, "keys": keys, "answers": answers,
-                "command": f"proxops validate-gap --vehicle {VEHICLE} --runs {n_runs} --seed {seed}"})
+        "said_dynamics_not_examined": int(
+            sum(any(x.startswith("dynamics") for x in a["not_examined"]) for _, a in no_valves)
+        ),
+        "answers": [
+            {"effect": k["effect"], "verdict": a["verdict"] if a["gap_detected"] else "no_gap", "top1": a["top1"]}
+            for k, a in no_valves
+        ],
+    }
+    res.update(
+        {
+            "seed": seed,
+            "vehicle": VEHICLE,
+            "workers": workers,
+            "elapsed_s": time.time() - t0,
+            "campaign": info,
+            "calibration": {"runs": cal.get("runs"), "thresholds": cal.get("thresholds")},
+            "keys_match_preregistration": True,
+            "key_sha256": hashes,
+            "keys": keys,
+            "answers": answers,
+            "command": f"proxops validate-gap --vehicle {VEHICLE} --runs {n_runs} --seed {seed}",
+        }
+    )
     return res
 
 
@@ -206,8 +273,9 @@ def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool =
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()
     seeds = [int(s) for s in np.random.default_rng(seed).integers(0, 2**31, runs)]
-    recs = campaign.map("null", _null_stats, seeds, idents=[{"seed": s} for s in seeds],
-                        label=f"null calibration ({VEHICLE})")
+    recs = campaign.map(
+        "null", _null_stats, seeds, idents=[{"seed": s} for s in seeds], label=f"null calibration ({VEHICLE})"
+    )
     all_failed(recs)
     rows = [r for r in results(recs) if r is not None]
     if not rows:
@@ -217,13 +285,22 @@ def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool =
     thr = {"map_max_abs_z": frechet_threshold(z), "screen_logp": frechet_threshold(b)}
     desc = description()
     resolve(desc)
-    return {"thresholds": thr, "method": "Frechet tail per statistic (bench/gap/log_null.py)",
-            "false_alarm_target_each": FA_EACH, "runs": len(rows), "seed": int(seed),
-            "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
-            "manoeuvres": "characterisation", "description": desc, "vehicle": VEHICLE,
-            "null_map_max_abs_z": z.tolist(), "null_screen_logp": b.tolist(), "elapsed_s": time.time() - t0,
-            **({"failed_runs": failures(recs)} if failures(recs) else {}),
-            "command": f"python -m bench.gap.validate_vehicle calibrate --runs {runs} --seed {seed}"}
+    return {
+        "thresholds": thr,
+        "method": "Frechet tail per statistic (bench/gap/log_null.py)",
+        "false_alarm_target_each": FA_EACH,
+        "runs": len(rows),
+        "seed": int(seed),
+        "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
+        "manoeuvres": "characterisation",
+        "description": desc,
+        "vehicle": VEHICLE,
+        "null_map_max_abs_z": z.tolist(),
+        "null_screen_logp": b.tolist(),
+        "elapsed_s": time.time() - t0,
+        **({"failed_runs": failures(recs)} if failures(recs) else {}),
+        "command": f"python -m bench.gap.validate_vehicle calibrate --runs {runs} --seed {seed}",
+    }
 
 
 def main(argv=None):
@@ -243,8 +320,10 @@ def main(argv=None):
         print(f"{cal['runs']} of {a.runs} runs stored: {CAL_PATH} left as it is")
     else:
         CAL_PATH.write_text(json.dumps(cal, indent=1) + "\n")
-    print(f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs, "
-          f"{cal['elapsed_s']:.0f} s")
+    print(
+        f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs, "
+        f"{cal['elapsed_s']:.0f} s"
+    )
 
 
 if __name__ == "__main__":

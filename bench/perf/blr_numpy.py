@@ -1,6 +1,7 @@
 """The flight code's BLR step (fsw/thrusters/blr.hpp) written with numpy, as the
 reference point for its timing: the same ring buffer, running sums and
 additions-only shadow sums, the same Cholesky-based prediction."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -3,6 +3,7 @@ work, for the timing comparison with the flight code: decomposition
 (eqs. 2-4b with the condition number), then one step of the decoupled bank
 (M 4-state UKFs, vectorised over modes) or of the joint 4M-state UKF.
 Same equations, same unscented transform (alpha 1, beta 2, kappa 0)."""
+
 from __future__ import annotations
 
 import time
@@ -46,7 +47,9 @@ class Bank:
         Y = np.moveaxis(Y, 0, 1)  # (M, 4, 9)
         xm = Y[:, :, 1:].mean(axis=2)  # wm0 = 0
         D = Y - xm[:, :, None]
-        P = 2.0 * np.einsum("mi,mj->mij", D[:, :, 0], D[:, :, 0]) + np.einsum("mik,mjk->mij", D[:, :, 1:], D[:, :, 1:]) / (2 * n)
+        P = 2.0 * np.einsum("mi,mj->mij", D[:, :, 0], D[:, :, 0]) + np.einsum(
+            "mik,mjk->mij", D[:, :, 1:], D[:, :, 1:]
+        ) / (2 * n)
         P += np.einsum("mi,ij->mij", self.q * dt, np.eye(4))
         s = P[:, 0, 0] + np.diag(cov_a)
         k = P[:, :, 0] / s[:, None]

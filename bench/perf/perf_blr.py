@@ -4,6 +4,7 @@ one run. 9 inputs (8 valves + bias), 6 outputs, window 30, double.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_blr [--bench-exe PATH] [--json OUT]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,8 +35,7 @@ def find_exe(path=None):
 
 
 def run_cpp(exe):
-    cmd = [exe, f"--benchmark_repetitions={REPS}", "--benchmark_report_aggregates_only=true",
-           "--benchmark_format=json"]
+    cmd = [exe, f"--benchmark_repetitions={REPS}", "--benchmark_report_aggregates_only=true", "--benchmark_format=json"]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     res = {}
     for b in json.loads(out)["benchmarks"]:
@@ -116,8 +116,13 @@ def main(argv=None):
     a = p.parse_args(argv)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     cpu = subprocess.run("lscpu | grep 'Model name'", shell=True, capture_output=True, text=True).stdout.strip()
-    out = {"cpu": cpu, "nproc": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__,
-           "command": " ".join([sys.executable, "-m", "bench.perf.perf_blr"] + (argv or sys.argv[1:]))}
+    out = {
+        "cpu": cpu,
+        "nproc": os.cpu_count(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "command": " ".join([sys.executable, "-m", "bench.perf.perf_blr"] + (argv or sys.argv[1:])),
+    }
     exe = find_exe(a.bench_exe)
     if exe:
         out["cpp_command"], out["cpp_median_ns"] = run_cpp(exe)
@@ -125,18 +130,24 @@ def main(argv=None):
     out["bindings_median_ns"] = time_bindings()
     out["loadavg_1min"] = os.getloadavg()[0]
     # Prediction after a window change, derived: (add then predict) - (add).
-    for key, num, den in (("cpp_median_ns", "BM_PredictThenAdd<double>", "BM_AddRemove<double>"),
-                      ("numpy_median_ns", "AddThenPredict", "AddRemove"),
-                      ("bindings_median_ns", "AddThenPredict", "AddRemove")):
+    for key, num, den in (
+        ("cpp_median_ns", "BM_PredictThenAdd<double>", "BM_AddRemove<double>"),
+        ("numpy_median_ns", "AddThenPredict", "AddRemove"),
+        ("bindings_median_ns", "AddThenPredict", "AddRemove"),
+    ):
         d = out.get(key, {})
         if num in d and den in d:
             d["Predict after change (derived)"] = {t: d[num][t] - d[den][t] for t in ("real", "cpu")}
     print(f"{cpu}; nproc {out['nproc']}; 1-min load average {out['loadavg_1min']:.1f}")
     print(f"{'':40s} {'wall [ns]':>12s} {'cpu [ns]':>12s}")
-    for key, title in (("cpp_median_ns", f"C++ ({out.get('cpp_command', 'not found')})"),
-                       ("numpy_median_ns", "numpy (bench/perf/blr_numpy.py), OPENBLAS_NUM_THREADS="
-                        + os.environ["OPENBLAS_NUM_THREADS"]),
-                       ("bindings_median_ns", "bindings (fsw_bindings.ThrusterBlr, Python call included)")):
+    for key, title in (
+        ("cpp_median_ns", f"C++ ({out.get('cpp_command', 'not found')})"),
+        (
+            "numpy_median_ns",
+            "numpy (bench/perf/blr_numpy.py), OPENBLAS_NUM_THREADS=" + os.environ["OPENBLAS_NUM_THREADS"],
+        ),
+        ("bindings_median_ns", "bindings (fsw_bindings.ThrusterBlr, Python call included)"),
+    ):
         print(title + ":")
         for k, v in out.get(key, {}).items():
             print(f"  {k:38s} {v['real']:12.1f} {v['cpu']:12.1f}")

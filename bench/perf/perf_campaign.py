@@ -13,6 +13,7 @@ null calibration of --null-runs real runs (bench/gap/null.py, 120 s
 docking logs) on a fresh local cluster of 1 and of 2 workers (cluster start
 included), and through the fork pool with 2 processes.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -60,8 +61,15 @@ def main(argv=None):
     from bench.runner.runner import Campaign
     from bench.runner.store import RunStore
 
-    res = {"machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
-                       "python": platform.python_version()}, "noop_runs": a.noop_runs, "repeats": a.repeats}
+    res = {
+        "machine": {
+            "cpus": os.cpu_count(),
+            "processor": platform.processor() or platform.machine(),
+            "python": platform.python_version(),
+        },
+        "noop_runs": a.noop_runs,
+        "repeats": a.repeats,
+    }
     items = list(range(a.noop_runs))
     pool_t, dask_t, mem_t = [], [], []
     t0 = time.perf_counter()
@@ -73,15 +81,18 @@ def main(argv=None):
             _fork_pool_map(_noop, items, 2)
             pool_t.append((time.perf_counter() - t0) / len(items))
             t0 = time.perf_counter()
-            Campaign(RunStore("noop", {"repeat": r}, root=tmp), workers=2, progress=False,
-                     stream=open(os.devnull, "w")).map("noop", _noop, items)
+            Campaign(
+                RunStore("noop", {"repeat": r}, root=tmp), workers=2, progress=False, stream=open(os.devnull, "w")
+            ).map("noop", _noop, items)
             dask_t.append((time.perf_counter() - t0) / len(items))
             t0 = time.perf_counter()
             Campaign(None, workers=2, progress=False).map("noop", _noop, items)
             mem_t.append((time.perf_counter() - t0) / len(items))
-    res["per_run_overhead_ms"] = {"fork_pool_2": 1e3 * statistics.median(pool_t),
-                                  "dask_local_2_with_store": 1e3 * statistics.median(dask_t),
-                                  "dask_local_2_no_store": 1e3 * statistics.median(mem_t)}
+    res["per_run_overhead_ms"] = {
+        "fork_pool_2": 1e3 * statistics.median(pool_t),
+        "dask_local_2_with_store": 1e3 * statistics.median(dask_t),
+        "dask_local_2_no_store": 1e3 * statistics.median(mem_t),
+    }
     cluster.close_all()
     seeds = [7000 + i for i in range(a.null_runs)]
     walls = {}

@@ -8,6 +8,7 @@ link's step latency (send to the step's last telemetry packet).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_hil [--duration 300] [--repeat 5] [--json OUT]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,12 +62,21 @@ def main(argv=None) -> dict:
     for i in range(args.repeat):
         rtf_in = in_process_rtf(args.duration, args.seed)
         res = run_hil(HilConfig(duration_s=args.duration, seed=args.seed, learner=args.learner))
-        rows.append({"in_process_rtf": rtf_in, "link_rtf": res["real_time_factor"],
-                     "p50_ms": res["step_latency_p50_ms"], "p99_ms": res["step_latency_p99_ms"],
-                     "steps": res["steps"], "timeouts": res["step_timeouts"]})
-        print(f"rep {i + 1}/{args.repeat}: in-process RTF {rtf_in:6.1f}   link RTF {res['real_time_factor']:6.1f}"
-              f"   step latency p50 {res['step_latency_p50_ms']:.3f} ms p99 {res['step_latency_p99_ms']:.3f} ms",
-              flush=True)
+        rows.append(
+            {
+                "in_process_rtf": rtf_in,
+                "link_rtf": res["real_time_factor"],
+                "p50_ms": res["step_latency_p50_ms"],
+                "p99_ms": res["step_latency_p99_ms"],
+                "steps": res["steps"],
+                "timeouts": res["step_timeouts"],
+            }
+        )
+        print(
+            f"rep {i + 1}/{args.repeat}: in-process RTF {rtf_in:6.1f}   link RTF {res['real_time_factor']:6.1f}"
+            f"   step latency p50 {res['step_latency_p50_ms']:.3f} ms p99 {res['step_latency_p99_ms']:.3f} ms",
+            flush=True,
+        )
 
     def med(key):
         return float(np.median([r[key] for r in rows]))
@@ -84,9 +94,11 @@ def main(argv=None) -> dict:
         "step_latency_p99_ms_median": med("p99_ms"),
         "rows": rows,
     }
-    print(f"\nmedian over {args.repeat}: in-process RTF {out['in_process_rtf_median']:.1f}, "
-          f"lockstep over the link RTF {out['link_rtf_median']:.1f} (min {out['link_rtf_min']:.1f}); "
-          f"step latency p50 {out['step_latency_p50_ms_median']:.3f} ms, p99 {out['step_latency_p99_ms_median']:.3f} ms")
+    print(
+        f"\nmedian over {args.repeat}: in-process RTF {out['in_process_rtf_median']:.1f}, "
+        f"lockstep over the link RTF {out['link_rtf_median']:.1f} (min {out['link_rtf_min']:.1f}); "
+        f"step latency p50 {out['step_latency_p50_ms_median']:.3f} ms, p99 {out['step_latency_p99_ms_median']:.3f} ms"
+    )
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=2)

@@ -7,6 +7,7 @@ the two searches picked the same grid frequencies.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_modal_acquisition [--repeats N] [--json OUT]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,16 +56,22 @@ def numpy_relax(coarse, cov, t, w_prior, sigma_w, n_grid=201):
     wh = modal_batch_ml._whiteners(cov)
 
     def amplitudes(w):
-        basis = np.concatenate([np.cos(np.outer(t, w))[:, None, :] * np.eye(m)[None],
-                                np.sin(np.outer(t, w))[:, None, :] * np.eye(m)[None]], axis=2)
+        basis = np.concatenate(
+            [
+                np.cos(np.outer(t, w))[:, None, :] * np.eye(m)[None],
+                np.sin(np.outer(t, w))[:, None, :] * np.eye(m)[None],
+            ],
+            axis=2,
+        )
         a = np.einsum("kij,kjl->kil", wh, basis).reshape(-1, 2 * m)
         y = np.einsum("kij,kj->ki", wh, coarse).ravel()
         return np.linalg.lstsq(a, y, rcond=None)[0]
 
     var = np.diagonal(cov, axis1=1, axis2=2)
     w0 = modal_batch_ml._grid_start(coarse, var, t, w_prior, sigma_w, n_grid)
-    return modal_batch_ml._relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w0, n_grid,
-                                       amplitudes=amplitudes)
+    return modal_batch_ml._relax_start(
+        coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w0, n_grid, amplitudes=amplitudes
+    )
 
 
 def _median_s(fn, repeats):
@@ -93,12 +100,28 @@ def time_case(n_modes, n_images, dt_s, repeats, numpy_repeats):
     coarse = np.array([r.a_coarse for r in recs])
     cov = np.array([r.cov_a for r in recs])
     s_numpy, w_numpy = _median_s(lambda: numpy_relax(coarse, cov, t, w_prior, sigma_w), numpy_repeats)
-    filt = mc.make_filter("joint", n_modes, w_flight, np.zeros(n_modes), sigma_v0=w_flight, sigma_w0=0.01 * w_flight,
-                          sigma_a0=1e-6, q_a=0.0, q_v=0.0)
+    filt = mc.make_filter(
+        "joint",
+        n_modes,
+        w_flight,
+        np.zeros(n_modes),
+        sigma_v0=w_flight,
+        sigma_w0=0.01 * w_flight,
+        sigma_a0=1e-6,
+        q_a=0.0,
+        q_v=0.0,
+    )
     s_replay, fused = _median_s(lambda: acq.replay_into(filt), repeats)
-    return {"modes": n_modes, "images": len(recs), "flight_search_s": s_flight, "numpy_search_s": s_numpy,
-            "speedup": s_numpy / s_flight, "same_grid_frequencies": bool(np.allclose(w_flight, w_numpy, rtol=1e-12)),
-            "flight_replay_s": s_replay, "replay_fused": int(fused)}
+    return {
+        "modes": n_modes,
+        "images": len(recs),
+        "flight_search_s": s_flight,
+        "numpy_search_s": s_numpy,
+        "speedup": s_numpy / s_flight,
+        "same_grid_frequencies": bool(np.allclose(w_flight, w_numpy, rtol=1e-12)),
+        "flight_replay_s": s_replay,
+        "replay_fused": int(fused),
+    }
 
 
 def main(argv=None):
@@ -110,16 +133,24 @@ def main(argv=None):
     if args.repeats < 1 or args.numpy_repeats < 1:
         ap.error("--repeats and --numpy-repeats must be at least 1")
     cpu = subprocess.run("lscpu | grep 'Model name'", shell=True, capture_output=True, text=True).stdout.strip()
-    out = {"cpu": cpu, "nproc": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__,
-           "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS"), "loadavg_1min": os.getloadavg()[0],
-           "cases": []}
+    out = {
+        "cpu": cpu,
+        "nproc": os.cpu_count(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "openblas_threads": os.environ.get("OPENBLAS_NUM_THREADS"),
+        "loadavg_1min": os.getloadavg()[0],
+        "cases": [],
+    }
     print(f"{cpu}; nproc {out['nproc']}; 1-min load average {out['loadavg_1min']:.1f}")
     for m, n, dt in CASES:
         r = time_case(m, n, dt, args.repeats, args.numpy_repeats)
         out["cases"].append(r)
-        print(f"{m} modes, {r['images']} images: search flight {1e3 * r['flight_search_s']:.1f} ms, numpy "
-              f"{1e3 * r['numpy_search_s']:.0f} ms ({r['speedup']:.0f}x), same grid frequencies "
-              f"{r['same_grid_frequencies']}; flight replay of the joint filter {1e3 * r['flight_replay_s']:.1f} ms")
+        print(
+            f"{m} modes, {r['images']} images: search flight {1e3 * r['flight_search_s']:.1f} ms, numpy "
+            f"{1e3 * r['numpy_search_s']:.0f} ms ({r['speedup']:.0f}x), same grid frequencies "
+            f"{r['same_grid_frequencies']}; flight replay of the joint filter {1e3 * r['flight_replay_s']:.1f} ms"
+        )
     if args.json:
         write_json(args.json, out)
     return 0

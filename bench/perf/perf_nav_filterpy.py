@@ -15,6 +15,7 @@ filter. Medians of per-call wall times (time.perf_counter_ns).
 PROXOPS_BINDINGS_DIR=<cmake build>/python times a freshly built module
 instead of the installed one.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -166,8 +167,10 @@ def main(argv=None) -> int:
     for step in ("predict", "update"):
         m = res[f"{step}_median_us"]
         print(f"{step:<8} {m['ours']:>12.2f} {m['filterpy']:>14.1f} {res[f'{step}_ratio']:>7.0f}x")
-    print(f"({res['predicts']} predicts, {res['updates']} updates, medians per call; "
-          f"largest position estimate difference {res['max_pos_estimate_diff_m']:.2e} m)")
+    print(
+        f"({res['predicts']} predicts, {res['updates']} updates, medians per call; "
+        f"largest position estimate difference {res['max_pos_estimate_diff_m']:.2e} m)"
+    )
     if args.json:
         from bench.report import write_json
 

@@ -7,6 +7,7 @@ whose workers have this project installed (docs/CAMPAIGNS.md). Dask's
 nanny starts every worker process with one BLAS / OpenMP thread, so a run
 computes the same bits on any worker.
 """
+
 from __future__ import annotations
 
 import atexit
@@ -65,8 +66,9 @@ def client(scheduler: str | None = None, workers: int | None = None):
     if key not in _LOCAL or _LOCAL[key][1].status != "running":
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   silence_logs=logging.ERROR)
+            cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+            )
         _LOCAL[key] = (cluster, Client(cluster))
     return _LOCAL[key][1]
 

@@ -1,5 +1,6 @@
 """A progress bar on standard error: runs done of the total, rate, time
 elapsed and time left."""
+
 from __future__ import annotations
 
 import sys
@@ -36,11 +37,13 @@ class ProgressBar:
         rate = self.done / el if el > 0 and self.done else 0.0
         left = (self.total - n) / rate if rate > 0 else None
         fill = int(self.WIDTH * n / self.total) if self.total else self.WIDTH
-        return (f"  {self.label}: [{'#' * fill}{'.' * (self.WIDTH - fill)}] {n}/{self.total} runs"
-                + (f" ({self.stored} stored)" if self.stored else "")
-                + (f", {self.failed} failed" if self.failed else "")
-                + f", {rate * 60:.1f} runs/min, {_clock(el)} elapsed, "
-                + ("time left ?" if left is None else f"~{_clock(left)} left"))
+        return (
+            f"  {self.label}: [{'#' * fill}{'.' * (self.WIDTH - fill)}] {n}/{self.total} runs"
+            + (f" ({self.stored} stored)" if self.stored else "")
+            + (f", {self.failed} failed" if self.failed else "")
+            + f", {rate * 60:.1f} runs/min, {_clock(el)} elapsed, "
+            + ("time left ?" if left is None else f"~{_clock(left)} left")
+        )
 
     def show(self, force: bool = False) -> None:
         if not self.enabled:

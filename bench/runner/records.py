@@ -7,6 +7,7 @@ as dicts, dicts with keys other than strings as key-value pairs, tuples as
 lists. A result is passed through ``roundtrip`` whether it was just computed
 or read from the store, so a summary sees the same values either way.
 """
+
 from __future__ import annotations
 
 import base64
@@ -79,5 +80,6 @@ def roundtrip(obj):
 
 def sha256(obj) -> str:
     """The SHA-256 of ``obj``'s canonical JSON (keys sorted)."""
-    return hashlib.sha256(json.dumps(_prepare(obj), default=_encode, sort_keys=True,
-                                     allow_nan=True).encode()).hexdigest()
+    return hashlib.sha256(
+        json.dumps(_prepare(obj), default=_encode, sort_keys=True, allow_nan=True).encode()
+    ).hexdigest()

@@ -11,6 +11,7 @@ records. A run that raises is recorded as failed with its error, traceback
 and seed; the campaign goes on. A worker that dies takes no record with it:
 Dask runs its task again elsewhere.
 """
+
 from __future__ import annotations
 
 import socket
@@ -40,8 +41,13 @@ def execute(fn, index: int, item, shared=_NO_SHARED) -> str:
         rec["elapsed_s"] = time.perf_counter() - t0
         return records.dumps(rec)
     except Exception as exc:  # noqa: BLE001 - a run's failure is recorded, not fatal
-        rec.update(ok=False, error=f"{type(exc).__name__}: {exc}", message=str(exc), traceback=traceback.format_exc(),
-                   elapsed_s=time.perf_counter() - t0)
+        rec.update(
+            ok=False,
+            error=f"{type(exc).__name__}: {exc}",
+            message=str(exc),
+            traceback=traceback.format_exc(),
+            elapsed_s=time.perf_counter() - t0,
+        )
         return records.dumps({k: v for k, v in rec.items() if k != "result"})
 
 
@@ -58,12 +64,22 @@ class Campaign:
     summarise_only: run nothing; missing runs come back as None.
     retry_failed: run again the runs stored as failed."""
 
-    def __init__(self, store=None, scheduler: str | None = None, workers: int | None = None, progress: bool = True,
-                 summarise_only: bool = False, retry_failed: bool = False, stream=None):
+    def __init__(
+        self,
+        store=None,
+        scheduler: str | None = None,
+        workers: int | None = None,
+        progress: bool = True,
+        summarise_only: bool = False,
+        retry_failed: bool = False,
+        stream=None,
+    ):
         self.store = store if store is not None else MemoryStore()
         if summarise_only and not self.store.exists():
-            raise MissingRuns(f"nothing stored for these arguments (no {self.store.path}); "
-                              "run the campaign without --summarise-only first")
+            raise MissingRuns(
+                f"nothing stored for these arguments (no {self.store.path}); "
+                "run the campaign without --summarise-only first"
+            )
         if not summarise_only:
             self.store.open()
         self.scheduler, self.workers = scheduler, workers
@@ -105,15 +121,19 @@ class Campaign:
         n_failed_stored = sum(1 for r in out if r is not None and not r.get("ok"))
         where = f"results store {self.store.path}: " if self.store.path is not None else ""
         if self.summarise_only:
-            self.say(f"{label}: {where}{n_stored} of {n_items} runs stored"
-                     + (f" ({n_failed_stored} failed)" if n_failed_stored else "")
-                     + (f", {len(todo)} missing (left out of the summary)" if todo else ""))
+            self.say(
+                f"{label}: {where}{n_stored} of {n_items} runs stored"
+                + (f" ({n_failed_stored} failed)" if n_failed_stored else "")
+                + (f", {len(todo)} missing (left out of the summary)" if todo else "")
+            )
             self.stages[stage] = {"runs": n_items, "stored": n_stored, "ran": 0, "missing": len(todo)}
             return out
         if n_stored:
-            self.say(f"{label}: {where}{n_stored} of {n_items} runs already stored"
-                     + (f" ({n_failed_stored} failed)" if n_failed_stored else "")
-                     + (f", skipping them; running {len(todo)} on {self.where()}" if todo else ", nothing to run"))
+            self.say(
+                f"{label}: {where}{n_stored} of {n_items} runs already stored"
+                + (f" ({n_failed_stored} failed)" if n_failed_stored else "")
+                + (f", skipping them; running {len(todo)} on {self.where()}" if todo else ", nothing to run")
+            )
         elif todo:
             self.say(f"{label}: {where}running {len(todo)} runs on {self.where()}")
         bar = ProgressBar(label, n_items, stored=n_stored, enabled=self.progress and bool(todo), stream=self.stream)
@@ -145,18 +165,26 @@ class Campaign:
         if not (isinstance(shared, str) and shared == _NO_SHARED):
             # a task, not scattered data: the scheduler can compute it again if its worker dies
             extra = (client.submit(_identity, shared, pure=False),)
-        futures = {client.submit(execute, fn, i, items[i], *extra, pure=False, key=f"run-{i}-{_token()}"): i
-                   for i in todo}
+        futures = {
+            client.submit(execute, fn, i, items[i], *extra, pure=False, key=f"run-{i}-{_token()}"): i for i in todo
+        }
         try:
             for fut in as_completed(futures):
                 i = futures[fut]
                 try:
                     text = fut.result()
                 except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded against the run
-                    text = records.dumps({"index": i, "ok": False, "error": f"{type(exc).__name__}: {exc}",
-                                          "message": str(exc),
-                                          "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)), "worker": None,
-                                          "elapsed_s": None})
+                    text = records.dumps(
+                        {
+                            "index": i,
+                            "ok": False,
+                            "error": f"{type(exc).__name__}: {exc}",
+                            "message": str(exc),
+                            "traceback": "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)),
+                            "worker": None,
+                            "elapsed_s": None,
+                        }
+                    )
                     if type(exc).__name__ == "CancelledError":
                         raise
                 fut.release()
@@ -191,8 +219,11 @@ def results(recs: list) -> list:
 
 def failures(recs: list) -> list:
     """[{run, seed, error}] of the failed runs."""
-    return [{"run": r["index"], "seed": r.get("seed"), "error": r.get("error")} for r in recs
-            if r is not None and not r.get("ok")]
+    return [
+        {"run": r["index"], "seed": r.get("seed"), "error": r.get("error")}
+        for r in recs
+        if r is not None and not r.get("ok")
+    ]
 
 
 def all_failed(recs: list) -> None:

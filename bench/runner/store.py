@@ -15,6 +15,7 @@ and traceback, the worker and the wall time. A record is written to a
 temporary file and renamed into place: a campaign stopped at any moment
 leaves every record whole or absent.
 """
+
 from __future__ import annotations
 
 import os

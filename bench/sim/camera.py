@@ -26,6 +26,7 @@ Gaussian blur (defocus), background clutter (bright spots and lines), and a
 bright-sun case (a saturated disc, its halo and a glare gradient); the
 sensor saturates at 255 counts after the optics.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -86,8 +87,12 @@ class Camera:
         return np.column_stack([self.fx_px * xd + self.cx_px, self.fy_px * yd + self.cy_px]), front
 
 
-def make_estimator(cam: Camera | None = None, model_distortion: bool = True, pixel_sigma_px: float | None = None,
-                   face_offset_m: float = FACE_OFFSET_M):
+def make_estimator(
+    cam: Camera | None = None,
+    model_distortion: bool = True,
+    pixel_sigma_px: float | None = None,
+    face_offset_m: float = FACE_OFFSET_M,
+):
     """The flight pipeline (fsw_bindings.LedPoseEstimator) configured with this camera: one source of truth."""
     import fsw_bindings as fb
 
@@ -130,8 +135,15 @@ def random_quat(rng: np.random.Generator) -> np.ndarray:
     return qnormalize(rng.standard_normal(4))
 
 
-def sample_pose(rng: np.random.Generator, cam: Camera, range_m: tuple = (0.3, 5.0), max_tilt_deg: float = 55.0,
-                margin_px: float = 15.0, pattern=None, max_tries: int = 1000):
+def sample_pose(
+    rng: np.random.Generator,
+    cam: Camera,
+    range_m: tuple = (0.3, 5.0),
+    max_tilt_deg: float = 55.0,
+    margin_px: float = 15.0,
+    pattern=None,
+    max_tries: int = 1000,
+):
     """A random inspector pose with the whole pattern in view.
 
     Range (camera to pattern centre) uniform in ``range_m``, pattern centre
@@ -160,8 +172,12 @@ def sample_pose(rng: np.random.Generator, cam: Camera, range_m: tuple = (0.3, 5.
         q_h_host = random_quat(rng)
         r, q = nav_from_camera(R_cp, t_cp, q_h_host, cam)
         px, front, _ = led_pixels(r, q, q_h_host, cam, P)
-        inside = ((px[:, 0] > margin_px) & (px[:, 0] < cam.width - 1 - margin_px) & (px[:, 1] > margin_px)
-                  & (px[:, 1] < cam.height - 1 - margin_px))
+        inside = (
+            (px[:, 0] > margin_px)
+            & (px[:, 0] < cam.width - 1 - margin_px)
+            & (px[:, 1] > margin_px)
+            & (px[:, 1] < cam.height - 1 - margin_px)
+        )
         if front.all() and inside.all():
             return r, q, q_h_host, d
     raise ValueError("sample_pose: no pose with the pattern in view")
@@ -173,11 +189,11 @@ class Scene:
 
     background_counts: float = 6.0
     read_noise_counts: float = 1.5
-    shot_gain: float = 0.05          # shot-noise variance per count of signal
+    shot_gain: float = 0.05  # shot-noise variance per count of signal
     led_flux_1m_counts: float = 5400.0  # total LED flux at 1 m, seen face-on
     led_radius_m: float = 0.004
     psf_sigma_px: float = 0.8
-    blur_sigma_px: float = 0.0       # extra Gaussian blur (defocus)
+    blur_sigma_px: float = 0.0  # extra Gaussian blur (defocus)
     clutter_spots: int = 0
     clutter_lines: int = 0
     sun: bool = False
@@ -221,8 +237,16 @@ def _line(img: np.ndarray, p0, p1, width_px: float, level: float) -> None:
     img[r0:r1, c0:c1] += level * np.exp(-0.5 * dist2 / (0.5 * width_px) ** 2)
 
 
-def render(r_hill_m, q_hb, q_h_host, scene: Scene, rng: np.random.Generator, cam: Camera | None = None,
-           pattern=None, leds_on=None) -> np.ndarray:
+def render(
+    r_hill_m,
+    q_hb,
+    q_h_host,
+    scene: Scene,
+    rng: np.random.Generator,
+    cam: Camera | None = None,
+    pattern=None,
+    leds_on=None,
+) -> np.ndarray:
     """8-bit image (height, width) of the LED pattern seen by the inspector's camera.
 
     ``leds_on``: optional (5,) booleans, False for an occluded LED."""

@@ -28,6 +28,7 @@ Every control interval (0.1 s) the controller, from the navigation estimate
    |(dv_des - dv_k) / dv1|^2 + w_rot |(dw_des - dw_k) / dw1|^2 + w_fuel (valves open),
    dv1 and dw1 being one valve's nominal changes.
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -130,8 +131,10 @@ class DockingController:
             w_bh *= p.w_bh_max_rps / s
         w_des = w_bh + c_bh @ np.array([0.0, 0.0, p.n_radps])
         dw_des = (w_des - w_meas) * min(1.0, p.dt_s / p.tau_w_s)
-        cost = (np.sum(((dv_des - self._dv) / self._dv1) ** 2, axis=1)
-                + p.w_rot * np.sum(((dw_des - self._dw) / self._dw1) ** 2, axis=1)
-                + p.w_fuel * self._n_open)
+        cost = (
+            np.sum(((dv_des - self._dv) / self._dv1) ** 2, axis=1)
+            + p.w_rot * np.sum(((dw_des - self._dw) / self._dw1) ** 2, axis=1)
+            + p.w_fuel * self._n_open
+        )
         k = int(np.argmin(cost))
         return ControlDecision(k, ALL_VALVES[k].copy(), v_des, w_des, behaviour)

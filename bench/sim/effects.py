@@ -16,6 +16,7 @@ distortion) exist to test that a gap
 no candidate explains is reported as unexplained. Every effect, its physics,
 its parameters and how ``min_detectable`` was measured: docs/EFFECTS.md.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -134,80 +135,286 @@ _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": 
 # min_detectable: measured with `python -m bench.sim.reality detect` (docs/EFFECTS.md);
 # lens distortion on image-pose docking runs (`--effects lens_distortion`).
 LENS_K1_MIN_DETECTABLE = 0.029
-EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
-    EffectSpec("thruster_misalignment", "dynamics", True, 24, "rad",
-               "rotation vector of each nozzle's thrust direction (8 x 3, body axes; size: RMS angle)",
-               0.02, 1.28e-3, tuple(f"phi{i}_{a}" for i in range(8) for a in "xyz"), _rms_rows, _draw_misalignment),
-    EffectSpec("thrust_loss", "dynamics", True, 8, "1",
-               "fractional thrust magnitude loss per valve (8, or 1 common to all; size: RMS)",
-               0.05, 3.1e-3, tuple(f"loss{i}" for i in range(8)), _rms_rows, _draw_loss),
-    EffectSpec("com_offset", "dynamics", True, 3, "m",
-               "centre of mass offset from the body origin (body axes): thrust torques and the accelerometer's lever arm",
-               0.005, 8.7e-4, ("dx", "dy", "dz"), _norm, _vec3_draw),
-    EffectSpec("mass_depletion", "dynamics", True, 1, "kg/s",
-               "propellant flow per open valve; mass falls with the valve-seconds used",
-               3.4e-5, 9.2e-3, ("mdot",), _first, _pos_draw),
-    EffectSpec("accel_bias", "sensor", True, 3, "m/s^2", "constant accelerometer bias (IMU axes)",
-               5e-4, 2.7e-4, ("bx", "by", "bz"), _norm, _vec3_draw),
-    EffectSpec("gyro_bias", "sensor", True, 3, "rad/s", "constant gyro bias (IMU axes)",
-               5e-4, 8.8e-4, ("bx", "by", "bz"), _norm, _vec3_draw),
-    EffectSpec("gyro_scale", "sensor", True, 3, "1", "gyro scale-factor error per axis",
-               0.01, 0.065, ("sx", "sy", "sz"), _norm, _vec3_draw),
-    EffectSpec("imu_misalignment", "sensor", True, 3, "rad",
-               "rotation vector of the IMU axes relative to the body axes",
-               0.005, 0.067, ("phix", "phiy", "phiz"), _norm, _vec3_draw),
-    EffectSpec("camera_latency", "sensor", True, 1, "s",
-               "the pose is captured this long before its time tag",
-               0.05, 2.09, ("latency",), _first, _pos_draw),
-    EffectSpec("camera_lever_arm", "sensor", True, 3, "m",
-               "the pose solution refers to a point d from the centre of mass (body): r_meas = r + C(q) d",
-               0.02, 0.021, ("dx", "dy", "dz"), _norm, _vec3_draw),
-    EffectSpec("host_eccentricity", "dynamics", True, 2, "1",
-               "host orbit eccentricity (and true anomaly at t = 0, rad); the filter assumes a circular host",
-               1e-3, 0.05, ("e", "f0"), _first,
-               lambda rng, size: np.array([size, rng.uniform(0.0, 2 * np.pi)])),
-    EffectSpec("differential_j2", "dynamics", True, 1, "1",
-               "J2 coefficient acting on host and inspector (differential acceleration)",
-               1.08262668e-3, 100.0, ("j2",), _first, _pos_draw),
-    EffectSpec("differential_drag", "dynamics", True, 2, "m^2/kg",
-               "ballistic coefficient C_d A / m of the inspector minus the host's, and the host's own "
-               "(rho = 5e-13 kg/m^3); the inspector's accelerometer senses its own drag (size: the difference)",
-               0.015, 18.7, ("dB", "B_host"), _first, _draw_drag),
-    # No diagnoser candidate models a flexible mode: out of its library.
-    EffectSpec("flex_mode", "dynamics", False, 2, "Hz, rad",
-               "flexible appendage mode about body z: coupled frequency and body-angle amplitude (size: amplitude)",
-               0.005, 4.1e-3, ("freq_hz", "amplitude_rad"), lambda p: float(abs(p[1])),
-               lambda rng, size: np.array([np.exp(rng.uniform(np.log(0.1), np.log(1.0))), size])),
-    EffectSpec("fuel_slosh", "dynamics", False, 1, "kg",
-               "slosh mass on a 0.3 Hz damped spring in the tank, coupled to translation",
-               0.1, 0.30, ("mass",), _first, _pos_draw),
-    EffectSpec("clock_drift", "sensor", False, 1, "1",
-               "the IMU clock runs fast: its time tags are (1 + eps) t",
-               1e-4, 0.05, ("eps",), _first, _pos_draw),
-    EffectSpec("led_occlusion", "sensor", False, 2, "m, 1",
-               "on a random fraction of frames the position is biased along the line of sight (bias, fraction)",
-               0.02, 0.057, ("bias_m", "fraction"), _first,
-               lambda rng, size: np.array([size * rng.choice([-1.0, 1.0]), rng.uniform(0.2, 0.5)])),
-    # Pose from images only; no diagnoser candidate models a lens.
-    EffectSpec("lens_distortion", "sensor", False, 1, "1",
-               "radial lens distortion k1 of the docking camera, left out of the vision pipeline's pinhole model",
-               0.05, LENS_K1_MIN_DETECTABLE, ("k1",), _first, _signed_draw),
-)}
+EFFECTS: dict[str, EffectSpec] = {
+    s.name: s
+    for s in (
+        EffectSpec(
+            "thruster_misalignment",
+            "dynamics",
+            True,
+            24,
+            "rad",
+            "rotation vector of each nozzle's thrust direction (8 x 3, body axes; size: RMS angle)",
+            0.02,
+            1.28e-3,
+            tuple(f"phi{i}_{a}" for i in range(8) for a in "xyz"),
+            _rms_rows,
+            _draw_misalignment,
+        ),
+        EffectSpec(
+            "thrust_loss",
+            "dynamics",
+            True,
+            8,
+            "1",
+            "fractional thrust magnitude loss per valve (8, or 1 common to all; size: RMS)",
+            0.05,
+            3.1e-3,
+            tuple(f"loss{i}" for i in range(8)),
+            _rms_rows,
+            _draw_loss,
+        ),
+        EffectSpec(
+            "com_offset",
+            "dynamics",
+            True,
+            3,
+            "m",
+            "centre of mass offset from the body origin (body axes): thrust torques and the accelerometer's lever arm",
+            0.005,
+            8.7e-4,
+            ("dx", "dy", "dz"),
+            _norm,
+            _vec3_draw,
+        ),
+        EffectSpec(
+            "mass_depletion",
+            "dynamics",
+            True,
+            1,
+            "kg/s",
+            "propellant flow per open valve; mass falls with the valve-seconds used",
+            3.4e-5,
+            9.2e-3,
+            ("mdot",),
+            _first,
+            _pos_draw,
+        ),
+        EffectSpec(
+            "accel_bias",
+            "sensor",
+            True,
+            3,
+            "m/s^2",
+            "constant accelerometer bias (IMU axes)",
+            5e-4,
+            2.7e-4,
+            ("bx", "by", "bz"),
+            _norm,
+            _vec3_draw,
+        ),
+        EffectSpec(
+            "gyro_bias",
+            "sensor",
+            True,
+            3,
+            "rad/s",
+            "constant gyro bias (IMU axes)",
+            5e-4,
+            8.8e-4,
+            ("bx", "by", "bz"),
+            _norm,
+            _vec3_draw,
+        ),
+        EffectSpec(
+            "gyro_scale",
+            "sensor",
+            True,
+            3,
+            "1",
+            "gyro scale-factor error per axis",
+            0.01,
+            0.065,
+            ("sx", "sy", "sz"),
+            _norm,
+            _vec3_draw,
+        ),
+        EffectSpec(
+            "imu_misalignment",
+            "sensor",
+            True,
+            3,
+            "rad",
+            "rotation vector of the IMU axes relative to the body axes",
+            0.005,
+            0.067,
+            ("phix", "phiy", "phiz"),
+            _norm,
+            _vec3_draw,
+        ),
+        EffectSpec(
+            "camera_latency",
+            "sensor",
+            True,
+            1,
+            "s",
+            "the pose is captured this long before its time tag",
+            0.05,
+            2.09,
+            ("latency",),
+            _first,
+            _pos_draw,
+        ),
+        EffectSpec(
+            "camera_lever_arm",
+            "sensor",
+            True,
+            3,
+            "m",
+            "the pose solution refers to a point d from the centre of mass (body): r_meas = r + C(q) d",
+            0.02,
+            0.021,
+            ("dx", "dy", "dz"),
+            _norm,
+            _vec3_draw,
+        ),
+        EffectSpec(
+            "host_eccentricity",
+            "dynamics",
+            True,
+            2,
+            "1",
+            "host orbit eccentricity (and true anomaly at t = 0, rad); the filter assumes a circular host",
+            1e-3,
+            0.05,
+            ("e", "f0"),
+            _first,
+            lambda rng, size: np.array([size, rng.uniform(0.0, 2 * np.pi)]),
+        ),
+        EffectSpec(
+            "differential_j2",
+            "dynamics",
+            True,
+            1,
+            "1",
+            "J2 coefficient acting on host and inspector (differential acceleration)",
+            1.08262668e-3,
+            100.0,
+            ("j2",),
+            _first,
+            _pos_draw,
+        ),
+        EffectSpec(
+            "differential_drag",
+            "dynamics",
+            True,
+            2,
+            "m^2/kg",
+            "ballistic coefficient C_d A / m of the inspector minus the host's, and the host's own "
+            "(rho = 5e-13 kg/m^3); the inspector's accelerometer senses its own drag (size: the difference)",
+            0.015,
+            18.7,
+            ("dB", "B_host"),
+            _first,
+            _draw_drag,
+        ),
+        # No diagnoser candidate models a flexible mode: out of its library.
+        EffectSpec(
+            "flex_mode",
+            "dynamics",
+            False,
+            2,
+            "Hz, rad",
+            "flexible appendage mode about body z: coupled frequency and body-angle amplitude (size: amplitude)",
+            0.005,
+            4.1e-3,
+            ("freq_hz", "amplitude_rad"),
+            lambda p: float(abs(p[1])),
+            lambda rng, size: np.array([np.exp(rng.uniform(np.log(0.1), np.log(1.0))), size]),
+        ),
+        EffectSpec(
+            "fuel_slosh",
+            "dynamics",
+            False,
+            1,
+            "kg",
+            "slosh mass on a 0.3 Hz damped spring in the tank, coupled to translation",
+            0.1,
+            0.30,
+            ("mass",),
+            _first,
+            _pos_draw,
+        ),
+        EffectSpec(
+            "clock_drift",
+            "sensor",
+            False,
+            1,
+            "1",
+            "the IMU clock runs fast: its time tags are (1 + eps) t",
+            1e-4,
+            0.05,
+            ("eps",),
+            _first,
+            _pos_draw,
+        ),
+        EffectSpec(
+            "led_occlusion",
+            "sensor",
+            False,
+            2,
+            "m, 1",
+            "on a random fraction of frames the position is biased along the line of sight (bias, fraction)",
+            0.02,
+            0.057,
+            ("bias_m", "fraction"),
+            _first,
+            lambda rng, size: np.array([size * rng.choice([-1.0, 1.0]), rng.uniform(0.2, 0.5)]),
+        ),
+        # Pose from images only; no diagnoser candidate models a lens.
+        EffectSpec(
+            "lens_distortion",
+            "sensor",
+            False,
+            1,
+            "1",
+            "radial lens distortion k1 of the docking camera, left out of the vision pipeline's pinhole model",
+            0.05,
+            LENS_K1_MIN_DETECTABLE,
+            ("k1",),
+            _first,
+            _signed_draw,
+        ),
+    )
+}
 
 # Largest physically sensible sizes (the min_detectable search stops there).
-_MAX_SIZE = {"thruster_misalignment": 0.5, "thrust_loss": 0.9, "com_offset": 0.08, "mass_depletion": 0.02,
-             "accel_bias": 0.05, "gyro_bias": 0.05, "gyro_scale": 0.5, "imu_misalignment": 0.5,
-             "camera_latency": 3.0, "camera_lever_arm": 2.0, "host_eccentricity": 0.05, "differential_j2": 100.0,
-             "differential_drag": 1000.0, "flex_mode": 0.5, "fuel_slosh": 1.5, "clock_drift": 0.05,
-             "led_occlusion": 1.0, "lens_distortion": 0.3}
+_MAX_SIZE = {
+    "thruster_misalignment": 0.5,
+    "thrust_loss": 0.9,
+    "com_offset": 0.08,
+    "mass_depletion": 0.02,
+    "accel_bias": 0.05,
+    "gyro_bias": 0.05,
+    "gyro_scale": 0.5,
+    "imu_misalignment": 0.5,
+    "camera_latency": 3.0,
+    "camera_lever_arm": 2.0,
+    "host_eccentricity": 0.05,
+    "differential_j2": 100.0,
+    "differential_drag": 1000.0,
+    "flex_mode": 0.5,
+    "fuel_slosh": 1.5,
+    "clock_drift": 0.05,
+    "led_occlusion": 1.0,
+    "lens_distortion": 0.3,
+}
 # Measured (docs/EFFECTS.md): shown only by the error against truth; not shown
 # at all up to max_size (min_detectable is then max_size, a bound).
 _NEEDS_TRUTH = {"camera_lever_arm"}
 _NOT_DETECTABLE = {"host_eccentricity", "differential_j2", "clock_drift"}
 _NEEDS_IMAGES = {"lens_distortion"}
-EFFECTS = {n: replace(s, max_size=_MAX_SIZE[n], needs_truth=n in _NEEDS_TRUTH, detectable=n not in _NOT_DETECTABLE,
-                      needs_images=n in _NEEDS_IMAGES)
-           for n, s in EFFECTS.items()}
+EFFECTS = {
+    n: replace(
+        s,
+        max_size=_MAX_SIZE[n],
+        needs_truth=n in _NEEDS_TRUTH,
+        detectable=n not in _NOT_DETECTABLE,
+        needs_images=n in _NEEDS_IMAGES,
+    )
+    for n, s in EFFECTS.items()
+}
+
 
 def max_size_for(name: str, vehicle=None) -> float:
     """The largest sensible size of effect ``name`` on the described vehicle
@@ -238,7 +445,9 @@ def canonical(name: str, params) -> np.ndarray:
     if name == "thrust_loss" and p.size == 1:
         p = np.full(N_THRUSTERS, p[0])
     if name == "differential_drag" and p.size == 1:
-        p = np.array([p[0], max(0.0, -p[0])])  # a host with no drag of its own, or the least that keeps B_inspector >= 0
+        p = np.array(
+            [p[0], max(0.0, -p[0])]
+        )  # a host with no drag of its own, or the least that keeps B_inspector >= 0
     if p.size != spec.n_params:
         raise ValueError(f"effect {name!r} takes {spec.n_params} parameters, got {p.size}")
     if not np.all(np.isfinite(p)):
@@ -318,8 +527,12 @@ def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: i
     ``seed`` drives the effects' own randomness (which frames are occluded),
     apart from the scenario's streams so that everything else stays the same."""
     e = EffectSet(effects)
-    veh = replace(vehicle, directions_b=vehicle.directions_b.copy(), thrust_scale=vehicle.thrust_scale.copy(),
-                  positions_b_m=vehicle.positions_b_m.copy())
+    veh = replace(
+        vehicle,
+        directions_b=vehicle.directions_b.copy(),
+        thrust_scale=vehicle.thrust_scale.copy(),
+        positions_b_m=vehicle.positions_b_m.copy(),
+    )
     pfx = PlantEffects()
     plant_on = False
     if "thruster_misalignment" in e:
@@ -349,8 +562,11 @@ def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: i
         out.lever_arm_b_m = e["camera_lever_arm"].copy()
     if "led_occlusion" in e:
         bias, frac = e["led_occlusion"]
-        out.occlusion = (float(bias), float(np.clip(frac, 0.0, 1.0)),
-                         np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0CC1]))
+        out.occlusion = (
+            float(bias),
+            float(np.clip(frac, 0.0, 1.0)),
+            np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x0CC1]),
+        )
     if "camera_latency" in e:
         out.camera_latency_s = float(e["camera_latency"][0])
         if out.camera_latency_s < 0.0:

@@ -35,6 +35,7 @@ set-up is therefore:
   * the host holds its attitude (its body axes on the Hill axes), so the
     pipeline's host attitude input is ``Q_H_PATTERN``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -54,8 +55,7 @@ Q_H_PATTERN = np.array([np.cos(-np.pi / 4), 0.0, 0.0, np.sin(-np.pi / 4)])
 
 
 def docking_camera() -> cm.Camera:
-    return cm.Camera(fx_px=DOCK_FOCAL_PX, fy_px=DOCK_FOCAL_PX, R_bc=DOCK_R_BC.copy(),
-                     p_cam_b_m=DOCK_P_CAM_B_M.copy())
+    return cm.Camera(fx_px=DOCK_FOCAL_PX, fy_px=DOCK_FOCAL_PX, R_bc=DOCK_R_BC.copy(), p_cam_b_m=DOCK_P_CAM_B_M.copy())
 
 
 def docking_pattern() -> np.ndarray:
@@ -87,12 +87,24 @@ class ImagePoseSensor:
         self.render_cam = replace(self.cam, dist=np.asarray(self.cam.dist, float) + k1_extra)
 
     def measure(self, t_s: float, r_hill_m, q_hb) -> PoseMeasurement | None:
-        img = cm.render(np.asarray(r_hill_m, float), np.asarray(q_hb, float), Q_H_PATTERN, self.scene, self.rng,
-                        self.render_cam, pattern=self.pattern)
+        img = cm.render(
+            np.asarray(r_hill_m, float),
+            np.asarray(q_hb, float),
+            Q_H_PATTERN,
+            self.scene,
+            self.rng,
+            self.render_cam,
+            pattern=self.pattern,
+        )
         m = self.estimator.estimate(img, float(t_s), Q_H_PATTERN)
         self.last = m
         self.status_counts[m.status] = self.status_counts.get(m.status, 0) + 1
         if not m.ok:
             return None
-        return PoseMeasurement(t_s, t_s + self.profile.pose_latency_s, np.asarray(m.r_hill_m, float),
-                               np.asarray(m.q_hb, float), np.asarray(m.R, float))
+        return PoseMeasurement(
+            t_s,
+            t_s + self.profile.pose_latency_s,
+            np.asarray(m.r_hill_m, float),
+            np.asarray(m.q_hb, float),
+            np.asarray(m.R, float),
+        )

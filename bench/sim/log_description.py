@@ -10,6 +10,7 @@ what is missing from the bench's 3 kg inspector and says which defaults it
 used, so an answer can name them. The diagnosis reads only the resolved
 form (:class:`Resolved`).
 """
+
 from __future__ import annotations
 
 import math
@@ -93,9 +94,14 @@ class Resolved:
         relative to it)."""
         pos = np.array([t.position_b_m for t in self.thrusters]) - self.com_b_m
         dirs = np.array([t.direction_b for t in self.thrusters])
-        return bench_vehicle.Vehicle(mass_kg=self.mass_kg, inertia_kgm2=self.inertia_kgm2.copy(),
-                                     thrust_n=np.array([t.thrust_n for t in self.thrusters]),
-                                     positions_b_m=pos, directions_b=dirs, thrust_scale=np.ones(len(self.thrusters)))
+        return bench_vehicle.Vehicle(
+            mass_kg=self.mass_kg,
+            inertia_kgm2=self.inertia_kgm2.copy(),
+            thrust_n=np.array([t.thrust_n for t in self.thrusters]),
+            positions_b_m=pos,
+            directions_b=dirs,
+            thrust_scale=np.ones(len(self.thrusters)),
+        )
 
     def manoeuvres(self) -> list:
         return sorted({s.manoeuvre for s in self.segments})
@@ -145,7 +151,9 @@ def _inertia(x, where: str) -> np.ndarray:
         raise DescriptionError(f"{where}: not positive definite (eigenvalues {ev.tolist()})")
     s = np.sort(ev)
     if s[0] + s[1] < s[2] * (1.0 - 1e-9):
-        raise DescriptionError(f"{where}: breaks the triangle inequality of a rigid body (principal moments {s.tolist()})")
+        raise DescriptionError(
+            f"{where}: breaks the triangle inequality of a rigid body (principal moments {s.tolist()})"
+        )
     return a
 
 
@@ -162,9 +170,14 @@ def _thrusters(x, where: str) -> list:
         d = _vec(t["direction_b"], 3, f"{w}.direction_b")
         if abs(np.linalg.norm(d) - 1.0) > UNIT_TOL:
             raise DescriptionError(f"{w}.direction_b: not a unit vector (norm {np.linalg.norm(d):.6g})")
-        out.append(Thruster(_vec(t["position_b_m"], 3, f"{w}.position_b_m"), d / np.linalg.norm(d),
-                            _num(t["thrust_n"], f"{w}.thrust_n", 0.0, strict_lo=True),
-                            _num(t.get("min_on_time_s", 0.0), f"{w}.min_on_time_s", 0.0)))
+        out.append(
+            Thruster(
+                _vec(t["position_b_m"], 3, f"{w}.position_b_m"),
+                d / np.linalg.norm(d),
+                _num(t["thrust_n"], f"{w}.thrust_n", 0.0, strict_lo=True),
+                _num(t.get("min_on_time_s", 0.0), f"{w}.min_on_time_s", 0.0),
+            )
+        )
     return out
 
 
@@ -198,12 +211,26 @@ def bench_description(n_thrusters_used: int | None = None) -> dict:
     description (what version-1 logs and missing fields default to)."""
     v = bench_vehicle.Vehicle()
     return {
-        "vehicle": {"mass_kg": v.mass_kg, "inertia_kgm2": np.diag(v.inertia_kgm2).tolist(), "com_b_m": [0.0, 0.0, 0.0],
-                    "thrusters": [{"position_b_m": p.tolist(), "direction_b": d.tolist(), "thrust_n": float(v.thrust_n),
-                                   "min_on_time_s": 0.0}
-                                  for p, d in zip(v.positions_b_m, v.directions_b)]},
-        "imu": {"q_body_imu": [1.0, 0.0, 0.0, 0.0], "position_b_m": [0.0, 0.0, 0.0],
-                "accel_sigma_mps2": 0.25 * float(v.thrust_n) / v.mass_kg, "gyro_sigma_rps": 0.005},
+        "vehicle": {
+            "mass_kg": v.mass_kg,
+            "inertia_kgm2": np.diag(v.inertia_kgm2).tolist(),
+            "com_b_m": [0.0, 0.0, 0.0],
+            "thrusters": [
+                {
+                    "position_b_m": p.tolist(),
+                    "direction_b": d.tolist(),
+                    "thrust_n": float(v.thrust_n),
+                    "min_on_time_s": 0.0,
+                }
+                for p, d in zip(v.positions_b_m, v.directions_b)
+            ],
+        },
+        "imu": {
+            "q_body_imu": [1.0, 0.0, 0.0, 0.0],
+            "position_b_m": [0.0, 0.0, 0.0],
+            "accel_sigma_mps2": 0.25 * float(v.thrust_n) / v.mass_kg,
+            "gyro_sigma_rps": 0.005,
+        },
         "pose_sensor": {"reference_point_b_m": [0.0, 0.0, 0.0], "time_offset_s": 0.0, "latency_s": 0.0},
         "orbit": {"radius_m": EARTH_RADIUS_M + 500e3},
     }
@@ -225,27 +252,57 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
     mass, inertia, com, thr = _resolve_vehicle(veh, config, base, defaults)
     rate, qbi, ipos, sig_a, sig_g, bias_a, bias_g = _resolve_imu(desc.get("imu"), config, base, com, defaults)
     pose = _obj(desc.get("pose_sensor"), "pose_sensor", ("reference_point_b_m", "time_offset_s", "latency_s"))
-    pref = _vec(_pick(defaults, pose, "reference_point_b_m", "pose_sensor.reference_point_b_m", com.tolist(),
-                      "the centre of mass"), 3, "pose_sensor.reference_point_b_m")
-    toff = _num(_pick(defaults, pose, "time_offset_s", "pose_sensor.time_offset_s", 0.0, "pose and IMU on one clock"),
-                "pose_sensor.time_offset_s")
-    lat = _num(_pick(defaults, pose, "latency_s", "pose_sensor.latency_s", 0.0, "capture times exact"),
-               "pose_sensor.latency_s", 0.0)
+    pref = _vec(
+        _pick(
+            defaults, pose, "reference_point_b_m", "pose_sensor.reference_point_b_m", com.tolist(), "the centre of mass"
+        ),
+        3,
+        "pose_sensor.reference_point_b_m",
+    )
+    toff = _num(
+        _pick(defaults, pose, "time_offset_s", "pose_sensor.time_offset_s", 0.0, "pose and IMU on one clock"),
+        "pose_sensor.time_offset_s",
+    )
+    lat = _num(
+        _pick(defaults, pose, "latency_s", "pose_sensor.latency_s", 0.0, "capture times exact"),
+        "pose_sensor.latency_s",
+        0.0,
+    )
     radius = _resolve_orbit(desc.get("orbit"), config, base, defaults)
     if "envelope_m" in veh:
         envelope = _num(veh["envelope_m"], "vehicle.envelope_m", 0.0, 100.0, strict_lo=True)
     else:
         pts = [t.position_b_m for t in thr] + [ipos, pref]
         envelope = 2.0 * max(float(np.linalg.norm(p)) for p in pts)
-        defaults.append(f"vehicle.envelope_m = {envelope:.3g} (twice the farthest described point from the body "
-                        "origin)")
+        defaults.append(
+            f"vehicle.envelope_m = {envelope:.3g} (twice the farthest described point from the body origin)"
+        )
     segs = _segments(desc["segments"], "segments") if "segments" in desc else []
     if "segments" not in desc:
-        defaults.append("segments = found from the data (a skipped IMU tick or a break in the pose stream starts a "
-                        "run; every run starts at rest; manoeuvres unknown)")
-    return Resolved(mass, inertia, com, thr, rate, qbi / np.linalg.norm(qbi), ipos, sig_a, sig_g, pref, toff, lat,
-                    radius, segs, envelope_m=envelope, accel_bias_stability_mps2=bias_a,
-                    gyro_bias_stability_rps=bias_g, defaults=defaults)
+        defaults.append(
+            "segments = found from the data (a skipped IMU tick or a break in the pose stream starts a "
+            "run; every run starts at rest; manoeuvres unknown)"
+        )
+    return Resolved(
+        mass,
+        inertia,
+        com,
+        thr,
+        rate,
+        qbi / np.linalg.norm(qbi),
+        ipos,
+        sig_a,
+        sig_g,
+        pref,
+        toff,
+        lat,
+        radius,
+        segs,
+        envelope_m=envelope,
+        accel_bias_stability_mps2=bias_a,
+        gyro_bias_stability_rps=bias_g,
+        defaults=defaults,
+    )
 
 
 def _pick(defaults: list, section: dict, key: str, where: str, fallback, why: str = "bench inspector"):
@@ -268,18 +325,30 @@ def _resolve_vehicle(veh: dict, config: dict, base: dict, defaults: list) -> tup
         bv["thrusters"] = [dict(t, thrust_n=cveh["thrust_n"]) for t in bv["thrusters"]]
     found = []
     mass = _num(_pick(found, veh, "mass_kg", "vehicle.mass_kg", bv["mass_kg"]), "vehicle.mass_kg", 0.0, strict_lo=True)
-    inertia = _inertia(_pick(found, veh, "inertia_kgm2", "vehicle.inertia_kgm2", bv["inertia_kgm2"]),
-                       "vehicle.inertia_kgm2")
+    inertia = _inertia(
+        _pick(found, veh, "inertia_kgm2", "vehicle.inertia_kgm2", bv["inertia_kgm2"]), "vehicle.inertia_kgm2"
+    )
     com = _vec(_pick(found, veh, "com_b_m", "vehicle.com_b_m", bv["com_b_m"]), 3, "vehicle.com_b_m")
-    thr = _thrusters(_pick(found, veh, "thrusters", "vehicle.thrusters", bv["thrusters"],
-                           "bench inspector's 8 thrusters"), "vehicle.thrusters")
+    thr = _thrusters(
+        _pick(found, veh, "thrusters", "vehicle.thrusters", bv["thrusters"], "bench inspector's 8 thrusters"),
+        "vehicle.thrusters",
+    )
     defaults.extend(x for x in found if x.split(" ")[0].split(".")[-1] not in cveh)
     return mass, inertia, com, thr
 
 
-_IMU_FIELDS = ("rate_hz", "sample", "q_body_imu", "position_b_m", "accel_sigma_mps2", "gyro_sigma_rps",
-               "accel_noise_density_mps2_rthz", "gyro_noise_density_rps_rthz", "accel_bias_stability_mps2",
-               "gyro_bias_stability_rps")
+_IMU_FIELDS = (
+    "rate_hz",
+    "sample",
+    "q_body_imu",
+    "position_b_m",
+    "accel_sigma_mps2",
+    "gyro_sigma_rps",
+    "accel_noise_density_mps2_rthz",
+    "gyro_noise_density_rps_rthz",
+    "accel_bias_stability_mps2",
+    "gyro_bias_stability_rps",
+)
 
 
 def _resolve_imu(imu, config: dict, base: dict, com: np.ndarray, defaults: list) -> tuple:
@@ -291,23 +360,51 @@ def _resolve_imu(imu, config: dict, base: dict, com: np.ndarray, defaults: list)
         rate = _num(imu["rate_hz"], "imu.rate_hz", 0.0, 1e4, strict_lo=True)
     sample = imu.get("sample", "mean")
     if sample != "mean":
-        raise DescriptionError(f"imu.sample: {sample!r} not supported: each sample must be the mean over the "
-                               "interval ending at its time stamp ('mean'), as delta-v / delta-angle IMUs report")
-    qbi = _vec(_pick(defaults, imu, "q_body_imu", "imu.q_body_imu", base["imu"]["q_body_imu"], "IMU axes = body axes"),
-               4, "imu.q_body_imu")
+        raise DescriptionError(
+            f"imu.sample: {sample!r} not supported: each sample must be the mean over the "
+            "interval ending at its time stamp ('mean'), as delta-v / delta-angle IMUs report"
+        )
+    qbi = _vec(
+        _pick(defaults, imu, "q_body_imu", "imu.q_body_imu", base["imu"]["q_body_imu"], "IMU axes = body axes"),
+        4,
+        "imu.q_body_imu",
+    )
     if abs(np.linalg.norm(qbi) - 1.0) > 1e-6:
         raise DescriptionError(f"imu.q_body_imu: quaternion [w, x, y, z] norm {np.linalg.norm(qbi):.9g}, expected 1")
-    ipos = _vec(_pick(defaults, imu, "position_b_m", "imu.position_b_m", com.tolist(), "at the centre of mass"), 3,
-                "imu.position_b_m")
+    ipos = _vec(
+        _pick(defaults, imu, "position_b_m", "imu.position_b_m", com.tolist(), "at the centre of mass"),
+        3,
+        "imu.position_b_m",
+    )
     cnoise = config.get("noise") if isinstance(config.get("noise"), dict) else {}
     sig_a = _sigma(imu, cnoise, config, "accel", rate, base["imu"]["accel_sigma_mps2"], defaults)
     sig_g = _sigma(imu, cnoise, config, "gyro", rate, base["imu"]["gyro_sigma_rps"], defaults)
-    bias_a = _num(_pick(defaults, imu, "accel_bias_stability_mps2", "imu.accel_bias_stability_mps2", 0.0,
-                        "not stated: a constant accelerometer bias of any size is a gap"),
-                  "imu.accel_bias_stability_mps2", 0.0, 1.0)
-    bias_g = _num(_pick(defaults, imu, "gyro_bias_stability_rps", "imu.gyro_bias_stability_rps", 0.0,
-                        "not stated: a constant gyro bias of any size is a gap"),
-                  "imu.gyro_bias_stability_rps", 0.0, 1.0)
+    bias_a = _num(
+        _pick(
+            defaults,
+            imu,
+            "accel_bias_stability_mps2",
+            "imu.accel_bias_stability_mps2",
+            0.0,
+            "not stated: a constant accelerometer bias of any size is a gap",
+        ),
+        "imu.accel_bias_stability_mps2",
+        0.0,
+        1.0,
+    )
+    bias_g = _num(
+        _pick(
+            defaults,
+            imu,
+            "gyro_bias_stability_rps",
+            "imu.gyro_bias_stability_rps",
+            0.0,
+            "not stated: a constant gyro bias of any size is a gap",
+        ),
+        "imu.gyro_bias_stability_rps",
+        0.0,
+        1.0,
+    )
     return rate, qbi, ipos, sig_a, sig_g, bias_a, bias_g
 
 

@@ -7,6 +7,7 @@ The relative position rho (inertial axes) obeys
 integrated directly so that nothing cancels at metre separations. Results are
 expressed in the Hill frame (x radial, y along-track, z orbit normal).
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -27,6 +27,7 @@ appendage mode and fuel slosh as extra states; propellant depletion; the
 accelerometer's lever arm from a centre-of-mass offset. With ``effects=None``
 the plant runs the rigid-body equations above, unchanged.
 """
+
 from __future__ import annotations
 
 import math
@@ -50,6 +51,7 @@ def cross3(a, b):
 
 # --- plant ------------------------------------------------------------------
 
+
 @dataclass
 class PlantState:
     t_s: float
@@ -59,8 +61,9 @@ class PlantState:
     omega_bi_b_rps: np.ndarray
 
     def copy(self) -> "PlantState":
-        return PlantState(self.t_s, self.r_hill_m.copy(), self.v_hill_mps.copy(), self.q_hb.copy(),
-                          self.omega_bi_b_rps.copy())
+        return PlantState(
+            self.t_s, self.r_hill_m.copy(), self.v_hill_mps.copy(), self.q_hb.copy(), self.omega_bi_b_rps.copy()
+        )
 
 
 @dataclass
@@ -154,13 +157,16 @@ class Plant:
         k = self.mu / rd**3
         # n^2 (a + x) - mu (a + x) / rd^3 written as (n^2 - k)(a + x): both terms
         # are ~8 m/s^2 and cancel; the difference stays accurate to ~1e-15 m/s^2.
-        return np.array(
-            [
-                2 * n * v[1] + (n * n - k) * (a + r[0]),
-                -2 * n * v[0] + (n * n - k) * r[1],
-                -k * r[2],
-            ]
-        ) + f_hill
+        return (
+            np.array(
+                [
+                    2 * n * v[1] + (n * n - k) * (a + r[0]),
+                    -2 * n * v[0] + (n * n - k) * r[1],
+                    -k * r[2],
+                ]
+            )
+            + f_hill
+        )
 
     def _deriv(self, y, force_b, torque_b):
         r, v, q, w = y[0:3], y[3:6], y[6:10], y[10:13]
@@ -201,14 +207,20 @@ class Plant:
             x, yy, z, vx, vy, vz, qw, qx, qy, qz, wx, wy, wz = y
             qn = 1.0 / sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
             w_, x_, y_, z_ = qw * qn, qx * qn, qy * qn, qz * qn
-            c00 = 1 - 2 * (y_ * y_ + z_ * z_); c01 = 2 * (x_ * y_ - w_ * z_); c02 = 2 * (x_ * z_ + w_ * y_)
-            c10 = 2 * (x_ * y_ + w_ * z_); c11 = 1 - 2 * (x_ * x_ + z_ * z_); c12 = 2 * (y_ * z_ - w_ * x_)
-            c20 = 2 * (x_ * z_ - w_ * y_); c21 = 2 * (y_ * z_ + w_ * x_); c22 = 1 - 2 * (x_ * x_ + y_ * y_)
+            c00 = 1 - 2 * (y_ * y_ + z_ * z_)
+            c01 = 2 * (x_ * y_ - w_ * z_)
+            c02 = 2 * (x_ * z_ + w_ * y_)
+            c10 = 2 * (x_ * y_ + w_ * z_)
+            c11 = 1 - 2 * (x_ * x_ + z_ * z_)
+            c12 = 2 * (y_ * z_ - w_ * x_)
+            c20 = 2 * (x_ * z_ - w_ * y_)
+            c21 = 2 * (y_ * z_ + w_ * x_)
+            c22 = 1 - 2 * (x_ * x_ + y_ * y_)
             ahx = (c00 * fx + c01 * fy + c02 * fz) * inv_m
             ahy = (c10 * fx + c11 * fy + c12 * fz) * inv_m
             ahz = (c20 * fx + c21 * fy + c22 * fz) * inv_m
             if nonlinear:
-                rd = sqrt((a + x) ** 2 + yy ** 2 + z ** 2)
+                rd = sqrt((a + x) ** 2 + yy**2 + z**2)
                 k = mu / rd**3
                 ax = 2 * n * vy + (n * n - k) * (a + x) + ahx
                 ay = -2 * n * vx + (n * n - k) * yy + ahy
@@ -228,8 +240,21 @@ class Plant:
             mx = tx - (wy * hz - wz * hy)
             my = ty - (wz * hx - wx * hz)
             mz = tz - (wx * hy - wy * hx)
-            return (vx, vy, vz, ax, ay, az, qdw, qdx, qdy, qdz,
-                    i00 * mx + i01 * my + i02 * mz, i10 * mx + i11 * my + i12 * mz, i20 * mx + i21 * my + i22 * mz)
+            return (
+                vx,
+                vy,
+                vz,
+                ax,
+                ay,
+                az,
+                qdw,
+                qdx,
+                qdy,
+                qdz,
+                i00 * mx + i01 * my + i02 * mz,
+                i10 * mx + i11 * my + i12 * mz,
+                i20 * mx + i21 * my + i22 * mz,
+            )
 
         h2, h6 = 0.5 * h, h / 6.0
         for _ in range(n_sub):
@@ -362,9 +387,16 @@ class Plant:
             rc, _, thd, thdd, _ = self._host(t_s)
             rd = np.sqrt((rc + r[0]) ** 2 + r[1] ** 2 + r[2] ** 2)
             kd, kc = self.mu / rd**3, self.mu / rc**3
-            acc = np.array([2 * thd * v[1] + thdd * r[1] + thd * thd * r[0] + (kc - kd) * rc - kd * r[0],
-                            -2 * thd * v[0] - thdd * r[0] + thd * thd * r[1] - kd * r[1],
-                            -kd * r[2]]) + f_hill
+            acc = (
+                np.array(
+                    [
+                        2 * thd * v[1] + thdd * r[1] + thd * thd * r[0] + (kc - kd) * rc - kd * r[0],
+                        -2 * thd * v[0] - thdd * r[0] + thd * thd * r[1] - kd * r[1],
+                        -kd * r[2],
+                    ]
+                )
+                + f_hill
+            )
         else:
             thd = self.n_radps
             acc = self.translational_accel(r, v, f_hill)

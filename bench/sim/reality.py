@@ -13,6 +13,7 @@ gives effect-free logs for null calibration.
 magnitude of each effect that shows as a gap (docs/EFFECTS.md):
     python -m bench.sim.reality detect --seeds 4 --json out.json
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,9 +47,14 @@ def _effects_at(effects: EffectSet, t_s: float) -> EffectSet:
     return e
 
 
-def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
-                  scenario: ScenarioConfig | None = None, scripts: list | None = None,
-                  then_scripts: list | None = None) -> list:
+def simulate_runs(
+    seed: int,
+    effects: dict | None,
+    duration_s: float = 120.0,
+    scenario: ScenarioConfig | None = None,
+    scripts: list | None = None,
+    then_scripts: list | None = None,
+) -> list:
     """Docking runs (DockingRun, run_docking) chained to fill duration_s. With
     ``scripts`` (each run's valve configurations, from an earlier call) the
     runs replay those valves open loop, so the chain splits where it did.
@@ -69,7 +75,7 @@ def simulate_runs(seed: int, effects: dict | None, duration_s: float = 120.0,
         runs.append(run)
         t_done += float(run.summary.t_end_s) + cfg.dt_s
         k += 1
-    for sc in (then if scripts is None else scripts[k:]):
+    for sc in then if scripts is None else scripts[k:]:
         # Long enough for the script after the wait for the first pose; the run ends with its script.
         cfg = _scenario(scenario, _effects_at(eff, t_done) if eff else None, len(sc) * DT_S + 60.0)
         cfg = ScenarioConfig(**{**cfg.__dict__, "valve_script": tuple(int(c) for c in sc)})
@@ -99,8 +105,11 @@ def runs_to_log(runs: list, config: dict, clock_rate: float = 1.0, with_truth: b
         mask.append(np.asarray(r.config, dtype=np.int64))
         offset = r.t[-1] + offset + DT_S
     t_v = np.concatenate(t_v) if t_v else np.zeros(0)
-    log.streams["valves"] = {"t_s": t_v, "interval_s": np.full(t_v.size, DT_S * clock_rate),
-                             "mask": np.concatenate(mask) if mask else np.zeros(0, dtype=np.int64)}
+    log.streams["valves"] = {
+        "t_s": t_v,
+        "interval_s": np.full(t_v.size, DT_S * clock_rate),
+        "mask": np.concatenate(mask) if mask else np.zeros(0, dtype=np.int64),
+    }
     if not with_truth:
         log.streams.pop("truth", None)
     return log
@@ -112,11 +121,19 @@ def log_config(seed: int, duration_s: float, scenario: ScenarioConfig | None = N
     v = Vehicle()
     p = sc.profile
     return {
-        "source": "proxops reality", "seed": int(seed), "duration_s": float(duration_s),
-        "orbit_radius_m": 6378137.0 + 500e3, "dt_imu_s": sc.dt_s, "pose_period_s": sc.pose_period_s,
+        "source": "proxops reality",
+        "seed": int(seed),
+        "duration_s": float(duration_s),
+        "orbit_radius_m": 6378137.0 + 500e3,
+        "dt_imu_s": sc.dt_s,
+        "pose_period_s": sc.pose_period_s,
         "vehicle": {"mass_kg": v.mass_kg, "inertia_kgm2": np.diag(v.inertia_kgm2).tolist(), "thrust_n": v.thrust_n},
-        "noise": {"accel_sigma_mps2": p.accel_sigma_mps2, "gyro_sigma_rps": p.gyro_sigma_rps,
-                  "pose_pos_frac": p.pose_pos_frac, "pose_att_sigma_rad": p.pose_att_sigma_rad},
+        "noise": {
+            "accel_sigma_mps2": p.accel_sigma_mps2,
+            "gyro_sigma_rps": p.gyro_sigma_rps,
+            "pose_pos_frac": p.pose_pos_frac,
+            "pose_att_sigma_rad": p.pose_att_sigma_rad,
+        },
         "gate_chi2": sc.gate_chi2,
     }
 
@@ -128,9 +145,16 @@ def effect_key(seed: int, effects: dict | None, duration_s: float) -> dict:
     return body
 
 
-def simulate_log_with_key(seed: int, effects: dict | None, duration_s: float = 120.0, with_truth: bool = True,
-                          config_extra: dict | None = None, scenario: ScenarioConfig | None = None,
-                          scripts: list | None = None, then_scripts: list | None = None):
+def simulate_log_with_key(
+    seed: int,
+    effects: dict | None,
+    duration_s: float = 120.0,
+    with_truth: bool = True,
+    config_extra: dict | None = None,
+    scenario: ScenarioConfig | None = None,
+    scripts: list | None = None,
+    then_scripts: list | None = None,
+):
     """(FlightLog, key): the log carries no trace of the effects; the key
     names them with their parameters (and a sha256 of itself). ``scripts``,
     ``then_scripts``: see simulate_runs."""
@@ -142,8 +166,13 @@ def simulate_log_with_key(seed: int, effects: dict | None, duration_s: float = 1
     return log, effect_key(seed, eff, duration_s)
 
 
-def simulate_log(seed: int, effects: dict | None, duration_s: float = 120.0, with_truth: bool = True,
-                 config_extra: dict | None = None) -> FlightLog:
+def simulate_log(
+    seed: int,
+    effects: dict | None,
+    duration_s: float = 120.0,
+    with_truth: bool = True,
+    config_extra: dict | None = None,
+) -> FlightLog:
     return simulate_log_with_key(seed, effects, duration_s, with_truth, config_extra)[0]
 
 
@@ -154,6 +183,7 @@ def nominal_logs(seeds, duration_s: float = 120.0, with_truth: bool = True) -> l
 
 # --- detection statistics and min_detectable ---------------------------------
 
+
 def _rss(y: np.ndarray, x: np.ndarray) -> float:
     beta, *_ = np.linalg.lstsq(x, y, rcond=None)
     return float(np.sum((y - x @ beta) ** 2))
@@ -161,20 +191,20 @@ def _rss(y: np.ndarray, x: np.ndarray) -> float:
 
 def gap_statistics(runs: list) -> dict:
     """Gap statistics of chained runs, each near 1 under the nominal model:
-      nis:        mean NIS of the pose updates / 6;
-      innov_bias: N |mean whitened innovation|^2 / 6 (a constant offset);
-      accel:      mean |a_meas - F(valves)/m|^2 / (3 sigma_a^2): replay of the
-                  accelerometer against the nominal thrusters;
-      accel_fit:  the part of that residual explained by a per-valve force
-                  error and a constant, chi-square / 27;
-      gyro:       mean |d|^2 / (6 sigma_g^2), d = the change of the gyro
-                  sample minus the nominal rate change from the valve torques;
-      gyro_fit:   the gyro samples minus the nominal rate history (valve
-                  torques integrated from an unknown initial rate per run):
-                  the part explained by per-valve torque errors (regressors:
-                  each valve's cumulative open time), chi-square / 24;
-      nees:       (truth only) mean NEES / 9 of the estimate against the
-                  truth from the first pose update on.
+    nis:        mean NIS of the pose updates / 6;
+    innov_bias: N |mean whitened innovation|^2 / 6 (a constant offset);
+    accel:      mean |a_meas - F(valves)/m|^2 / (3 sigma_a^2): replay of the
+                accelerometer against the nominal thrusters;
+    accel_fit:  the part of that residual explained by a per-valve force
+                error and a constant, chi-square / 27;
+    gyro:       mean |d|^2 / (6 sigma_g^2), d = the change of the gyro
+                sample minus the nominal rate change from the valve torques;
+    gyro_fit:   the gyro samples minus the nominal rate history (valve
+                torques integrated from an unknown initial rate per run):
+                the part explained by per-valve torque errors (regressors:
+                each valve's cumulative open time), chi-square / 24;
+    nees:       (truth only) mean NEES / 9 of the estimate against the
+                truth from the first pose update on.
     """
     v = Vehicle()
     f_tab, tau_tab = v.config_table()
@@ -248,8 +278,7 @@ def gap_score(stats: dict, null: dict, names=STAT_NAMES) -> tuple[float, str]:
     return float(z[k]), k
 
 
-def score_at(name: str, size: float, seeds, null: dict, duration_s: float = 120.0, rng_seed: int = 0,
-             names=STAT_NAMES):
+def score_at(name: str, size: float, seeds, null: dict, duration_s: float = 120.0, rng_seed: int = 0, names=STAT_NAMES):
     """Median gap score over ``seeds`` for effect ``name`` drawn at ``size``
     (a new random direction per seed)."""
     spec = EFFECTS[name]
@@ -257,15 +286,23 @@ def score_at(name: str, size: float, seeds, null: dict, duration_s: float = 120.
     scores, which = [], []
     for s in seeds:
         p = spec.draw_fn(rng, size)
-        sc, k = gap_score(gap_statistics(simulate_runs(int(s), {name: p}, duration_s, scenario_for(name))), null,
-                          names)
+        sc, k = gap_score(gap_statistics(simulate_runs(int(s), {name: p}, duration_s, scenario_for(name))), null, names)
         scores.append(sc)
         which.append(k)
     return float(np.median(scores)), scores, which
 
 
-def measure_min_detectable(name: str, seeds, null: dict, z_detect: float = 4.0, duration_s: float = 120.0,
-                           start: float | None = None, max_evals: int = 7, log=print, names=STAT_NAMES) -> dict:
+def measure_min_detectable(
+    name: str,
+    seeds,
+    null: dict,
+    z_detect: float = 4.0,
+    duration_s: float = 120.0,
+    start: float | None = None,
+    max_evals: int = 7,
+    log=print,
+    names=STAT_NAMES,
+) -> dict:
     """Smallest size whose median gap score reaches z_detect. The score of a
     chi-square-like statistic grows about as size^2, so each next size is
     size * sqrt(z_detect / score) (a step of at most x10, x10 up when the score
@@ -333,27 +370,46 @@ def main(argv=None):
         if spec.needs_images:  # measured against a null of image-pose runs
             if "null_images" not in out:
                 out["null_images"] = null_statistics(range(900, 900 + a.null_seeds), a.duration, scenario_for(name))
-                print("null (pose from images):",
-                      {k: (round(v["mean"], 3), round(v["std"], 3)) for k, v in out["null_images"].items()}, flush=True)
+                print(
+                    "null (pose from images):",
+                    {k: (round(v["mean"], 3), round(v["std"], 3)) for k, v in out["null_images"].items()},
+                    flush=True,
+                )
             null = out["null_images"]
         res = {"effect": name, "min_detectable": float("nan"), "needs_truth": False, "detectable": True}
         for names, truth in ((STAT_NAMES, False), (TRUTH_STAT_NAMES, True)):
             # First the largest sensible size: if even that does not show, skip the search.
-            at_max = (score_at(name, spec.max_size, out["seeds"], null, a.duration, names=names)
-                      if np.isfinite(spec.max_size) else (np.inf, [], []))
-            print(f"  {name} at max_size {spec.max_size:g}: median score {at_max[0]:.2f}"
-                  f"{' (with truth)' if truth else ''}", flush=True)
+            at_max = (
+                score_at(name, spec.max_size, out["seeds"], null, a.duration, names=names)
+                if np.isfinite(spec.max_size)
+                else (np.inf, [], [])
+            )
+            print(
+                f"  {name} at max_size {spec.max_size:g}: median score {at_max[0]:.2f}"
+                f"{' (with truth)' if truth else ''}",
+                flush=True,
+            )
             if at_max[0] < a.z:
                 continue
-            res = measure_min_detectable(name, out["seeds"], null, a.z, a.duration, start=spec.min_detectable,
-                                         log=lambda m: print(m, flush=True), names=names)
+            res = measure_min_detectable(
+                name,
+                out["seeds"],
+                null,
+                a.z,
+                a.duration,
+                start=spec.min_detectable,
+                log=lambda m: print(m, flush=True),
+                names=names,
+            )
             res["needs_truth"], res["detectable"] = truth, True
             break
         else:
             res["detectable"] = False  # not even the truth shows it up to max_size
         out["effects"][name] = res
-        print(f"{name}: min_detectable {res['min_detectable']:.4g} {EFFECTS[name].unit} "
-              f"({time.time() - t0:.0f} s)", flush=True)
+        print(
+            f"{name}: min_detectable {res['min_detectable']:.4g} {EFFECTS[name].unit} ({time.time() - t0:.0f} s)",
+            flush=True,
+        )
         with open(a.json, "w") as f:
             json.dump(out, f, indent=1, default=float)
 

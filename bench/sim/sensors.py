@@ -28,6 +28,7 @@ to a point offset from the centre of mass (``PoseSensor.lever_arm_b_m``:
 r_meas = r + C(q) d), and LED occlusion that shifts the position along the
 line of sight on a random subset of frames (``PoseSensor.occlusion``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -58,8 +59,12 @@ class NoiseProfile:
     def biased(cls) -> "NoiseProfile":
         """The paper's profile plus constant biases and scale factors that a
         9-state filter does not model (for robustness studies)."""
-        return cls(accel_bias_mps2=(3e-4, -2e-4, 1e-4), gyro_bias_rps=(2e-3, -1e-3, 1.5e-3),
-                   accel_scale=(0.03, -0.02, 0.01), gyro_scale=(0.01, 0.01, -0.01))
+        return cls(
+            accel_bias_mps2=(3e-4, -2e-4, 1e-4),
+            gyro_bias_rps=(2e-3, -1e-3, 1.5e-3),
+            accel_scale=(0.03, -0.02, 0.01),
+            gyro_scale=(0.01, 0.01, -0.01),
+        )
 
     def with_(self, **kw) -> "NoiseProfile":
         return replace(self, **kw)

@@ -34,6 +34,7 @@ hinge-angle mode vector is perturbed by a random vector of 5 % of its norm,
 and mode 3's estimate also leaks 5 % of mode 1 (as the paper observed),
 drawn per trial.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -33,6 +33,7 @@ be commanded.
 
 Valve configuration k (0..255) has valve i open when bit i of k is set.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

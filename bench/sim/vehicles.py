@@ -20,6 +20,7 @@ diagnosis leans on the first vehicle:
   - a pose sensor that reports the docking face (+z, 0.18 m out), on its own
     clock 0.25 s ahead of the IMU's, with a known 50 ms latency.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -49,22 +50,38 @@ def inspector_12kg() -> dict:
                 p = np.zeros(3)
                 p[axis] = -sign * half[axis]  # on the face opposite the force
                 p[lever] = lsign * 0.09 * (half[lever] / max(half[lever], 0.09))
-                thrusters.append({"position_b_m": p.round(4).tolist(),
-                                  "direction_b": _canted(axis, sign, lever, lsign, np.deg2rad(5.0)).tolist(),
-                                  "thrust_n": 0.1, "min_on_time_s": 0.01})
+                thrusters.append(
+                    {
+                        "position_b_m": p.round(4).tolist(),
+                        "direction_b": _canted(axis, sign, lever, lsign, np.deg2rad(5.0)).tolist(),
+                        "thrust_n": 0.1,
+                        "min_on_time_s": 0.01,
+                    }
+                )
     m = 12.0
     a, b, c = 2 * half
     inertia = m / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
     inertia[0, 1] = inertia[1, 0] = 0.004
     s = np.sqrt(0.5)
     return {
-        "vehicle": {"mass_kg": m, "inertia_kgm2": inertia.round(5).tolist(), "com_b_m": [0.003, -0.005, 0.012],
-                    "thrusters": thrusters, "envelope_m": round(float(np.linalg.norm(2 * half)), 3)},
-        "imu": {"rate_hz": 20.0, "sample": "mean", "q_body_imu": [s, 0.0, 0.0, s],
-                "position_b_m": [0.02, 0.03, -0.04],
-                "accel_noise_density_mps2_rthz": 4.0e-4, "gyro_noise_density_rps_rthz": 1.0e-3,
-                # Biases calibrated on the ground: any constant bias in flight is a gap.
-                "accel_bias_stability_mps2": 0.0, "gyro_bias_stability_rps": 0.0},
+        "vehicle": {
+            "mass_kg": m,
+            "inertia_kgm2": inertia.round(5).tolist(),
+            "com_b_m": [0.003, -0.005, 0.012],
+            "thrusters": thrusters,
+            "envelope_m": round(float(np.linalg.norm(2 * half)), 3),
+        },
+        "imu": {
+            "rate_hz": 20.0,
+            "sample": "mean",
+            "q_body_imu": [s, 0.0, 0.0, s],
+            "position_b_m": [0.02, 0.03, -0.04],
+            "accel_noise_density_mps2_rthz": 4.0e-4,
+            "gyro_noise_density_rps_rthz": 1.0e-3,
+            # Biases calibrated on the ground: any constant bias in flight is a gap.
+            "accel_bias_stability_mps2": 0.0,
+            "gyro_bias_stability_rps": 0.0,
+        },
         "pose_sensor": {"reference_point_b_m": [0.0, 0.0, 0.18], "time_offset_s": -0.25, "latency_s": 0.05},
         "orbit": {"altitude_m": 550e3},
     }

@@ -90,7 +90,7 @@ def cycles(graph: dict[Path, list[Path]]) -> list[list[Path]]:
         stack.append(n)
         for m in graph.get(n, []):
             if state.get(m) == 1:
-                found.append(stack[stack.index(m):] + [m])
+                found.append(stack[stack.index(m) :] + [m])
             elif m not in state:
                 visit(m)
         stack.pop()
@@ -104,8 +104,12 @@ def cycles(graph: dict[Path, list[Path]]) -> list[list[Path]]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[2],
-                    help="repository root (default: this script's)")
+    ap.add_argument(
+        "--root",
+        type=Path,
+        default=Path(__file__).resolve().parents[2],
+        help="repository root (default: this script's)",
+    )
     args = ap.parse_args(argv)
     errors = check(args.root)
     for e in errors:

@@ -5,6 +5,7 @@ packages, the ones inside functions included (a function-local import hides
 a cycle from the interpreter, not from a reader). docs/ARCHITECTURE.md
 states the rules; each test here fails on the first import that breaks one.
 """
+
 import re
 
 import pytest
@@ -13,14 +14,27 @@ grimp = pytest.importorskip("grimp")
 
 # bench/gap, top to bottom: a module may import its own layer or lower ones.
 GAP_LAYERS = (
-    ("campaigns: blind validation, detection limits, separability, the bundled run",
-     {"validate", "validate_vehicle", "validate_basilisk", "validate_mixtures", "perf_diagnose", "results_tables", "bundled",
-      "characterise", "separability", "detectable"}),
+    (
+        "campaigns: blind validation, detection limits, separability, the bundled run",
+        {
+            "validate",
+            "validate_vehicle",
+            "validate_basilisk",
+            "validate_mixtures",
+            "perf_diagnose",
+            "results_tables",
+            "bundled",
+            "characterise",
+            "separability",
+            "detectable",
+        },
+    ),
     ("the answer: verdicts, words, report", {"diagnose", "answers", "report"}),
-    ("null calibrations and the flights they simulate",
-     {"null", "log_null", "plans", "simlogs"}),
-    ("the model: replay, dynamics channel, candidates, screening, selection, detection",
-     {"detection", "select", "attribute", "localise", "quantify", "dyn", "candidates", "replay"}),
+    ("null calibrations and the flights they simulate", {"null", "log_null", "plans", "simlogs"}),
+    (
+        "the model: replay, dynamics channel, candidates, screening, selection, detection",
+        {"detection", "select", "attribute", "localise", "quantify", "dyn", "candidates", "replay"},
+    ),
 )
 # Only the command line and the HIL performance comparison use the HIL loop;
 # the HIL loop builds on the bench's models.
@@ -119,8 +133,11 @@ def test_no_private_names_imported_across_modules(graph):
 
 
 def test_hil_loop_is_used_only_by_the_command_line(graph):
-    bad = [f"{a} imports {b}" for a, b in _edges(graph)
-           if a.startswith("bench") and b.startswith("hil_sim") and not HIL_USERS.match(a)]
+    bad = [
+        f"{a} imports {b}"
+        for a, b in _edges(graph)
+        if a.startswith("bench") and b.startswith("hil_sim") and not HIL_USERS.match(a)
+    ]
     assert not bad, "\n".join(bad)
 
 
@@ -171,8 +188,10 @@ def test_layer_check_finds_an_upward_import():
     g.add_import(importer="bench.sim.plant", imported="bench.campaigns.nav_campaign")
     g.add_import(importer="bench.campaigns.nav_campaign", imported="bench.gap.diagnose")
     g.add_import(importer="bench.campaigns.nav_campaign", imported="bench.so3")
-    assert _layer_violations(g) == {("bench.sim.plant", "bench.campaigns.nav_campaign"),
-                                    ("bench.campaigns.nav_campaign", "bench.gap.diagnose")}
+    assert _layer_violations(g) == {
+        ("bench.sim.plant", "bench.campaigns.nav_campaign"),
+        ("bench.campaigns.nav_campaign", "bench.gap.diagnose"),
+    }
 
 
 def test_gap_layers(graph):
@@ -186,8 +205,9 @@ def test_gap_layers(graph):
     for a, b in _edges(graph):
         if a in layer_of and b in layer_of and layer_of[b] < layer_of[a]:
             d = graph.get_import_details(importer=a, imported=b)[0]
-            bad.append(f"{a}:{d['line_number']} ({GAP_LAYERS[layer_of[a]][0]}) imports {b} "
-                       f"({GAP_LAYERS[layer_of[b]][0]})")
+            bad.append(
+                f"{a}:{d['line_number']} ({GAP_LAYERS[layer_of[a]][0]}) imports {b} ({GAP_LAYERS[layer_of[b]][0]})"
+            )
     assert not bad, "\n".join(bad)
 
 

@@ -3,6 +3,7 @@ same vehicle, commands and stamps, noise-free. Fails when the engines
 disagree. The 12 kg inspector (IMU 6 cm off the centre of mass and turned,
 centre of mass off the body origin, canted nozzles), 12 s of its
 characterisation (two thrusters fired alone). About 30 s."""
+
 from __future__ import annotations
 
 import numpy as np

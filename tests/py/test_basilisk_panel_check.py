@@ -1,6 +1,7 @@
 """A flexible appendage against a thrust loss (bench/basilisk_panel_check.py):
 the first 12 s of the 12 kg inspector's characterisation (its two x
 thrusters, which turn it about the panel's hinge axis), noise-free. About 20 s."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,6 +1,7 @@
 """The Basilisk engine (bench/basilisk_sim.py) and `proxops simulate`: a
 valid format-2 log from either engine; the out-of-library effects only
 Basilisk's modules provide (hinged panel, slosh) show in the sensors."""
+
 from __future__ import annotations
 
 import json
@@ -20,8 +21,25 @@ def test_simulate_writes_a_valid_log_from_each_engine(tmp_path):
     for engine in ("bench", "basilisk"):
         out = tmp_path / f"{engine}.h5"
         key = tmp_path / f"{engine}.json"
-        rc = main(["simulate", "--engine", engine, "--vehicle", "12kg", "--effects", '{"accel_bias": [1e-3, 0, 0]}',
-                   "--clocks", "as-real-logs", "--seed", "5", "--out", str(out), "--key", str(key)])
+        rc = main(
+            [
+                "simulate",
+                "--engine",
+                engine,
+                "--vehicle",
+                "12kg",
+                "--effects",
+                '{"accel_bias": [1e-3, 0, 0]}',
+                "--clocks",
+                "as-real-logs",
+                "--seed",
+                "5",
+                "--out",
+                str(out),
+                "--key",
+                str(key),
+            ]
+        )
         assert rc == 0
         logs[engine] = read_flight_log(out)
         assert validate_log(logs[engine]) == []
@@ -43,10 +61,13 @@ def test_unknown_effect_is_refused_with_its_name():
         basilisk_sim.simulate(VEHICLES["12kg"](), xc.short_plan(VEHICLES["12kg"](), 2.0), {"clock_drift": [1e-4]})
 
 
-@pytest.mark.parametrize("name, params, stream, floor", [
-    ("flex_mode", [0.5, 0.01], "omega_bi_b_rps", 1e-4),  # the hinged panel swings the body
-    ("fuel_slosh", [0.5], "accel_b_mps2", 1e-5),  # the slosh masses take part of the thrust, then give it back
-])
+@pytest.mark.parametrize(
+    "name, params, stream, floor",
+    [
+        ("flex_mode", [0.5, 0.01], "omega_bi_b_rps", 1e-4),  # the hinged panel swings the body
+        ("fuel_slosh", [0.5], "accel_b_mps2", 1e-5),  # the slosh masses take part of the thrust, then give it back
+    ],
+)
 def test_out_of_library_effects_from_basilisk_modules_show_in_the_imu(name, params, stream, floor):
     desc = xc.quiet(VEHICLES["12kg"]())
     plan = xc.short_plan(desc, 8.0)
@@ -75,10 +96,12 @@ def test_the_hinged_panel_swings_the_hub_at_the_stated_frequency_and_amplitude(m
 
     monkeypatch.setattr(basilisk_sim, "PANEL_DAMPING", 0.0)
     f, amp = 0.5, 0.004
-    coast = PlanSegment("coast", 12.0, np.array([0.2, -1.5, 0.1]), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(0),
-                        np.zeros((0, 12)))
-    log, _ = basilisk_sim.simulate(xc.quiet(VEHICLES["12kg"]()), [coast], {"flex_mode": [f, amp]}, clocks=Clocks(),
-                                   noise=False)
+    coast = PlanSegment(
+        "coast", 12.0, np.array([0.2, -1.5, 0.1]), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(0), np.zeros((0, 12))
+    )
+    log, _ = basilisk_sim.simulate(
+        xc.quiet(VEHICLES["12kg"]()), [coast], {"flex_mode": [f, amp]}, clocks=Clocks(), noise=False
+    )
     t, w = log.streams["truth"]["t_s"], log.streams["truth"]["omega_bi_b_rps"][:, 2]
     fits = []
     for ff in np.linspace(0.9 * f, 1.1 * f, 401):

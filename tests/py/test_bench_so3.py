@@ -1,5 +1,6 @@
 """The bench's rotations (bench/so3.py) against scipy's Rotation, and the
 vectorised forms against the one-at-a-time ones."""
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -46,8 +47,9 @@ def test_boxplus_and_boxminus_are_inverse_in_the_body_frame():
         q1 = so3.boxplus(q, v)
         np.testing.assert_allclose(so3.boxminus(q1, q), v, atol=1e-10)
         # body frame: q1 = q Exp(v), i.e. the perturbation rotates after q
-        np.testing.assert_allclose(so3.rotmat(q1), _scipy(q).as_matrix() @ Rotation.from_rotvec(v).as_matrix(),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            so3.rotmat(q1), _scipy(q).as_matrix() @ Rotation.from_rotvec(v).as_matrix(), atol=1e-12
+        )
 
 
 @pytest.mark.parametrize("axis", range(3))
@@ -55,8 +57,9 @@ def test_matrix_to_quaternion_on_every_branch(axis):
     # near-pi rotations about each axis take the three non-trace branches
     v = np.zeros(3)
     v[axis] = np.pi - 1e-3
-    for R in [Rotation.from_rotvec(v).as_matrix()] + [Rotation.from_quat(np.roll(q, -1)).as_matrix()
-                                                        for q in _random_quats(50)]:
+    for R in [Rotation.from_rotvec(v).as_matrix()] + [
+        Rotation.from_quat(np.roll(q, -1)).as_matrix() for q in _random_quats(50)
+    ]:
         q = so3.quat_from_rotmat(R)
         assert q[0] >= 0.0 and np.linalg.norm(q) == pytest.approx(1.0)
         np.testing.assert_allclose(so3.rotmat(q), R, atol=1e-12)

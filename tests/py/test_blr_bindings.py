@@ -1,5 +1,6 @@
 """fsw_bindings.ThrusterBlr against an independent batch ridge least-squares
 solve of the same window (numpy lstsq) and against bench/perf/blr_numpy.py."""
+
 import numpy as np
 import pytest
 

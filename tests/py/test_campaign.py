@@ -1,6 +1,7 @@
 """The campaign machinery (bench/runner): records that read back bit for
 bit, a store that resumes and keeps failures, and per-run results that do
 not depend on the number of workers or on a resumed campaign."""
+
 import json
 import os
 
@@ -25,9 +26,17 @@ def deterministic(obj):
 
 def test_records_read_back_bit_for_bit():
     rng = np.random.default_rng(5)
-    obj = {"x": rng.normal(size=(3, 4)), "f32": rng.normal(size=5).astype(np.float32), "nan": float("nan"),
-           "inf": -np.inf, "i": np.int64(7), "b": np.bool_(True), "s": np.array(["ok", "gated"]),
-           "by_int": {1: 0.1 + 0.2, 2: [1, 2]}, "tiny": 5e-324}
+    obj = {
+        "x": rng.normal(size=(3, 4)),
+        "f32": rng.normal(size=5).astype(np.float32),
+        "nan": float("nan"),
+        "inf": -np.inf,
+        "i": np.int64(7),
+        "b": np.bool_(True),
+        "s": np.array(["ok", "gated"]),
+        "by_int": {1: 0.1 + 0.2, 2: [1, 2]},
+        "tiny": 5e-324,
+    }
     back = records.roundtrip(obj)
     assert back["x"].dtype == np.float64 and np.array_equal(back["x"].view(np.uint64), obj["x"].view(np.uint64))
     assert back["f32"].dtype == np.float32 and np.array_equal(back["f32"], obj["f32"])
@@ -85,8 +94,9 @@ def test_null_calibration_is_identical_on_one_and_two_workers_and_resumed(tmp_pa
     from bench.gap import null
 
     seeds = [int(s) for s in np.random.default_rng(11).integers(0, 2**31, 4)]
-    one = null.calibrate(seeds, duration_s=40.0, campaign=Campaign(RunStore("n", {}, root=tmp_path / "a"),
-                                                                   workers=1, progress=False))
+    one = null.calibrate(
+        seeds, duration_s=40.0, campaign=Campaign(RunStore("n", {}, root=tmp_path / "a"), workers=1, progress=False)
+    )
     store = RunStore("n", {}, root=tmp_path / "b")
     null.calibrate(seeds[:2], duration_s=40.0, campaign=Campaign(store, workers=2, progress=False))
     two = null.calibrate(seeds, duration_s=40.0, campaign=Campaign(store, workers=2, progress=False))

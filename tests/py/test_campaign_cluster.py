@@ -2,6 +2,7 @@
 `dask worker` processes on 127.0.0.1, one of them killed while the campaign
 runs. The store must end complete, each run once, and identical to the same
 campaign run on one local worker."""
+
 import os
 import signal
 import socket
@@ -48,14 +49,39 @@ def hand_started_cluster(tmp_path):
     procs = []
 
     def start(args, log):
-        procs.append(subprocess.Popen(_dask_cli() + args, env=env, cwd=tmp_path, start_new_session=True,
-                                      stdout=open(tmp_path / log, "w"), stderr=subprocess.STDOUT))
+        procs.append(
+            subprocess.Popen(
+                _dask_cli() + args,
+                env=env,
+                cwd=tmp_path,
+                start_new_session=True,
+                stdout=open(tmp_path / log, "w"),
+                stderr=subprocess.STDOUT,
+            )
+        )
         return procs[-1]
 
     try:
         start(["scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], "scheduler.log")
-        workers = [start(["worker", address, "--host", "127.0.0.1", "--nthreads", "1", "--nworkers", "1",
-                          "--no-dashboard", "--name", f"w{i}"], f"worker{i}.log") for i in range(2)]
+        workers = [
+            start(
+                [
+                    "worker",
+                    address,
+                    "--host",
+                    "127.0.0.1",
+                    "--nthreads",
+                    "1",
+                    "--nworkers",
+                    "1",
+                    "--no-dashboard",
+                    "--name",
+                    f"w{i}",
+                ],
+                f"worker{i}.log",
+            )
+            for i in range(2)
+        ]
         _wait_for_workers(address, 2)
         yield address, workers
     finally:
@@ -76,7 +102,9 @@ def _deterministic(recs: dict) -> dict:
     for i, r in recs.items():
         assert r["ok"], r.get("traceback")
         res = r["result"]
-        out[i] = {k: v for k, v in res.items() if k not in ("t_sim_s", "t_diagnose_s")} if isinstance(res, dict) else res
+        out[i] = (
+            {k: v for k, v in res.items() if k not in ("t_sim_s", "t_diagnose_s")} if isinstance(res, dict) else res
+        )
     return out
 
 
@@ -98,8 +126,9 @@ def test_killed_worker_loses_and_duplicates_no_run(tmp_path, hand_started_cluste
 
     watcher = threading.Thread(target=kill_one_worker_mid_way, daemon=True)
     watcher.start()
-    res = validate.run_campaign(RUNS, SEED, None, duration_s=DURATION_S,
-                                campaign=Campaign(store, scheduler=address, progress=False))
+    res = validate.run_campaign(
+        RUNS, SEED, None, duration_s=DURATION_S, campaign=Campaign(store, scheduler=address, progress=False)
+    )
     watcher.join(timeout=5)
     assert 2 <= killed.get("after", RUNS) < RUNS, "the worker was not killed while runs remained"
     assert workers[0].poll() is not None

@@ -1,6 +1,7 @@
 """The detector's centroid sigma against the measured scatter of its
 centroids on rendered spots (bench/campaigns/centroid_calibration.py, docs/VISION.md
 "Centroid error model"): seeded, a few images of 130 spots each."""
+
 import numpy as np
 import pytest
 
@@ -23,8 +24,9 @@ def _group(d, blur, peak_lo, peak_hi):
     return e, s
 
 
-@pytest.mark.parametrize("blur, peak_lo, peak_hi", [(0.0, 0.0, 249.0), (0.0, 249.0, np.inf), (2.0, 0.0, 249.0),
-                                                    (2.0, 249.0, np.inf)])
+@pytest.mark.parametrize(
+    "blur, peak_lo, peak_hi", [(0.0, 0.0, 249.0), (0.0, 249.0, np.inf), (2.0, 0.0, 249.0), (2.0, 249.0, np.inf)]
+)
 def test_sigma_matches_measured_scatter(spots, blur, peak_lo, peak_hi):
     # Mean z^2 = mean (error / sigma)^2 is 1 for an honest sigma; with 200 to
     # 800 samples per group its sampling spread is 0.05 to 0.1 (more for the

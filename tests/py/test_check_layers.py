@@ -55,5 +55,5 @@ def test_stale_path_and_unlisted_folder_fail(tree):
     (tree / "fsw/include/fsw/extra").mkdir()
     (tree / "fsw/include/fsw/extra/x.hpp").write_text("#pragma once\n")
     errors = check_layers.check(tree)
-    assert any('names no file' in e for e in errors)
+    assert any("names no file" in e for e in errors)
     assert any("extra/x.hpp: not in a layer folder" in e for e in errors)

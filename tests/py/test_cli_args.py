@@ -1,6 +1,7 @@
 """Out-of-range, non-finite and nonsensical numeric arguments of every
 `proxops` command: one line on stderr naming the argument, exit code 2, and
 the user's output file untouched."""
+
 from __future__ import annotations
 
 import pytest
@@ -67,8 +68,18 @@ def test_help_shows_defaults_and_ranges(capsys):
         assert cli.main([cmd, "--help"]) == 0
         assert "(default:" in capsys.readouterr().out, cmd
     # help speaks of the product, not of the papers it came from
-    for cmd in ("run", "cw-check", "nav", "hil", "modal", "modal-timing", "thrusters", "pose", "diagnose",
-                "validate-gap"):
+    for cmd in (
+        "run",
+        "cw-check",
+        "nav",
+        "hil",
+        "modal",
+        "modal-timing",
+        "thrusters",
+        "pose",
+        "diagnose",
+        "validate-gap",
+    ):
         assert cli.main([cmd, "--help"]) == 0
         text = capsys.readouterr().out.lower()
         assert "seed's" not in text and "seed 0" not in text and "issue " not in text, cmd
@@ -94,8 +105,7 @@ def test_strict_json_writes_null_with_the_reason(tmp_path):
     from bench.report import write_json
 
     out = tmp_path / "s.json"
-    write_json(out, {"a": float("inf"), "b": [1.0, float("nan")], "c": np.float64(-np.inf), "d": {"e": 2}},
-               strict=True)
+    write_json(out, {"a": float("inf"), "b": [1.0, float("nan")], "c": np.float64(-np.inf), "d": {"e": 2}}, strict=True)
 
     def refuse(name):
         raise ValueError(f"bare {name} in strict JSON")

@@ -1,5 +1,6 @@
 """Thruster geometry authority and the docking controller (with perfect
 navigation, so the controller is tested alone)."""
+
 import numpy as np
 from scipy.optimize import linprog
 

@@ -1,5 +1,6 @@
 """The CW closed forms against scipy integration, and the CW model against
 exact two-body motion at 10 m in a 500 km orbit."""
+
 import fsw_bindings as fb
 import numpy as np
 import pytest

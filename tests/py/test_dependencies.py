@@ -1,6 +1,7 @@
 """Every third-party module the installed packages import is provided by a
 distribution that pyproject.toml lists: a clean install must be able to run
 them."""
+
 from __future__ import annotations
 
 import ast
@@ -48,8 +49,11 @@ def test_every_third_party_import_is_a_listed_dependency():
     bsk = [p for p in sources if p.name.startswith("basilisk_")]
     by_module = md.packages_distributions()
     missing = []
-    for files, listed in ((runtime, _listed_distributions()), (perf, _listed_distributions("dev")),
-                          (bsk, _listed_distributions("basilisk"))):
+    for files, listed in (
+        (runtime, _listed_distributions()),
+        (perf, _listed_distributions("dev")),
+        (bsk, _listed_distributions("basilisk")),
+    ):
         missing += _unlisted(_imported_top_level(files), listed, by_module)
     assert not missing, "imported but not in pyproject.toml dependencies: " + "; ".join(missing)
 

@@ -11,6 +11,7 @@
 - Nothing names a file outside the repository, and nothing cites an issue
   number or a numbered seed label: papers are cited by title and authors.
 """
+
 import re
 import subprocess
 import sys
@@ -20,8 +21,24 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 THIS = Path(__file__).resolve()
-TEXT_SUFFIXES = {".md", ".py", ".cpp", ".hpp", ".h", ".c", ".txt", ".cmake", ".toml", ".sh", ".ld", ".in",
-                 ".yml", ".yaml", ".cfg", ".ini"}
+TEXT_SUFFIXES = {
+    ".md",
+    ".py",
+    ".cpp",
+    ".hpp",
+    ".h",
+    ".c",
+    ".txt",
+    ".cmake",
+    ".toml",
+    ".sh",
+    ".ld",
+    ".in",
+    ".yml",
+    ".yaml",
+    ".cfg",
+    ".ini",
+}
 TEXT_NAMES = {"Makefile", "run", ".clang-format", ".gitignore"}
 SKIP_DIRS = {".git", ".venv", "build", "report", "__pycache__", ".pytest_cache", ".ruff_cache"}
 
@@ -45,12 +62,20 @@ RECORD_HEADER = ("Question", "Command", "Commit", "Machine", "Wall time")
 
 def _tracked_files() -> list:
     try:
-        out = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
-                             capture_output=True, text=True, check=True).stdout.splitlines()
+        out = subprocess.run(
+            ["git", "ls-files", "--cached", "--others", "--exclude-standard"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.splitlines()
         paths = [ROOT / p for p in out]
     except (OSError, subprocess.CalledProcessError):  # not a git checkout: walk the tree
-        paths = [p for p in ROOT.rglob("*")
-                 if not any(part in SKIP_DIRS or part.startswith("build") for part in p.relative_to(ROOT).parts)]
+        paths = [
+            p
+            for p in ROOT.rglob("*")
+            if not any(part in SKIP_DIRS or part.startswith("build") for part in p.relative_to(ROOT).parts)
+        ]
     return sorted(p for p in paths if p.is_file() and (p.suffix in TEXT_SUFFIXES or p.name in TEXT_NAMES))
 
 
@@ -124,7 +149,7 @@ def broken_doc_paths(f: Path) -> list:
         if doc.is_file():
             quoted = _plain(re.sub(r"\n[ \t]*(#|//)?", " ", m.group(2)))
             if not any(_plain(h).startswith(quoted) for h in _sections(doc)):
-                bad.append(f"{f.relative_to(ROOT)}: names section \"{m.group(2)}\" of {m.group(1)}: no such heading")
+                bad.append(f'{f.relative_to(ROOT)}: names section "{m.group(2)}" of {m.group(1)}: no such heading')
     return bad
 
 
@@ -159,10 +184,12 @@ def test_nothing_names_files_outside_the_repository_or_issue_and_seed_numbers(fi
 
 def test_every_document_is_in_the_docs_index(files):
     index = ROOT / "docs" / "README.md"
-    linked = {(index.parent / m.group(1).partition("#")[0]).resolve()
-              for m in LINK.finditer(_prose(index.read_text()))}
-    docs = [p for p in _markdown(files)
-            if p.is_relative_to(ROOT / "docs") and p != index and p.parent != ROOT / "docs" / "results"]
+    linked = {(index.parent / m.group(1).partition("#")[0]).resolve() for m in LINK.finditer(_prose(index.read_text()))}
+    docs = [
+        p
+        for p in _markdown(files)
+        if p.is_relative_to(ROOT / "docs") and p != index and p.parent != ROOT / "docs" / "results"
+    ]
     missing = [str(p.relative_to(ROOT)) for p in docs if p.resolve() not in linked]
     assert (ROOT / "docs" / "results" / "README.md").resolve() in linked, "docs/README.md must link the results index"
     assert not missing, "documents missing from docs/README.md: " + ", ".join(missing)
@@ -179,11 +206,13 @@ def test_results_are_dated_records_listed_in_their_index():
         if not RECORD_NAME.match(rec.name):
             bad.append(f"{rec.name}: not named YYYY-MM-DD-topic.md")
         text = _prose(rec.read_text())
-        header = text[:text.find("\n## ")] if "\n## " in text else text
+        header = text[: text.find("\n## ")] if "\n## " in text else text
         fields = re.findall(r"^\*\*(Question|Commands?|Commit|Machine|Wall time)\.\*\*", header, re.M)
         if tuple(f.rstrip("s") if f.startswith("Command") else f for f in fields) != RECORD_HEADER:
-            bad.append(f"{rec.name}: header fields {fields}, expected {list(RECORD_HEADER)} in that order "
-                       "before the first '## ' section")
+            bad.append(
+                f"{rec.name}: header fields {fields}, expected {list(RECORD_HEADER)} in that order "
+                "before the first '## ' section"
+            )
         if rec.name not in linked:
             bad.append(f"{rec.name}: not listed in docs/results/README.md")
     assert not bad, "\n".join(bad)
@@ -195,15 +224,20 @@ def test_the_checks_catch_a_broken_reference(tmp_path, monkeypatch):
     (tmp_path / "docs").mkdir()
     (tmp_path / "docs" / "A.md").write_text("# A\n\n## Only section\n")
     md = tmp_path / "docs" / "B.md"
-    md.write_text("[ok](A.md#only-section) [gone](C.md) [no anchor](A.md#elsewhere)\n"
-                  "```\n[in code](D.md)\n```\n")
-    assert broken_links(md) == ["docs/B.md: link to C.md: no such file",
-                                "docs/B.md: link to A.md#elsewhere: no heading with that anchor"]
+    md.write_text("[ok](A.md#only-section) [gone](C.md) [no anchor](A.md#elsewhere)\n```\n[in code](D.md)\n```\n")
+    assert broken_links(md) == [
+        "docs/B.md: link to C.md: no such file",
+        "docs/B.md: link to A.md#elsewhere: no heading with that anchor",
+    ]
     src = tmp_path / "x.py"
     src.write_text('# see docs/A.md, "Only section"; docs/A.md, "Missing"; docs/Z.md\n')
-    assert broken_doc_paths(src) == ["x.py: names docs/Z.md: no such file",
-                                     'x.py: names section "Missing" of docs/A.md: no such heading']
+    assert broken_doc_paths(src) == [
+        "x.py: names docs/Z.md: no such file",
+        'x.py: names section "Missing" of docs/A.md: no such heading',
+    ]
     src.write_text("# as " + "DESIGN" + ".md says; fixed in " + "issue" + " 12; see " + "Seed" + " 003\n")
     assert [b.split(": ")[1] for b in outside_names(src)] == [
-        "a design document outside the repository", "an issue number",
-        "a numbered seed label instead of the paper's title"]
+        "a design document outside the repository",
+        "an issue number",
+        "a numbered seed label instead of the paper's title",
+    ]

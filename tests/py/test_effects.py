@@ -2,6 +2,7 @@
 physics that changes what it should and nothing else; with no effect the
 docking run is unchanged bit for bit; reality logs are valid flight logs
 whose configuration does not reveal the effects."""
+
 import json
 
 import numpy as np
@@ -18,17 +19,30 @@ from bench.so3 import boxminus, qexp, rotmat
 
 fb = pytest.importorskip("fsw_bindings")
 
-LIBRARY = {"thruster_misalignment", "thrust_loss", "com_offset", "mass_depletion", "accel_bias", "gyro_bias",
-           "gyro_scale", "imu_misalignment", "camera_latency", "camera_lever_arm", "host_eccentricity",
-           "differential_j2", "differential_drag"}
+LIBRARY = {
+    "thruster_misalignment",
+    "thrust_loss",
+    "com_offset",
+    "mass_depletion",
+    "accel_bias",
+    "gyro_bias",
+    "gyro_scale",
+    "imu_misalignment",
+    "camera_latency",
+    "camera_lever_arm",
+    "host_eccentricity",
+    "differential_j2",
+    "differential_drag",
+}
 # flex_mode is simulated but has no diagnoser candidate: it tests "unexplained" too;
 # lens_distortion exists only with pose from rendered images.
 OUT_OF_LIBRARY = {"fuel_slosh", "clock_drift", "led_occlusion", "flex_mode", "lens_distortion"}
 
 
 def hill_fixed(r=(0.0, -0.75, 0.0), v=(0.0, 0.0, 0.0)):
-    return PlantState(0.0, np.array(r, float), np.array(v, float), np.array([1.0, 0, 0, 0]),
-                      np.array([0.0, 0.0, N_RADPS]))
+    return PlantState(
+        0.0, np.array(r, float), np.array(v, float), np.array([1.0, 0, 0, 0]), np.array([0.0, 0.0, N_RADPS])
+    )
 
 
 def assert_runs_equal(a, b):
@@ -39,6 +53,7 @@ def assert_runs_equal(a, b):
 
 
 # --- contract ---------------------------------------------------------------
+
 
 def test_library_membership_and_lens_distortion_joined_with_the_image_pipeline():
     assert {n for n, s in EFFECTS.items() if s.in_library} == LIBRARY
@@ -97,6 +112,7 @@ def test_effect_set_rejects_unknown_names_and_wrong_sizes():
 
 # --- off means off ------------------------------------------------------------
 
+
 def test_empty_effect_set_run_is_bit_identical_to_run_without_effects():
     cfg = ScenarioConfig(t_max_s=12.0)
     a = run_docking(11, cfg)
@@ -105,8 +121,13 @@ def test_empty_effect_set_run_is_bit_identical_to_run_without_effects():
 
 
 def test_effects_integrator_with_zero_effects_matches_rigid_plant():
-    s0 = PlantState(0.0, np.array([0.3, -0.7, 0.1]), np.array([1e-3, 2e-3, -1e-3]), qexp([0.1, -0.2, 0.3]),
-                    np.array([0.01, -0.02, 0.015]))
+    s0 = PlantState(
+        0.0,
+        np.array([0.3, -0.7, 0.1]),
+        np.array([1e-3, 2e-3, -1e-3]),
+        qexp([0.1, -0.2, 0.3]),
+        np.array([0.01, -0.02, 0.015]),
+    )
     a = Plant(s0.copy(), substep_s=0.02)
     b = Plant(s0.copy(), substep_s=0.02, effects=PlantEffects())
     for k in range(50):
@@ -122,6 +143,7 @@ def test_effects_integrator_with_zero_effects_matches_rigid_plant():
 
 
 # --- sensor effects -----------------------------------------------------------
+
 
 def test_accel_bias_shifts_every_accel_sample_by_exactly_the_bias():
     bias = np.array([3e-4, -2e-4, 1e-4])
@@ -224,6 +246,7 @@ def test_clock_drift_scales_imu_time_tags_and_updates_still_fuse():
 
 # --- dynamics effects -------------------------------------------------------------
 
+
 def test_thrust_loss_and_misalignment_change_only_the_truth_vehicle():
     loss = np.linspace(0.0, 0.07, 8)
     phi = EFFECTS["thruster_misalignment"].draw(np.random.default_rng(3), 1.0).reshape(8, 3)
@@ -276,8 +299,9 @@ def _kepler_state(a, e, f, mu):
 def test_eccentric_host_relative_motion_matches_inertial_two_body_integration():
     e, f0, mu, a = 0.02, 0.7, orbit.MU_EARTH, ORBIT_RADIUS_M
     rho0, rhod0 = np.array([0.5, -0.75, 0.2]), np.array([1e-3, -2e-3, 5e-4])
-    p = Plant(hill_fixed(rho0, rhod0), effects=PlantEffects(host_eccentricity=e, host_true_anomaly0_rad=f0),
-              substep_s=0.5)
+    p = Plant(
+        hill_fixed(rho0, rhod0), effects=PlantEffects(host_eccentricity=e, host_true_anomaly0_rad=f0), substep_s=0.5
+    )
     for _ in range(30):
         p.step_wrench(np.zeros(3), np.zeros(3), 10.0)
 
@@ -293,8 +317,9 @@ def test_eccentric_host_relative_motion_matches_inertial_two_body_integration():
     y0 = np.concatenate([rc, vc, rc + c @ rho0, vc + c @ (rhod0 + np.cross(w, rho0))])
 
     def two_body(_, y):
-        return np.concatenate([y[3:6], -mu * y[0:3] / np.linalg.norm(y[0:3]) ** 3,
-                               y[9:12], -mu * y[6:9] / np.linalg.norm(y[6:9]) ** 3])
+        return np.concatenate(
+            [y[3:6], -mu * y[0:3] / np.linalg.norm(y[0:3]) ** 3, y[9:12], -mu * y[6:9] / np.linalg.norm(y[6:9]) ** 3]
+        )
 
     y1 = solve_ivp(two_body, (0, 300.0), y0, rtol=1e-13, atol=1e-9, method="DOP853").y[:, -1]
     c1, _ = frame(y1[0:3], y1[3:6])
@@ -309,8 +334,11 @@ def test_eccentric_host_relative_motion_matches_inertial_two_body_integration():
 
 def test_eccentric_host_turns_an_inertially_fixed_body_at_the_true_anomaly_rate():
     e, f0 = 0.05, 0.3
-    p = Plant(PlantState(0.0, np.array([0.0, -0.75, 0.0]), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)),
-              effects=PlantEffects(host_eccentricity=e, host_true_anomaly0_rad=f0), substep_s=2.0)
+    p = Plant(
+        PlantState(0.0, np.array([0.0, -0.75, 0.0]), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)),
+        effects=PlantEffects(host_eccentricity=e, host_true_anomaly0_rad=f0),
+        substep_s=2.0,
+    )
     for _ in range(60):
         p.step_wrench(np.zeros(3), np.zeros(3), 10.0)
     f1 = true_anomaly_after(e, f0, N_RADPS * 600.0)
@@ -395,6 +423,7 @@ def test_fuel_slosh_mean_specific_force_is_total_thrust_over_total_mass_and_osci
 
 # --- reality logs --------------------------------------------------------------
 
+
 def test_simulate_log_is_valid_and_hides_the_effects():
     from bench.sim.flight_log import validate_log
     from bench.sim.reality import simulate_log, simulate_log_with_key
@@ -416,8 +445,7 @@ def test_simulate_log_chains_runs_to_fill_the_duration_with_the_host_orbit_phase
     from bench.sim.flight_log import validate_log
     from bench.sim.reality import _effects_at, simulate_log_with_key
 
-    log, _ = simulate_log_with_key(22, {"clock_drift": [2e-3]}, duration_s=25.0,
-                                   scenario=ScenarioConfig(t_max_s=10.0))
+    log, _ = simulate_log_with_key(22, {"clock_drift": [2e-3]}, duration_s=25.0, scenario=ScenarioConfig(t_max_s=10.0))
     assert validate_log(log) == []
     assert log["imu"]["t_s"][-1] == pytest.approx(25.0 * (1 + 2e-3), abs=0.3)
     e = _effects_at(EffectSet(host_eccentricity=[0.01, 0.5]), 100.0)

@@ -3,6 +3,7 @@ against the bench's independent inertial truth, the flight models against
 the bench's independent projection, input rejection, and a short seeded run
 of the comparison (combined features best, convergence from both guesses,
 sane NEES)."""
+
 import math
 
 import numpy as np
@@ -63,8 +64,15 @@ def test_nan_in_measured_slot_is_bad_input_and_state_untouched(truth):
 
 def test_non_unit_line_direction_is_value_error():
     with pytest.raises(ValueError, match="features.line"):
-        fb.FeatureEkf(fp.make_config(), fp.POINTS, 2 * fp.LINE_DIR, fp.LINE_MOMENT, fp.CIRCLE_AXIS,
-                      fp.CIRCLE_MOMENT, fp.CIRCLE_START)
+        fb.FeatureEkf(
+            fp.make_config(),
+            fp.POINTS,
+            2 * fp.LINE_DIR,
+            fp.LINE_MOMENT,
+            fp.CIRCLE_AXIS,
+            fp.CIRCLE_MOMENT,
+            fp.CIRCLE_START,
+        )
 
 
 def test_combined_features_beat_each_single_type_on_position(comparison):

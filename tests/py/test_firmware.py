@@ -5,6 +5,7 @@ float build.
 `make test` builds the image first and sets PROXOPS_FIRMWARE_BUILD; then a
 missing image or tool fails these tests. Without it they look in
 build/firmware and skip when nothing is there."""
+
 import json
 import os
 import re
@@ -36,12 +37,13 @@ def _need(path):
 FORBIDDEN = re.compile(
     r"^(malloc|free|calloc|realloc|memalign|aligned_alloc|posix_memalign|_malloc_r|_free_r|_calloc_r|_realloc_r|"
     r"_sbrk|_sbrk_r|sbrk|"
-    r"_Zn[wa].*|_Zd[la].*|"                                   # operator new / delete, all forms
+    r"_Zn[wa].*|_Zd[la].*|"  # operator new / delete, all forms
     r"__cxa_(throw|allocate_exception|begin_catch|end_catch|rethrow|guard_acquire|atexit)|"
     r"__gxx_personality_v0|_Unwind_.*|__aeabi_unwind_cpp_pr\d|"
     r"_?(v|f|s|sn|as|d|i|fi|si|sni)?printf(_r)?|_v?f?printf_r|_svfi?printf_r|_vfi?printf_r|"
     r"(f|)puts|putchar|fputc|putc|fwrite|fflush|fopen|fclose|_fwrite_r|_fputs_r|__sfvwrite_r|__swsetup_r|"
-    r"__sinit|stdout|stderr|_write|_write_r|_read|_close|_lseek|_fstat|_isatty)$")
+    r"__sinit|stdout|stderr|_write|_write_r|_read|_close|_lseek|_fstat|_isatty)$"
+)
 # (newlib's _impure_ptr, its per-thread state, is linked: the float
 # functions set errno through it.)
 
@@ -57,11 +59,31 @@ def forbidden_symbols(nm_output: str) -> list:
 
 def test_the_symbol_check_finds_what_it_forbids():
     # The pattern itself: the names newlib and libstdc++ give these functions.
-    nm = "\n".join(f"00001000 T {n}" for n in ("malloc", "_Znwj", "_ZdlPvj", "__cxa_throw", "printf", "_printf_r",
-                                               "iprintf", "puts", "fwrite", "_sbrk", "__gxx_personality_v0",
-                                               "_Unwind_Resume", "__sinit"))
+    nm = "\n".join(
+        f"00001000 T {n}"
+        for n in (
+            "malloc",
+            "_Znwj",
+            "_ZdlPvj",
+            "__cxa_throw",
+            "printf",
+            "_printf_r",
+            "iprintf",
+            "puts",
+            "fwrite",
+            "_sbrk",
+            "__gxx_personality_v0",
+            "_Unwind_Resume",
+            "__sinit",
+        )
+    )
     assert len(forbidden_symbols(nm)) == 13
-    assert forbidden_symbols("00001000 T memcpy\n00001000 T sinf\n00001000 T _ZN3fsw8Deframer4feedEPKhjRNS_13DeframeResultE") == []
+    assert (
+        forbidden_symbols(
+            "00001000 T memcpy\n00001000 T sinf\n00001000 T _ZN3fsw8Deframer4feedEPKhjRNS_13DeframeResultE"
+        )
+        == []
+    )
 
 
 def test_image_links_no_heap_no_exceptions_no_stdio():
@@ -90,22 +112,44 @@ def test_only_the_harness_reaches_the_semihosting_output():
     assert with_bkpt and all(n.startswith("semihosting::") for n in with_bkpt), with_bkpt
     semi = {m for m, d in names.items() if d.startswith("semihosting::")}
     callers = {names[m] for m, f in funcs.items() if f["callees"] & semi and m not in semi}
-    assert callers and all(re.match(r"(fwtest::|\(anonymous namespace\)::|Reset_Handler|Fault_Handler|"
-                                    r"fw_eigen_alloca_forbidden|main\b)", c) for c in callers), callers
+    assert callers and all(
+        re.match(
+            r"(fwtest::|\(anonymous namespace\)::|Reset_Handler|Fault_Handler|"
+            r"fw_eigen_alloca_forbidden|main\b)",
+            c,
+        )
+        for c in callers
+    ), callers
     assert not any(c.startswith("fsw::") for c in callers)
 
 
 def test_stack_report_bounds_every_step_within_the_reserved_stack(tmp_path):
     _need(ELF)
     out = tmp_path / "report.json"
-    report.main([ELF, "--indirect", "(anonymous namespace)::SemihostingOutput::write",
-                 "--indirect", "(anonymous namespace)::instructions", "--json", str(out)])
+    report.main(
+        [
+            ELF,
+            "--indirect",
+            "(anonymous namespace)::SemihostingOutput::write",
+            "--indirect",
+            "(anonymous namespace)::instructions",
+            "--json",
+            str(out),
+        ]
+    )
     r = json.loads(out.read_text())
     steps = {s["step"]: s for s in r["stack"]}
     reserved = r["sections"][".stack"]
-    for name in ("NavUkf<float>::predict", "NavUkf<float>::update_pose", "Deframer::feed", "BayesLinReg::add",
-                 "BayesLinReg::remove_oldest", "ModalTracker::add (segment, image step)",
-                 "FlightApp<float>::on_bytes (whole app step)", "Reset_Handler (whole program)"):
+    for name in (
+        "NavUkf<float>::predict",
+        "NavUkf<float>::update_pose",
+        "Deframer::feed",
+        "BayesLinReg::add",
+        "BayesLinReg::remove_oldest",
+        "ModalTracker::add (segment, image step)",
+        "FlightApp<float>::on_bytes (whole app step)",
+        "Reset_Handler (whole program)",
+    ):
         s = steps[name]
         assert s["bytes"] is not None and s["flags"] == [], (name, s)
     whole = steps["Reset_Handler (whole program)"]["bytes"]
@@ -156,6 +200,7 @@ def test_comparison_catches_a_changed_value(runs):
     import copy
 
     from hil_sim import packets as pk
+
     bad = copy.deepcopy(host)
     i = next(k for k, (_, a, _) in enumerate(bad.frames) if a == 0x010)
     frames = bad.telemetry[i].split(b"\x00")

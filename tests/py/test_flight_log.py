@@ -1,5 +1,6 @@
 """The flight-log contract: round trip, and a validator that names stream,
 field, row and problem."""
+
 import h5py
 import numpy as np
 import pytest
@@ -13,11 +14,19 @@ def minimal_log(n=50, m=5):
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     return FlightLog(
         streams={
-            "imu": {"t_s": 0.1 * np.arange(1, n + 1), "accel_b_mps2": rng.normal(size=(n, 3)),
-                    "omega_bi_b_rps": rng.normal(size=(n, 3))},
-            "pose": {"t_capture_s": np.arange(1.0, m + 1), "t_delivered_s": np.arange(1.0, m + 1) + 0.2,
-                     "r_hill_m": rng.normal(size=(m, 3)), "q_hb": q,
-                     "r_sigma_m": np.full(m, 0.05), "att_sigma_rad": np.full(m, 0.01)},
+            "imu": {
+                "t_s": 0.1 * np.arange(1, n + 1),
+                "accel_b_mps2": rng.normal(size=(n, 3)),
+                "omega_bi_b_rps": rng.normal(size=(n, 3)),
+            },
+            "pose": {
+                "t_capture_s": np.arange(1.0, m + 1),
+                "t_delivered_s": np.arange(1.0, m + 1) + 0.2,
+                "r_hill_m": rng.normal(size=(m, 3)),
+                "q_hb": q,
+                "r_sigma_m": np.full(m, 0.05),
+                "att_sigma_rad": np.full(m, 0.01),
+            },
         },
         config={"orbit_radius_m": 6878137.0},
     )
@@ -105,6 +114,7 @@ def test_reader_names_problem_in_file_written_by_plain_h5py(tmp_path):
 
 # --- format version 2 ------------------------------------------------------
 
+
 def v2_log(n_thr=12):
     from bench.sim.vehicles import inspector_12kg
 
@@ -162,12 +172,15 @@ def test_v1_file_with_a_description_is_refused(tmp_path):
         read_flight_log(p)
 
 
-@pytest.mark.parametrize("attr, value, message", [
-    ("format_version", "abc", "/format_version: 'abc' is not an integer"),
-    ("format_version", 7, "/format_version: 7 not supported"),
-    ("config_json", "{not json", "/config_json: not valid JSON"),
-    ("description_json", "[1, 2]", "/description_json: expected a JSON object"),
-])
+@pytest.mark.parametrize(
+    "attr, value, message",
+    [
+        ("format_version", "abc", "/format_version: 'abc' is not an integer"),
+        ("format_version", 7, "/format_version: 7 not supported"),
+        ("config_json", "{not json", "/config_json: not valid JSON"),
+        ("description_json", "[1, 2]", "/description_json: expected a JSON object"),
+    ],
+)
 def test_header_problems_named(tmp_path, attr, value, message):
     p = write_flight_log(tmp_path / "a.h5", minimal_log())
     with h5py.File(p, "a") as h:

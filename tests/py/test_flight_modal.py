@@ -2,6 +2,7 @@
 images of the paper's plate (bench/sim/structure.py: ray-cast, 3 % range noise),
 segmented by hil_sim.packets, into the flight app in-process; tm_modal back.
 Checked against the same decomposition and joint filter called directly."""
+
 import numpy as np
 import pytest
 
@@ -20,18 +21,35 @@ def _tm_modal(deframer, data):
     for p in deframer.feed(data):
         if isinstance(p, P.Packet) and p.apid == TM_MODAL:
             v = p.values()
-            out.append(dict(t_s=p.t_s, image_id=v[0], status=v[1], decomposition=v[2], fused=v[3],
-                            n_modes=v[4], n_used=v[5], n_skipped=v[6], rcond=v[7], nis=v[8],
-                            omega=np.array(v[9:19]), alpha=np.array(v[19:29]), amplitude=np.array(v[29:39]),
-                            amplitude_sigma=np.array(v[39:49])))
+            out.append(
+                dict(
+                    t_s=p.t_s,
+                    image_id=v[0],
+                    status=v[1],
+                    decomposition=v[2],
+                    fused=v[3],
+                    n_modes=v[4],
+                    n_used=v[5],
+                    n_skipped=v[6],
+                    rcond=v[7],
+                    nis=v[8],
+                    omega=np.array(v[9:19]),
+                    alpha=np.array(v[19:29]),
+                    amplitude=np.array(v[29:39]),
+                    amplitude_sigma=np.array(v[39:49]),
+                )
+            )
     return out
 
 
 def test_range_image_segments_split_and_flag_as_the_link_requires():
     pts = np.arange(50 * 3, dtype=float).reshape(50, 3)
     segs = P.range_image_segments(7, pts, np.full(50, 0.5))
-    assert [f for f, _ in segs] == [P.SequenceFlags.FIRST_SEGMENT, P.SequenceFlags.CONTINUATION_SEGMENT,
-                                    P.SequenceFlags.LAST_SEGMENT]
+    assert [f for f, _ in segs] == [
+        P.SequenceFlags.FIRST_SEGMENT,
+        P.SequenceFlags.CONTINUATION_SEGMENT,
+        P.SequenceFlags.LAST_SEGMENT,
+    ]
     v = P.unpack_payload(SEG, segs[2][1])
     assert v[:4] == (7, 50, 48, 2)
     assert v[5:9] == (144.0, 145.0, 146.0, 0.5) and v[13] == 0.0
@@ -65,13 +83,15 @@ class _PlateOverLink:
         self.dec = fb.ModalDecomposition10()
 
     def filter(self, omega, sigma_omega):
-        return make_filter("joint", 10, omega, np.zeros(10), sigma_v0=self.w0, sigma_w0=sigma_omega, sigma_a0=1e-6,
-                           q_a=0.0, q_v=0.0)
+        return make_filter(
+            "joint", 10, omega, np.zeros(10), sigma_v0=self.w0, sigma_w0=sigma_omega, sigma_a0=1e-6, q_a=0.0, q_v=0.0
+        )
 
     def image(self, k, t):
         """(tm_modal answers, library record, points sent)."""
-        r_meas, d = st.plate_range_image(self.plate, self.sensor, st.plate_coeffs(self.plate, self.amp, self.phase, t),
-                                         self.rng)
+        r_meas, d = st.plate_range_image(
+            self.plate, self.sensor, st.plate_coeffs(self.plate, self.amp, self.phase, t), self.rng
+        )
         keep = np.isfinite(r_meas)  # missed rays are not sent
         p = self.sensor.pos_m[None, :] + r_meas[keep, None] * d[keep]
         sigma = np.abs(0.03 * r_meas[keep] * d[keep, 2])

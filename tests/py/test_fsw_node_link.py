@@ -1,6 +1,7 @@
 """fsw_node on a pseudo-terminal whose far end does not read: the flight
 executable keeps running, drops telemetry, counts it, and reports the count
 in housekeeping once the ground reads again."""
+
 from __future__ import annotations
 
 import os
@@ -30,8 +31,9 @@ class Node:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
-        self.proc = subprocess.Popen([find_fsw_node(), "--device", os.ttyname(self.slave)],
-                                     stdin=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [find_fsw_node(), "--device", os.ttyname(self.slave)], stdin=subprocess.DEVNULL, stderr=subprocess.PIPE
+        )
         line = b""
         deadline = time.monotonic() + 10.0
         while b"running" not in line:
@@ -48,7 +50,7 @@ class Node:
         while view:
             assert time.monotonic() < deadline, "fsw_node stopped reading its port"
             try:
-                view = view[os.write(self.master, view):]
+                view = view[os.write(self.master, view) :]
             except BlockingIOError:
                 select.select([], [self.master], [], 0.01)
 
@@ -80,8 +82,9 @@ class Node:
 
 
 def _reset(node: Node) -> bytes:
-    return node.sender.frame(RESET, 0.0, pk.pack_payload(RESET, 0x1, 0, 0.0, -0.7, 0.0, 0.0, 0.0, 0.0,
-                                                         1.0, 0.0, 0.0, 0.0, 0.05, 0.01, 0.05))
+    return node.sender.frame(
+        RESET, 0.0, pk.pack_payload(RESET, 0x1, 0, 0.0, -0.7, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.05, 0.01, 0.05)
+    )
 
 
 def test_fsw_node_keeps_running_when_the_ground_stops_reading():
@@ -128,7 +131,7 @@ def test_burst_of_imu_samples_loses_no_telemetry_when_the_ground_reads():
         deadline = time.monotonic() + 20.0
         while view and time.monotonic() < deadline:
             try:
-                view = view[os.write(node.master, view):]
+                view = view[os.write(node.master, view) :]
             except BlockingIOError:
                 pass
             r, _, _ = select.select([node.master], [], [], 0.001)

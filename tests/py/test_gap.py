@@ -1,5 +1,6 @@
 """Gap diagnosis (bench/gap): replay, detection against the committed null
 calibration, attribution, held-out shrink, and a CI-sized blind campaign."""
+
 import numpy as np
 import pytest
 
@@ -178,8 +179,9 @@ def test_bundled_reality_run_is_diagnosed_blind(calibration):
 
 
 def test_a_chained_log_reports_the_shrink_on_held_out_runs(calibration):
-    log, _ = reality.simulate_log_with_key(5, {"thrust_loss": [0.02, 0.02, 0.02, 0, 0, 0, 0, 0]}, duration_s=400.0,
-                                           with_truth=False)
+    log, _ = reality.simulate_log_with_key(
+        5, {"thrust_loss": [0.02, 0.02, 0.02, 0, 0, 0, 0, 0]}, duration_s=400.0, with_truth=False
+    )
     r = public(diagnose(blind(log), calibration=calibration))
     runs = r["shrink_heldout_runs"]
     assert runs["runs"] >= 2 and runs["heldout_runs"] >= 1
@@ -250,8 +252,11 @@ def test_deficit_cells_keep_only_where_the_training_gap_lies():
     rng = np.random.default_rng(4)
     n_nav, n_acc = 60, 600
     nis_train = rng.chisquare(6, n_nav)  # null
-    lab = np.r_[np.full(n_acc, quantify.CELL_ACCEL_COAST), np.full(n_acc, quantify.CELL_ACCEL_FIRE),
-                np.full(n_acc, quantify.CELL_GYRO)]
+    lab = np.r_[
+        np.full(n_acc, quantify.CELL_ACCEL_COAST),
+        np.full(n_acc, quantify.CELL_ACCEL_FIRE),
+        np.full(n_acc, quantify.CELL_GYRO),
+    ]
     q = rng.chisquare(3, lab.size)
     q[lab == quantify.CELL_ACCEL_FIRE] += 0.5  # a gap of 150 in the firing rows
     assert quantify.gap_cells(nis_train, q, lab) == [quantify.CELL_ACCEL_FIRE]
@@ -261,8 +266,9 @@ def test_deficit_cells_keep_only_where_the_training_gap_lies():
     q_fixed = q_held - np.where(lab == quantify.CELL_ACCEL_FIRE, 0.5, 0.0)
     t = np.arange(lab.size) * 0.1
     nis_h = rng.chisquare(6, n_nav)
-    sh = quantify.shrink_combined(t[:n_nav], nis_h, nis_h, t, q_held, q_fixed,
-                                  cells=[quantify.CELL_ACCEL_FIRE], lab_dyn=lab)
+    sh = quantify.shrink_combined(
+        t[:n_nav], nis_h, nis_h, t, q_held, q_fixed, cells=[quantify.CELL_ACCEL_FIRE], lab_dyn=lab
+    )
     assert sh["deficit_null_sd"] == pytest.approx(np.sqrt(0.5 * 3 * n_acc))
     assert sh["measurable"] and sh["fraction"] == pytest.approx(1.0, abs=0.4)
     assert sh["cells"] == ["accelerometer, firing"]
@@ -317,7 +323,9 @@ def test_half_cauchy_prior_doubles_the_density_and_a_parameter_held_at_zero_keep
     free = ln_bayes_factor(10.0, u, J)
     assert ln_bayes_factor(10.0, u, J, nonnegative=True) == pytest.approx(free + 3 * np.log(2.0))
     u0 = np.array([0.4, 0.0, 1.1])
-    assert ln_bayes_factor(10.0, u0, J, nonnegative=True) == pytest.approx(ln_bayes_factor(10.0, u0, J) + 2 * np.log(2.0))
+    assert ln_bayes_factor(10.0, u0, J, nonnegative=True) == pytest.approx(
+        ln_bayes_factor(10.0, u0, J) + 2 * np.log(2.0)
+    )
 
 
 def test_a_characterisation_flown_after_docking_is_replayed_run_for_run():

@@ -1,6 +1,7 @@
 """Several effects at once: forward selection names every effect the data
 support, refitted jointly, each member with its share; one effect alone
 stays one."""
+
 import numpy as np
 import pytest
 
@@ -80,8 +81,13 @@ def test_thrust_loss_named_beside_a_flexible_panel():
     from bench.gap.plans import then_scripts
 
     then = then_scripts({"manoeuvres": "docking+characterisation"})
-    log, _ = reality.simulate_log_with_key(11, {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0], "flex_mode": [0.3, 0.012]},
-                                           duration_s=120.0, with_truth=False, then_scripts=then)
+    log, _ = reality.simulate_log_with_key(
+        11,
+        {"thrust_loss": [0, 0, 0, 0.05, 0, 0, 0, 0], "flex_mode": [0.3, 0.012]},
+        duration_s=120.0,
+        with_truth=False,
+        then_scripts=then,
+    )
     r = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres="docking+characterisation")))
     assert r["verdict"] == "partly_explained"
     assert [m["effect"] for m in r["effects"]] == ["thrust_loss"]
@@ -102,10 +108,12 @@ def test_propellant_slosh_is_not_half_named_as_propellant_use():
     from bench.sim.log_description import resolve
 
     assert candidates_for(8, 0.35, resolve(None).max_mass_flow_kgps)["mass_depletion"].bound == pytest.approx(
-        0.02 / (9.80665 * 20.0))
+        0.02 / (9.80665 * 20.0)
+    )
     then = then_scripts({"manoeuvres": "docking+characterisation"})
-    log, _ = reality.simulate_log_with_key(121894550, {"fuel_slosh": [1.1308307975932066]}, duration_s=120.0,
-                                           with_truth=False, then_scripts=then)
+    log, _ = reality.simulate_log_with_key(
+        121894550, {"fuel_slosh": [1.1308307975932066]}, duration_s=120.0, with_truth=False, then_scripts=then
+    )
     r = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres="docking+characterisation")))
     assert r["gap_detected"] and r["verdict"] == "unexplained" and r["effects"] == []
 
@@ -116,16 +124,24 @@ def test_set_separability_tells_a_separable_pair_from_a_look_alike():
     log's tilt, so that pair is not (docs/GAP.md)."""
     from bench.gap.separability import set_separability
 
-    sep = set_separability(7, {"thrust_loss": [0.0, 0, 0, 0.06, 0, 0, 0.05, 0],
-                               "gyro_bias": [2e-3, -1.5e-3, 1e-3]}, ["gyro_bias", "thrust_loss"], 120.0)
+    sep = set_separability(
+        7,
+        {"thrust_loss": [0.0, 0, 0, 0.06, 0, 0, 0.05, 0], "gyro_bias": [2e-3, -1.5e-3, 1e-3]},
+        ["gyro_bias", "thrust_loss"],
+        120.0,
+    )
     assert sep["separable"] and sep["delta2_min"] > 10.8
     assert set(sep["delta2"]) >= {"without gyro_bias", "without thrust_loss", "thrust_loss -> thruster_misalignment"}
     # an in-library set leaves (nearly) nothing beyond the library
     assert sep["beyond_library_delta2"] < 0.1 * sep["lambda"]
     rng = np.random.default_rng(3)
     tilt = (0.004 * rng.normal(size=24)).tolist()
-    sep2 = set_separability(7, {"thruster_misalignment": tilt, "gyro_bias": [2e-3, -1.5e-3, 1e-3]},
-                            ["gyro_bias", "thruster_misalignment"], 120.0)
+    sep2 = set_separability(
+        7,
+        {"thruster_misalignment": tilt, "gyro_bias": [2e-3, -1.5e-3, 1e-3]},
+        ["gyro_bias", "thruster_misalignment"],
+        120.0,
+    )
     assert not sep2["separable"]
     assert sep2["closest"].startswith("thruster_misalignment -> ")
 
@@ -137,18 +153,37 @@ def test_mixture_scores_split_by_separability_and_kind():
         return {"run": run, "kind": kind, "scale": scale, "members": members, "detectable": True}
 
     def ans(run, named, verdict, sep=True, lib=True, shrink=None, alternatives=()):
-        return {"run": run, "named": named, "verdict": verdict, "gap_detected": True, "t_diagnose_s": 1.0,
-                "alternatives": [list(a) for a in alternatives],
-                "true_set_shrink": shrink, "true_set_measurable": shrink is not None,
-                "separability": {"separable": sep, "beyond_library_separable": lib}}
+        return {
+            "run": run,
+            "named": named,
+            "verdict": verdict,
+            "gap_detected": True,
+            "t_diagnose_s": 1.0,
+            "alternatives": [list(a) for a in alternatives],
+            "true_set_shrink": shrink,
+            "true_set_measurable": shrink is not None,
+            "separability": {"separable": sep, "beyond_library_separable": lib},
+        }
 
-    keys = [key(0, "pair", 2.0, ["thrust_loss", "gyro_bias"]), key(1, "pair", 2.0, ["thruster_misalignment", "gyro_bias"]),
-            key(2, "in+out", 2.0, ["accel_bias", "fuel_slosh"]), key(3, "in+out", 2.0, ["accel_bias", "clock_drift"])]
-    answers = [ans(0, ["gyro_bias", "thrust_loss"], "explained", shrink=0.9),
-               ans(1, ["thrust_loss", "gyro_bias"], "ambiguous", sep=False, shrink=0.7,
-                   alternatives=[["gyro_bias", "thruster_misalignment"]]),
-               ans(2, ["accel_bias"], "partly_explained", shrink=0.1),
-               ans(3, ["accel_bias", "gyro_scale"], "explained", lib=False, shrink=0.2)]
+    keys = [
+        key(0, "pair", 2.0, ["thrust_loss", "gyro_bias"]),
+        key(1, "pair", 2.0, ["thruster_misalignment", "gyro_bias"]),
+        key(2, "in+out", 2.0, ["accel_bias", "fuel_slosh"]),
+        key(3, "in+out", 2.0, ["accel_bias", "clock_drift"]),
+    ]
+    answers = [
+        ans(0, ["gyro_bias", "thrust_loss"], "explained", shrink=0.9),
+        ans(
+            1,
+            ["thrust_loss", "gyro_bias"],
+            "ambiguous",
+            sep=False,
+            shrink=0.7,
+            alternatives=[["gyro_bias", "thruster_misalignment"]],
+        ),
+        ans(2, ["accel_bias"], "partly_explained", shrink=0.1),
+        ans(3, ["accel_bias", "gyro_scale"], "explained", lib=False, shrink=0.2),
+    ]
     res = score_mixtures(keys, answers)
     at2 = res["at_2x"]
     assert at2["n"] == 4 and at2["exact_set"] == 0.5 and at2["named_are_real"] == 0.5

@@ -1,6 +1,7 @@
 """The diagnosis of a user's own log: the vehicle it describes, time stamps
 as real logs have them, pulse-width-modulated valves, a calibration that
 must hold for the log, and answers that say what was examined."""
+
 import copy
 import json
 import subprocess
@@ -95,7 +96,10 @@ def test_one_where_for_cli_json_and_report(bundled_log, calibration, tmp_path):
     # a dynamics-only effect: the figure and RMS lines show the accelerometer and gyro, before and after
     assert "accelerometer and gyro against the valve model" in page
     rms = [ln for ln in page.splitlines() if ln.startswith("RMS on held-out rows")][0]
-    assert "->" in rms and rms.split("accel x ")[1].split(" -> ")[0] != rms.split("accel x ")[1].split(" -> ")[1].split(",")[0]
+    assert (
+        "->" in rms
+        and rms.split("accel x ")[1].split(" -> ")[0] != rms.split("accel x ")[1].split(" -> ")[1].split(",")[0]
+    )
 
 
 def test_defaults_taken_are_named(bundled_log, calibration):
@@ -110,8 +114,13 @@ def test_a_calibration_for_another_vehicle_is_refused(calibration):
     from bench.sim.vehicles import inspector_12kg
 
     desc = inspector_12kg()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=4, per_run=12, fire_s=0.5, coast_s=1.0, passes=1), {}, seed=4,
-                      with_truth=False)
+    log, _ = simulate(
+        desc,
+        characterisation_plan(desc, seed=4, per_run=12, fire_s=0.5, coast_s=1.0, passes=1),
+        {},
+        seed=4,
+        with_truth=False,
+    )
     with pytest.raises(log_null.CalibrationMismatch, match="made for the bench's 3 kg inspector.*12 thrusters"):
         diagnose(log, calibration=calibration, calibration_source="docking.json")
 
@@ -119,10 +128,12 @@ def test_a_calibration_for_another_vehicle_is_refused(calibration):
 def test_stated_manoeuvres_must_match_the_calibration(bundled_log, calibration):
     log = copy.deepcopy(bundled_log)
     t = log["imu"]["t_s"]
-    log.description = {"segments": [{"t_start_s": float(t[0] - 0.1), "t_end_s": float(t[-1]),
-                                     "manoeuvre": "characterisation"}]}
-    with pytest.raises(log_null.CalibrationMismatch, match="made for logs that fly docking; this log flies "
-                                                            "characterisation"):
+    log.description = {
+        "segments": [{"t_start_s": float(t[0] - 0.1), "t_end_s": float(t[-1]), "manoeuvre": "characterisation"}]
+    }
+    with pytest.raises(
+        log_null.CalibrationMismatch, match="made for logs that fly docking; this log flies characterisation"
+    ):
         diagnose(log, calibration=calibration, calibration_source="docking.json")
 
 
@@ -132,8 +143,13 @@ def test_a_calibration_made_for_the_log_is_cached(tmp_path):
     from bench.sim.vehicles import inspector_12kg
 
     desc = inspector_12kg()
-    log, _ = simulate(desc, characterisation_plan(desc, seed=6, per_run=12, fire_s=0.5, coast_s=1.0, passes=1), {}, seed=6,
-                      with_truth=False)
+    log, _ = simulate(
+        desc,
+        characterisation_plan(desc, seed=6, per_run=12, fire_s=0.5, coast_s=1.0, passes=1),
+        {},
+        seed=6,
+        with_truth=False,
+    )
     cal = log_null.calibrate_for_log(log, runs=10, seed=3, workers=2, cache_dir=tmp_path, progress=False)
     assert cal["runs"] == 10 and cal["from_cache"] is None and np.all(np.isfinite(list(cal["thresholds"].values())))
     again = log_null.calibrate_for_log(log, runs=10, seed=3, workers=2, cache_dir=tmp_path, progress=False)
@@ -148,8 +164,12 @@ def test_a_calibration_made_for_the_log_is_cached(tmp_path):
 
 def test_the_example_writes_a_log_a_user_would(tmp_path):
     out = tmp_path / "user.h5"
-    subprocess.run([sys.executable, str(ROOT / "examples" / "write_flight_log.py"), str(out)], check=True,
-                   cwd=ROOT, capture_output=True)
+    subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "write_flight_log.py"), str(out)],
+        check=True,
+        cwd=ROOT,
+        capture_output=True,
+    )
     log = read_flight_log(out)
     d = prepare(log)
     assert d.desc.n_thrusters == 12 and d.desc.imu_rate_hz == 20.0
@@ -162,8 +182,9 @@ def test_cli_refuses_bad_calibration_and_outputs_without_touching_files(tmp_path
 
     out = tmp_path / "d.json"
     out.write_text("earlier answer\n")
-    rc = main(["diagnose", str(bundled.LOG), "--json", str(out), "--calibration", str(tmp_path / "typo.json"),
-               "--quiet"])
+    rc = main(
+        ["diagnose", str(bundled.LOG), "--json", str(out), "--calibration", str(tmp_path / "typo.json"), "--quiet"]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "typo.json: no such file" in err[0]
     bad = tmp_path / "bad.json"

@@ -2,6 +2,7 @@
 jittered IMU stamps and dropped samples, pose captures between IMU samples
 on a clock of their own and pulse-width-modulated valves, get the right
 answer for in-library effects and "unexplained" for one outside the library."""
+
 import numpy as np
 import pytest
 
@@ -39,12 +40,15 @@ def test_null_log_no_gap(calibration):
     assert not r["gap_detected"], r["statistics"]
 
 
-@pytest.mark.parametrize("name, params", [
-    ("gyro_bias", [2e-3, -1e-3, 1e-3]),
-    ("thrust_loss", TL.tolist()),
-    ("com_offset", [0.01, -0.01, 0.005]),
-    ("accel_bias", [1e-3, -8e-4, 5e-4]),
-])
+@pytest.mark.parametrize(
+    "name, params",
+    [
+        ("gyro_bias", [2e-3, -1e-3, 1e-3]),
+        ("thrust_loss", TL.tolist()),
+        ("com_offset", [0.01, -0.01, 0.005]),
+        ("accel_bias", [1e-3, -8e-4, 5e-4]),
+    ],
+)
 def test_in_library_effect_named(calibration, name, params):
     r = _answer(_log(11, {name: params}), calibration)
     assert r["gap_detected"] and r["verdict"] in ("explained", "ambiguous")

@@ -2,6 +2,7 @@
 serial port. A second pseudo-terminal stands in for the device: fsw_node
 runs on one pty, a thread joins its master to the master of another pty
 (the cable), and the bench opens that other pty's device as the port."""
+
 from __future__ import annotations
 
 import json
@@ -30,8 +31,11 @@ class FlightComputer:
         for fd in (self.sa, self.sb):
             tty.setraw(fd)
         self.device = os.ttyname(self.sb)
-        self.proc = subprocess.Popen([find_fsw_node(), "--device", os.ttyname(self.sa), "--baud", "921600"],
-                                     stdin=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [find_fsw_node(), "--device", os.ttyname(self.sa), "--baud", "921600"],
+            stdin=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
         line = b""
         while b"running" not in line:
             r, _, _ = select.select([self.proc.stderr], [], [], 10.0)
@@ -55,7 +59,7 @@ class FlightComputer:
                     view = memoryview(data)
                     while view and not self._stop.is_set():
                         try:
-                            view = view[os.write(dst, view):]
+                            view = view[os.write(dst, view) :]
                         except BlockingIOError:
                             select.select([], [dst], [], 0.01)
                         except OSError:

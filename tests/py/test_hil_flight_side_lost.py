@@ -1,6 +1,7 @@
 """`proxops hil` when the flight side dies or falls silent: the bench stops
 within the stated time, says so in one line, exits 1, and leaves the user's
 earlier outputs as they were."""
+
 from __future__ import annotations
 
 import os
@@ -33,11 +34,23 @@ def _run_hil(tmp_path: Path, sig: str, delay_s: float, args: list, timeout_s: fl
     wrapper = tmp_path / "fsw_node_wrapper.sh"
     wrapper.write_text(WRAPPER)
     wrapper.chmod(0o755)
-    env = dict(os.environ, PROXOPS_FSW_NODE=str(wrapper), REAL_FSW_NODE=find_fsw_node(), SIG=sig,
-               DELAY=str(delay_s), PYTHONPATH=str(ROOT))
+    env = dict(
+        os.environ,
+        PROXOPS_FSW_NODE=str(wrapper),
+        REAL_FSW_NODE=find_fsw_node(),
+        SIG=sig,
+        DELAY=str(delay_s),
+        PYTHONPATH=str(ROOT),
+    )
     t0 = time.monotonic()
-    p = subprocess.run([sys.executable, "-m", "bench.cli", "hil", *args], cwd=tmp_path, env=env,
-                       capture_output=True, text=True, timeout=timeout_s)
+    p = subprocess.run(
+        [sys.executable, "-m", "bench.cli", "hil", *args],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+    )
     return p, time.monotonic() - t0
 
 
@@ -63,9 +76,13 @@ def _error_lines(stderr: str) -> list:
 
 def test_killed_flight_side_stops_a_realtime_run(tmp_path):
     out_json, report = _outputs(tmp_path)
-    p, wall = _run_hil(tmp_path, "KILL", 2.0,
-                       ["--realtime", "--duration", "30", "--json", str(out_json), "--report", str(report)],
-                       timeout_s=120)
+    p, wall = _run_hil(
+        tmp_path,
+        "KILL",
+        2.0,
+        ["--realtime", "--duration", "30", "--json", str(out_json), "--report", str(report)],
+        timeout_s=120,
+    )
     assert p.returncode == 1, p.stderr
     errors = _error_lines(p.stderr)
     assert len(errors) == 1 and "fsw_node exited" in errors[0], p.stderr
@@ -76,9 +93,13 @@ def test_killed_flight_side_stops_a_realtime_run(tmp_path):
 
 def test_silent_flight_side_stops_a_realtime_run(tmp_path):
     out_json, report = _outputs(tmp_path)
-    p, wall = _run_hil(tmp_path, "STOP", 2.0,
-                       ["--realtime", "--duration", "30", "--json", str(out_json), "--report", str(report)],
-                       timeout_s=120)
+    p, wall = _run_hil(
+        tmp_path,
+        "STOP",
+        2.0,
+        ["--realtime", "--duration", "30", "--json", str(out_json), "--report", str(report)],
+        timeout_s=120,
+    )
     assert p.returncode == 1, p.stderr
     errors = _error_lines(p.stderr)
     assert len(errors) == 1 and "silent" in errors[0], p.stderr
@@ -90,9 +111,13 @@ def test_silent_flight_side_stops_a_realtime_run(tmp_path):
 
 def test_flight_side_dying_during_a_plate_run_does_not_hang_the_bench(tmp_path):
     out_json, report = _outputs(tmp_path)
-    p, _ = _run_hil(tmp_path, "KILL", 1.0,
-                    ["--scenario", "plate", "--images", "2000", "--json", str(out_json), "--report", str(report)],
-                    timeout_s=120)
+    p, _ = _run_hil(
+        tmp_path,
+        "KILL",
+        1.0,
+        ["--scenario", "plate", "--images", "2000", "--json", str(out_json), "--report", str(report)],
+        timeout_s=120,
+    )
     assert p.returncode == 1, p.stderr
     errors = _error_lines(p.stderr)
     assert len(errors) == 1 and "fsw_node exited" in errors[0], p.stderr

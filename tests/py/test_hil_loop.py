@@ -1,5 +1,6 @@
 """The HIL loop: the flight executable behind a pseudo-terminal gives the
 same estimates as the filter in-process, and survives a faulty link."""
+
 import fsw_bindings as fb
 import numpy as np
 import pytest
@@ -29,8 +30,9 @@ def test_link_estimates_equal_in_process_estimates():
     np.testing.assert_allclose(hil.updates.nis, ref.updates.nis, rtol=1e-9)
     assert list(hil.updates.status) == list(ref.updates.status)
     # P over the link is the diagonal of the flight covariance.
-    np.testing.assert_allclose(np.diagonal(hil.P, axis1=1, axis2=2),
-                               np.diagonal(ref.P, axis1=1, axis2=2), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(
+        np.diagonal(hil.P, axis1=1, axis2=2), np.diagonal(ref.P, axis1=1, axis2=2), rtol=1e-12, atol=0
+    )
 
 
 def test_faulty_link_rejects_every_corrupted_packet_and_keeps_navigating():
@@ -94,8 +96,18 @@ def test_a_run_cut_by_the_end_of_the_hil_run_is_reported_as_such(capsys):
     res = run_hil(HilConfig(duration_s=5.0, seed=2))
     (run,) = res["runs"]
     assert not run.summary.docked and run.summary.cut_by_duration
-    args = argparse.Namespace(scenario="docking", duration=5.0, realtime=False, ber=0.0, drop_rate=0.0,
-                              burst_rate=0.0, duplicate_rate=0.0, reorder_rate=0.0, stall_rate=0.0, seed=2)
+    args = argparse.Namespace(
+        scenario="docking",
+        duration=5.0,
+        realtime=False,
+        ber=0.0,
+        drop_rate=0.0,
+        burst_rate=0.0,
+        duplicate_rate=0.0,
+        reorder_rate=0.0,
+        stall_rate=0.0,
+        seed=2,
+    )
     s = hil_summary(res, args)
     assert s["docking_runs_cut_by_duration"] == 1
     print_summary(s)

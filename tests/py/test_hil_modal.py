@@ -1,6 +1,7 @@
 """The plate over the link: range images to the flight executable behind a
 pseudo-terminal, tm_modal back; the same numbers as the flight app
 in-process, and a link that loses bytes loses only segments."""
+
 import json
 
 import fsw_bindings as fb
@@ -19,7 +20,7 @@ def _in_process(uplink: bytes) -> dict:
     down = pk.Deframer(pk.FROM_FLIGHT)
     out = {}
     for i in range(0, len(uplink), 4096):  # in pieces, as the port delivers them (the app's transmit buffer is 16 kB)
-        for item in down.feed(app.on_bytes(uplink[i:i + 4096])):
+        for item in down.feed(app.on_bytes(uplink[i : i + 4096])):
             if isinstance(item, pk.Packet) and item.apid == pk.APID_BY_NAME["tm_modal"].apid:
                 m = parse_tm_modal(item)
                 out[m["image_id"]] = m

@@ -44,11 +44,22 @@ def valid_payload(a: P.ApidDef, rng: random.Random, first=0, n=None, total=None)
     elif a.name == "tm_covariance_diag":
         struct.pack_into("<I", buf, 0, rng.choice([9, 15]))
     elif a.name == "tm_innovation":
-        struct.pack_into("<BBBBI", buf, 0, rng.randrange(2), rng.randrange(4), rng.randrange(2), 6,
-                         rng.randrange(2**32))
+        struct.pack_into(
+            "<BBBBI", buf, 0, rng.randrange(2), rng.randrange(4), rng.randrange(2), 6, rng.randrange(2**32)
+        )
     elif a.name == "tm_modal":
-        struct.pack_into("<IBBBBII", buf, 0, rng.randrange(2**32), rng.randrange(4), rng.randrange(4),
-                         rng.randrange(2), rng.choice([0, 10]), rng.randrange(2**32), rng.randrange(2**32))
+        struct.pack_into(
+            "<IBBBBII",
+            buf,
+            0,
+            rng.randrange(2**32),
+            rng.randrange(4),
+            rng.randrange(4),
+            rng.randrange(2),
+            rng.choice([0, 10]),
+            rng.randrange(2**32),
+            rng.randrange(2**32),
+        )
     elif a.name in ("tm_learner", "tm_housekeeping"):
         pass
     elif a.name == "tm_link_counters":
@@ -94,7 +105,11 @@ def test_apid_tables_agree():
     for apid, a in P.APIDS.items():
         r = cpp[apid]
         assert (r["name"], r["direction"], r["payload_len"], r["segmentable"]) == (
-            a.name, a.direction, a.payload_len, a.segmentable), a.name
+            a.name,
+            a.direction,
+            a.payload_len,
+            a.segmentable,
+        ), a.name
         assert (r["f64_offset"], r["f64_count"], r["quat_offset"]) == (a.f64_offset, a.f64_count, a.quat_offset)
 
 
@@ -163,8 +178,11 @@ def test_segmented_range_image_both_ways():
     a = P.APID_BY_NAME["range_image_segment"]
     rng = random.Random(5)
     sender = P.Sender()
-    segs = [(0, 24, SequenceFlags.FIRST_SEGMENT), (24, 24, SequenceFlags.CONTINUATION_SEGMENT),
-            (48, 5, SequenceFlags.LAST_SEGMENT)]
+    segs = [
+        (0, 24, SequenceFlags.FIRST_SEGMENT),
+        (24, 24, SequenceFlags.CONTINUATION_SEGMENT),
+        (48, 5, SequenceFlags.LAST_SEGMENT),
+    ]
     d = fb.LinkDeframer("to_flight")
     for first, n, flags in segs:
         payload = valid_payload(a, rng, first=first, n=n, total=53)
@@ -212,7 +230,10 @@ def _malformed_cases():
     yield "bad_time_tag", P.build_frame(a.apid, 0, float("inf"), good)
     yield "non_finite_payload", P.frame(recrc(nan))
     lp = P.APID_BY_NAME["led_pose"]
-    yield "non_unit_quaternion", P.build_frame(lp.apid, 0, 1.0, P.pack_payload(lp.apid, 0, 0, 0, 1.01, 0, 0, 0, 0.1, 0.1))
+    yield (
+        "non_unit_quaternion",
+        P.build_frame(lp.apid, 0, 1.0, P.pack_payload(lp.apid, 0, 0, 0, 1.01, 0, 0, 0, 0.1, 0.1)),
+    )
     yield "invalid_field", P.build_frame(lp.apid, 0, 1.0, P.pack_payload(lp.apid, 0, 0, 0, 1, 0, 0, 0, -0.1, 0.1))
 
 
@@ -267,7 +288,7 @@ def test_seeded_corruption_campaign_never_delivers_a_corrupted_packet():
     pos = 0
     while pos < len(stream):
         n = rng.randrange(1, 600)
-        cpp_results += cpp.feed(stream[pos:pos + n])
+        cpp_results += cpp.feed(stream[pos : pos + n])
         pos += n
     py_results = P.Deframer(P.TO_FLIGHT).feed(stream)
 
@@ -283,7 +304,8 @@ def test_seeded_corruption_campaign_never_delivers_a_corrupted_packet():
     assert c["packets_accepted"] == len(delivered)
     # Same verdicts, in the same order, from the independent implementation.
     assert [r["reason"] if r["kind"] == "rejected" else "packet" for r in cpp_results] == [
-        r.reason if isinstance(r, P.Rejection) else "packet" for r in py_results]
+        r.reason if isinstance(r, P.Rejection) else "packet" for r in py_results
+    ]
 
 
 def test_housekeeping_carries_the_telemetry_drop_count():
@@ -293,14 +315,18 @@ def test_housekeeping_carries_the_telemetry_drop_count():
     app = fb.FlightApp(fb.NavConfig())
     s = P.Sender()
     reset, imu = P.APID_BY_NAME["cmd_reset"].apid, P.APID_BY_NAME["imu_sample"].apid
-    data = s.frame(reset, 0.0, P.pack_payload(reset, 1, 0, 0.0, -0.7, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
-                                              0.05, 0.01, 0.05))
+    data = s.frame(
+        reset, 0.0, P.pack_payload(reset, 1, 0, 0.0, -0.7, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.05, 0.01, 0.05)
+    )
     data += b"".join(s.frame(imu, 0.1 * k, P.pack_payload(imu, *[0.0] * 6)) for k in range(1, 201))
     app.on_bytes(data)
     dropped = app.counters()["tx_dropped"]
     assert dropped > 0
     out = app.on_bytes(b"".join(s.frame(imu, 0.1 * k, P.pack_payload(imu, *[0.0] * 6)) for k in range(201, 211)))
-    hk = [P.decode_housekeeping(p.payload) for p in P.Deframer(P.FROM_FLIGHT).feed(out)
-          if isinstance(p, P.Packet) and p.apid == P.APID_BY_NAME["tm_housekeeping"].apid]
+    hk = [
+        P.decode_housekeeping(p.payload)
+        for p in P.Deframer(P.FROM_FLIGHT).feed(out)
+        if isinstance(p, P.Packet) and p.apid == P.APID_BY_NAME["tm_housekeeping"].apid
+    ]
     assert len(hk) == 1
     assert hk[0]["tx_dropped"] == dropped and hk[0]["cycle_count"] == 210

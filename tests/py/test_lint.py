@@ -1,6 +1,7 @@
 """The Python side passes its linter (ruff, configured in pyproject.toml:
-pyflakes, syntax errors and bugbear's likely bugs), and its functions are
-short."""
+pyflakes, syntax errors, bugbear's likely bugs and sorted imports), is
+formatted by ruff's formatter, and its functions are short."""
+
 import ast
 import shutil
 import subprocess
@@ -20,16 +21,44 @@ def _ruff() -> list:
 
 
 def test_ruff_finds_nothing():
-    r = subprocess.run(_ruff() + ["check", "--no-cache", "bench", "hil_sim", "tests/py", "examples"], cwd=ROOT,
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        _ruff() + ["check", "--no-cache", "bench", "hil_sim", "tests/py", "examples"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_python_is_formatted():
+    r = subprocess.run(
+        _ruff() + ["format", "--check", "--no-cache", "."],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, "not formatted (run `ruff format .`):\n" + r.stdout + r.stderr
+
+
+def test_ruff_format_check_would_catch_an_unformatted_file(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("x = {  'a':1 }\n")
+    r = subprocess.run(
+        _ruff() + ["format", "--check", "--no-cache", "--config", str(ROOT / "pyproject.toml"), str(bad)],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode != 0 and "bad.py" in r.stdout
 
 
 def test_ruff_would_catch_an_unused_import(tmp_path):
     bad = tmp_path / "bad.py"
     bad.write_text("import os\n")
-    r = subprocess.run(_ruff() + ["check", "--no-cache", "--config", str(ROOT / "pyproject.toml"), str(bad)],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        _ruff() + ["check", "--no-cache", "--config", str(ROOT / "pyproject.toml"), str(bad)],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode != 0 and "F401" in r.stdout
 
 
@@ -68,11 +97,15 @@ def _project_function_lengths() -> dict:
 
 def test_functions_are_short():
     lengths = _project_function_lengths()
-    bad = [f"{name}: {n} lines (at most {LONG_FUNCTIONS.get(name, MAX_FUNCTION_LINES)})"
-           for name, n in sorted(lengths.items()) if n > LONG_FUNCTIONS.get(name, MAX_FUNCTION_LINES)]
+    bad = [
+        f"{name}: {n} lines (at most {LONG_FUNCTIONS.get(name, MAX_FUNCTION_LINES)})"
+        for name, n in sorted(lengths.items())
+        if n > LONG_FUNCTIONS.get(name, MAX_FUNCTION_LINES)
+    ]
     assert not bad, "functions too long (split them by concept):\n" + "\n".join(bad)
-    done = [f"{name}: {lengths.get(name, 'gone')}" for name in LONG_FUNCTIONS
-            if lengths.get(name, 0) <= MAX_FUNCTION_LINES]
+    done = [
+        f"{name}: {lengths.get(name, 'gone')}" for name in LONG_FUNCTIONS if lengths.get(name, 0) <= MAX_FUNCTION_LINES
+    ]
     assert not done, "short now or gone: remove from LONG_FUNCTIONS:\n" + "\n".join(done)
 
 

@@ -28,26 +28,31 @@ def test_second_vehicle_resolves_without_defaults_but_segments():
     assert r.accel_sigma_mps2 == pytest.approx(4e-4 * np.sqrt(20.0))
     # thruster positions about the centre of mass, which is off the body origin
     v = r.vehicle()
-    np.testing.assert_allclose(v.positions_b_m[0], np.asarray(inspector_12kg()["vehicle"]["thrusters"][0]["position_b_m"])
-                               - np.array([0.003, -0.005, 0.012]))
+    np.testing.assert_allclose(
+        v.positions_b_m[0],
+        np.asarray(inspector_12kg()["vehicle"]["thrusters"][0]["position_b_m"]) - np.array([0.003, -0.005, 0.012]),
+    )
     F, T = v.thruster_forces_b_n(), v.thruster_torques_b_nm()
     assert np.linalg.matrix_rank(np.hstack([F, T])) == 6  # every axis of force and torque reachable
 
 
-@pytest.mark.parametrize("path, value, message", [
-    (("vehicle", "mass_kg"), -1.0, "vehicle.mass_kg: -1.0 must be > 0.0"),
-    (("vehicle", "inertia_kgm2"), [1.0, 1.0, 3.0], "vehicle.inertia_kgm2: breaks the triangle inequality"),
-    (("vehicle", "inertia_kgm2"), [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "vehicle.inertia_kgm2: not symmetric"),
-    (("imu", "rate_hz"), 0.0, "imu.rate_hz: 0.0 must be > 0.0"),
-    (("imu", "sample"), "point", "imu.sample: 'point' not supported"),
-    (("imu", "q_body_imu"), [1.0, 0.1, 0.0, 0.0], "imu.q_body_imu: quaternion [w, x, y, z] norm"),
-    (("imu", "acel_sigma_mps2"), 0.1, "imu.acel_sigma_mps2: unknown field"),
-    (("pose_sensor", "latency_s"), -0.1, "pose_sensor.latency_s: -0.1 must be >= 0.0"),
-    (("orbit", "altitude_m"), float("nan"), "orbit.altitude_m: expected a finite number"),
-    (("vehicle", "envelope_m"), 0.0, "vehicle.envelope_m: 0.0 must be > 0.0"),
-    (("imu", "gyro_bias_stability_rps"), -1e-4, "imu.gyro_bias_stability_rps: -0.0001 must be >= 0.0"),
-    (("imu", "accel_bias_stability_mps2"), "small", "imu.accel_bias_stability_mps2: expected a finite number"),
-])
+@pytest.mark.parametrize(
+    "path, value, message",
+    [
+        (("vehicle", "mass_kg"), -1.0, "vehicle.mass_kg: -1.0 must be > 0.0"),
+        (("vehicle", "inertia_kgm2"), [1.0, 1.0, 3.0], "vehicle.inertia_kgm2: breaks the triangle inequality"),
+        (("vehicle", "inertia_kgm2"), [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "vehicle.inertia_kgm2: not symmetric"),
+        (("imu", "rate_hz"), 0.0, "imu.rate_hz: 0.0 must be > 0.0"),
+        (("imu", "sample"), "point", "imu.sample: 'point' not supported"),
+        (("imu", "q_body_imu"), [1.0, 0.1, 0.0, 0.0], "imu.q_body_imu: quaternion [w, x, y, z] norm"),
+        (("imu", "acel_sigma_mps2"), 0.1, "imu.acel_sigma_mps2: unknown field"),
+        (("pose_sensor", "latency_s"), -0.1, "pose_sensor.latency_s: -0.1 must be >= 0.0"),
+        (("orbit", "altitude_m"), float("nan"), "orbit.altitude_m: expected a finite number"),
+        (("vehicle", "envelope_m"), 0.0, "vehicle.envelope_m: 0.0 must be > 0.0"),
+        (("imu", "gyro_bias_stability_rps"), -1e-4, "imu.gyro_bias_stability_rps: -0.0001 must be >= 0.0"),
+        (("imu", "accel_bias_stability_mps2"), "small", "imu.accel_bias_stability_mps2: expected a finite number"),
+    ],
+)
 def test_bad_field_is_named(path, value, message):
     d = inspector_12kg()
     d[path[0]][path[1]] = value
@@ -69,8 +74,7 @@ def test_bad_thruster_is_named_with_its_index():
 
 def test_segments_checked():
     d = inspector_12kg()
-    d["segments"] = [{"t_start_s": 0.0, "t_end_s": 10.0, "manoeuvre": "docking"},
-                     {"t_start_s": 5.0, "t_end_s": 20.0}]
+    d["segments"] = [{"t_start_s": 0.0, "t_end_s": 10.0, "manoeuvre": "docking"}, {"t_start_s": 5.0, "t_end_s": 20.0}]
     with pytest.raises(DescriptionError, match=r"segments\[1\]\.t_start_s: 5.0 overlaps"):
         resolve(d)
     d["segments"] = [{"t_start_s": 0.0, "t_end_s": 10.0, "manoeuvre": "dancing"}]

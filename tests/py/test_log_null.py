@@ -1,5 +1,6 @@
 """The null calibration made for a log: its tail fit, checked on the
 committed 1000-run calibrations; the fingerprint that keys its cache."""
+
 import json
 from pathlib import Path
 
@@ -57,8 +58,10 @@ def test_stated_bias_stability_puts_biases_into_the_null():
     a = np.array([stated_biases(stated, s)["accel_bias"] for s in range(600)])
     assert np.allclose(g.std(axis=0), 2e-3, rtol=0.12) and np.allclose(a.std(axis=0), 1e-3, rtol=0.12)
     assert np.all(np.abs(g.mean(axis=0)) < 4 * 2e-3 / np.sqrt(600))
-    assert _bench_like(resolve(stated), resolve(base)) == ["another accelerometer bias stability",
-                                                           "another gyro bias stability"]
+    assert _bench_like(resolve(stated), resolve(base)) == [
+        "another accelerometer bias stability",
+        "another gyro bias stability",
+    ]
 
     plan = characterisation_plan(base, seed=3)[:1]
     log0, _ = simulate(base, plan, {}, seed=3, with_truth=False)

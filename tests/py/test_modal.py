@@ -1,5 +1,6 @@
 """Modal estimator through the bindings: the decomposition against
 numpy.linalg, off-nominal statuses, and small seeded pendulum and plate runs."""
+
 import numpy as np
 import pytest
 
@@ -131,8 +132,10 @@ def test_coarse_amplitudes_are_consistent_at_the_footprint_and_biased_at_the_mea
 
     rows = {}
     for at in ("measured", "footprint"):
-        trials = [mc.plate_trial(s, n_modes=10, kind="joint", n_images=60, oracle=False, points_at=at,
-                                 coarse_check=True) for s in range(3)]
+        trials = [
+            mc.plate_trial(s, n_modes=10, kind="joint", n_images=60, oracle=False, points_at=at, coarse_check=True)
+            for s in range(3)
+        ]
         assert all(t["points_at"] == at for t in trials)
         rows[at] = cmd._coarse_check_summary(trials, 10, at)
     assert rows["footprint"]["images"] == 180

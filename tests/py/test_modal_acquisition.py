@@ -2,6 +2,7 @@
 through the bindings: on a simulated plate it picks the same grid
 frequencies as the numpy RELAX of bench/campaigns/modal_batch_ml.py, and its inputs are
 checked."""
+
 import numpy as np
 import pytest
 
@@ -62,13 +63,30 @@ def test_timing_command_compares_like_with_like(tmp_path, monkeypatch):
 
 def test_grid_span_reaches_the_flight_search():
     def searched(k):
-        tr = mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=1.0,
-                            acquire_grid_sigmas=k, oracle=False)
+        tr = mc.plate_trial(
+            1,
+            n_modes=10,
+            kind="joint",
+            n_images=81,
+            crb_periods=(2.0,),
+            acquire_periods=1.0,
+            acquire_grid_sigmas=k,
+            oracle=False,
+        )
         assert tr["acquisition"]["grid_sigmas"] == k
         return np.abs(np.asarray(tr["acquisition"]["omega_radps"]) / np.asarray(tr["omega_prior_radps"]) - 1)
 
     assert np.max(searched(0.2)) <= 0.02 * (1 + 1e-12)  # +-0.2 sigma of 10 %
     assert np.max(searched(3.0)) > 0.02  # a priori errors up to 10 %: the full span moves off the prior
     with pytest.raises(ValueError, match="flight search only"):
-        mc.plate_trial(1, n_modes=10, kind="joint", n_images=81, crb_periods=(2.0,), acquire_periods=1.0,
-                       acquire_with="batch-ml", acquire_grid_sigmas=2.0, oracle=False)
+        mc.plate_trial(
+            1,
+            n_modes=10,
+            kind="joint",
+            n_images=81,
+            crb_periods=(2.0,),
+            acquire_periods=1.0,
+            acquire_with="batch-ml",
+            acquire_grid_sigmas=2.0,
+            oracle=False,
+        )

@@ -2,6 +2,7 @@
 known frequencies from synthetic coarse estimates (starting 7-9 % off), skips
 images without an estimate, refuses too little data, and on a plate run sits
 beside the flight filter."""
+
 import numpy as np
 import pytest
 
@@ -15,7 +16,7 @@ def _synthetic(seed, k=100, dt=60.0):
     t = np.arange(k) * dt
     truth = np.cos(np.outer(t, w)) * c + np.sin(np.outer(t, w)) * s
     b = 0.05 * rng.standard_normal((3, 3))
-    cov = np.broadcast_to(b @ b.T + 0.03 ** 2 * np.eye(3), (k, 3, 3)).copy()
+    cov = np.broadcast_to(b @ b.T + 0.03**2 * np.eye(3), (k, 3, 3)).copy()
     noise = np.einsum("ij,kj->ki", np.linalg.cholesky(cov[0]), rng.standard_normal((k, 3)))
     return t, w, truth, truth + noise, cov, np.hypot(c, s)
 
@@ -23,7 +24,7 @@ def _synthetic(seed, k=100, dt=60.0):
 def _omega_tol(cov, amp, n, dt):
     """Four times the Cramer-Rao bound of one sinusoid's frequency from n
     evenly spaced samples: sqrt(12) sigma / (A n^1.5 dt)."""
-    return 4 * np.sqrt(12) * np.sqrt(np.diag(cov[0])) / (amp * n ** 1.5 * dt)
+    return 4 * np.sqrt(12) * np.sqrt(np.diag(cov[0])) / (amp * n**1.5 * dt)
 
 
 def test_recovers_frequencies_and_final_amplitude():
@@ -34,7 +35,9 @@ def test_recovers_frequencies_and_final_amplitude():
     sigma = np.sqrt(np.diag(cov[0]))
     assert np.all(np.abs(ml["amplitude_end"] - truth[-1]) < 3 * sigma)
     # the fit is a least-squares optimum: its cost is no more than at the truth
-    assert ml["cost"] <= modal_batch_ml.fit(coarse, cov, t, prior, 0.1 * prior, extra_starts=[("truth", w)])["cost"] + 1e-6
+    assert (
+        ml["cost"] <= modal_batch_ml.fit(coarse, cov, t, prior, 0.1 * prior, extra_starts=[("truth", w)])["cost"] + 1e-6
+    )
 
 
 def test_images_without_an_estimate_are_left_out_and_too_few_refused():
@@ -71,8 +74,30 @@ def test_cli_structure_with_range_noise_and_batch_ml(tmp_path, capsys):
     from bench import cli
 
     out = tmp_path / "s.json"
-    assert cli.main(["modal", "--scenario", "structure", "--modes", "10", "--trials", "1", "--images", "41",
-                     "--filter", "joint", "--range-noise", "0.01", "--batch-ml-at", "1", "--json", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "modal",
+                "--scenario",
+                "structure",
+                "--modes",
+                "10",
+                "--trials",
+                "1",
+                "--images",
+                "41",
+                "--filter",
+                "joint",
+                "--range-noise",
+                "0.01",
+                "--batch-ml-at",
+                "1",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     d = json.loads(out.read_text())
     assert d["range_noise"] == 0.01
     (row,) = d["batch_ml_summary"]
@@ -113,7 +138,7 @@ def test_relax_start_uses_the_coupled_weights_where_a_per_mode_grid_cannot():
     c, s = np.array([0.6, -0.5, 0.4]), np.array([0.3, 0.7, -0.5])
     t = np.arange(k) * dt
     u = np.ones(3) / np.sqrt(3)
-    cov1 = 30.0 ** 2 * np.outer(u, u) + 0.01 ** 2 * np.eye(3)
+    cov1 = 30.0**2 * np.outer(u, u) + 0.01**2 * np.eye(3)
     cov = np.broadcast_to(cov1, (k, 3, 3)).copy()
     truth = np.cos(np.outer(t, w)) * c + np.sin(np.outer(t, w)) * s
     coarse = truth + rng.standard_normal((k, 3)) @ np.linalg.cholesky(cov1).T

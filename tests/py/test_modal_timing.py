@@ -2,6 +2,7 @@
 parsed and checked, the fitted constants of t = c1 m n + c2 m^3 come back
 from data made with them, and a small grid runs numpy and the flight code
 (through the bindings) in one command."""
+
 import json
 import sys
 
@@ -13,7 +14,7 @@ from bench.commands import modal as cmd
 
 def test_fit_recovers_the_constants_of_the_cost_model():
     c1, c2 = 1.2e-8, 5e-9
-    cells = [(m, n, c1 * m * n + c2 * m ** 3) for m in (10, 20, 30, 40, 50) for n in (100, 1000, 10000)]
+    cells = [(m, n, c1 * m * n + c2 * m**3) for m in (10, 20, 30, 40, 50) for n in (100, 1000, 10000)]
     got = cmd._fit(cells)
     assert got == pytest.approx((c1, c2), rel=1e-9)
 
@@ -34,9 +35,11 @@ def test_labelled_executables_are_checked(tmp_path):
 def test_bench_output_is_read_as_medians_per_cell(tmp_path):
     # a stand-in for bench_modal printing Google Benchmark's JSON (mean and median aggregates)
     fake = tmp_path / "bench_modal"
-    rows = [{"run_name": "BM_Joint<10>/1000", "aggregate_name": "median", "real_time": 63.5, "time_unit": "us"},
-            {"run_name": "BM_Joint<10>/1000", "aggregate_name": "mean", "real_time": 99.0, "time_unit": "us"},
-            {"run_name": "BM_Decoupled<50>/10000", "aggregate_name": "median", "real_time": 1.24, "time_unit": "ms"}]
+    rows = [
+        {"run_name": "BM_Joint<10>/1000", "aggregate_name": "median", "real_time": 63.5, "time_unit": "us"},
+        {"run_name": "BM_Joint<10>/1000", "aggregate_name": "mean", "real_time": 99.0, "time_unit": "us"},
+        {"run_name": "BM_Decoupled<50>/10000", "aggregate_name": "median", "real_time": 1.24, "time_unit": "ms"},
+    ]
     fake.write_text(f"#!{sys.executable}\nimport json\nprint(json.dumps({{'benchmarks': {rows!r}}}))\n")
     fake.chmod(0o755)
     got = cmd._run_bench_exe(str(fake))

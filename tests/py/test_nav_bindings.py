@@ -1,6 +1,7 @@
 """The navigation filter through the bindings: the Python API contract
 (names, shapes, status strings), boundary validation, delayed poses and
 gating."""
+
 import fsw_bindings as fb
 import numpy as np
 import pytest

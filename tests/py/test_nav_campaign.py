@@ -2,6 +2,7 @@
 errors within the required bounds and the filter consistent with the bench's
 sensors. The 50-run campaign is the `proxops nav` command (docs/perf/nav_campaign.md,
 "Result")."""
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -71,8 +72,16 @@ def test_bands_are_two_sided_95_percent_of_the_mean():
 
 
 def test_summary_has_the_issue_fields(campaign):
-    for k in ("runs", "max_pos_err_m", "max_vel_err_mps", "nees_mean", "nis_mean", "nees_band", "nis_band",
-              "gated_count"):
+    for k in (
+        "runs",
+        "max_pos_err_m",
+        "max_vel_err_mps",
+        "nees_mean",
+        "nis_mean",
+        "nees_band",
+        "nis_band",
+        "gated_count",
+    ):
         assert k in campaign
     for k in ("per_run", "median", "p95"):
         assert k in campaign["max_pos_err_m"] and k in campaign["max_vel_err_mps"]

@@ -3,6 +3,7 @@ flight vision pipeline (ScenarioConfig(pose_source="images")): the filter
 fuses the image poses, the errors stay within the navigation bounds, and the
 pipeline's statuses are counted. The 50-run campaign is
 `proxops nav --pose-source images` (docs/VISION.md)."""
+
 import numpy as np
 import pytest
 
@@ -56,8 +57,15 @@ def test_campaign_counts_vision_statuses(campaign):
     assert sum(counts.values()) == summary["vision_frames"]
     assert summary["vision_frames"] == sum(sum(r.summary.vision_status_counts.values()) for r in runs)
     assert summary["fused_pose_count"] == sum(len(r.updates.nis) for r in runs)
-    assert set(counts) <= {"Ok", "TooFewLeds", "AmbiguousIdentity", "TargetBehindCamera", "DegenerateGeometry",
-                           "SolverFailed", "BadInput"}
+    assert set(counts) <= {
+        "Ok",
+        "TooFewLeds",
+        "AmbiguousIdentity",
+        "TargetBehindCamera",
+        "DegenerateGeometry",
+        "SolverFailed",
+        "BadInput",
+    }
 
 
 def test_frame_without_a_pose_delivers_nothing_and_is_counted():
@@ -73,8 +81,13 @@ def test_frame_without_a_pose_delivers_nothing_and_is_counted():
 
 def test_pattern_in_view_with_margin_at_contact():
     cam = docking_camera()
-    px, front, X_c = cm.led_pixels(DOCK_HILL_M, np.array([1.0, 0.0, 0.0, 0.0]), Q_H_PATTERN, cam,
-                                   cm.pattern_host_m(cm.HALF_SIDE_M, DOCK_FACE_OFFSET_M))
+    px, front, X_c = cm.led_pixels(
+        DOCK_HILL_M,
+        np.array([1.0, 0.0, 0.0, 0.0]),
+        Q_H_PATTERN,
+        cam,
+        cm.pattern_host_m(cm.HALF_SIDE_M, DOCK_FACE_OFFSET_M),
+    )
     assert front.all()
     assert px.min() > 50 and np.all(px.max(0) < [cam.width - 51, cam.height - 51])
     assert np.linalg.norm(X_c, axis=1).min() > 0.15
@@ -109,8 +122,7 @@ def test_lens_distortion_effect_biases_image_poses_and_the_innovations_show_it()
     # the pipeline takes for a pinhole: same seed, same trajectory start, the
     # pose errors grow from sub-millimetre to centimetres and NIS leaves 6.
     base = run_docking(1001, ScenarioConfig(pose_source="images", t_max_s=12.0))
-    lens = run_docking(1001, ScenarioConfig(pose_source="images", t_max_s=12.0,
-                                            effects={"lens_distortion": [-0.1]}))
+    lens = run_docking(1001, ScenarioConfig(pose_source="images", t_max_s=12.0, effects={"lens_distortion": [-0.1]}))
     e0, e1 = np.median(_pose_errors_mm(base)), np.median(_pose_errors_mm(lens))
     assert e0 < 3.0 and e1 > 10.0 * e0
     assert np.mean(lens.updates.nis) > 5.0 * max(np.mean(base.updates.nis), 6.0)

@@ -1,5 +1,6 @@
 """Truth plant: translation against independent solutions, rotation against
 conservation laws, the Hill-frame kinematics and the IMU-facing interval means."""
+
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -14,8 +15,7 @@ N = N_RADPS
 
 def hill_fixed_state(r, v):
     """Body axes held on the Hill axes: q = 1 and omega_BI_B = (0, 0, n)."""
-    return PlantState(0.0, np.array(r, float), np.array(v, float), np.array([1.0, 0, 0, 0]),
-                      np.array([0.0, 0.0, N]))
+    return PlantState(0.0, np.array(r, float), np.array(v, float), np.array([1.0, 0, 0, 0]), np.array([0.0, 0.0, N]))
 
 
 def run(plant, force_b, t_end, dt=1.0):
@@ -39,8 +39,9 @@ def test_nonlinear_with_constant_thrust_matches_two_body_integration():
     veh = Vehicle()
     p = Plant(hill_fixed_state(s0[:3], s0[3:]), vehicle=veh, dynamics="nonlinear", substep_s=0.1)
     s = run(p, f_b, 100.0)
-    ref = orbit.propagate_two_body(np.array(s0), ORBIT_RADIUS_M, [0.0, 100.0],
-                                   accel_hill=lambda t, x: f_b / veh.mass_kg)[-1]
+    ref = orbit.propagate_two_body(
+        np.array(s0), ORBIT_RADIUS_M, [0.0, 100.0], accel_hill=lambda t, x: f_b / veh.mass_kg
+    )[-1]
     assert np.max(np.abs(s.r_hill_m - ref[:3])) < 1e-7
     assert np.max(np.abs(s.q_hb - [1, 0, 0, 0])) < 1e-12  # the body really stayed on the Hill axes
 
@@ -71,8 +72,9 @@ def test_cw_and_nonlinear_agree_at_one_metre():
 def test_torque_free_body_conserves_inertial_angular_momentum_and_energy():
     veh = Vehicle()
     w0 = np.array([0.3, -0.2, 0.25])
-    p = Plant(PlantState(0.0, np.zeros(3), np.zeros(3), qnormalize([0.9, 0.1, -0.3, 0.2]), w0), vehicle=veh,
-              substep_s=0.01)
+    p = Plant(
+        PlantState(0.0, np.zeros(3), np.zeros(3), qnormalize([0.9, 0.1, -0.3, 0.2]), w0), vehicle=veh, substep_s=0.01
+    )
     j = veh.inertia_kgm2
 
     def momentum_inertial(s):
@@ -95,8 +97,10 @@ def test_inertially_fixed_body_turns_backwards_in_hill_frame_at_orbit_rate():
 
 def test_interval_mean_rate_reproduces_attitude_step_exactly():
     veh = Vehicle()
-    p = Plant(PlantState(0.0, np.zeros(3), np.zeros(3), qnormalize([0.9, -0.1, 0.3, 0.2]),
-                         np.array([0.02, -0.01, 0.03])), vehicle=veh)
+    p = Plant(
+        PlantState(0.0, np.zeros(3), np.zeros(3), qnormalize([0.9, -0.1, 0.3, 0.2]), np.array([0.02, -0.01, 0.03])),
+        vehicle=veh,
+    )
     q0 = p.state.q_hb
     valves = np.array([1, 0, 0, 1, 0, 1, 0, 0])
     res = p.step(valves, 0.1)
@@ -124,10 +128,10 @@ def test_float_rk4_matches_numpy_reference(dynamics):
     # The hot-loop integrator on Python floats must be the readable numpy
     # version, step for step: tumbling body, thrust and torque, 50 substeps.
     rng = np.random.default_rng(3)
-    plant = Plant(PlantState(0.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)),
-                  dynamics=dynamics)
-    y = np.concatenate([rng.normal(0, 2, 3), rng.normal(0, 0.05, 3), qnormalize(rng.normal(size=4)),
-                        rng.normal(0, 0.2, 3)])
+    plant = Plant(PlantState(0.0, np.zeros(3), np.zeros(3), np.array([1.0, 0, 0, 0]), np.zeros(3)), dynamics=dynamics)
+    y = np.concatenate(
+        [rng.normal(0, 2, 3), rng.normal(0, 0.05, 3), qnormalize(rng.normal(size=4)), rng.normal(0, 0.2, 3)]
+    )
     f, tau = rng.normal(0, 0.02, 3), rng.normal(0, 1e-3, 3)
     ref = plant.rk4_reference(y, f, tau, 0.02, 50)
     fast = np.array(plant._rk4_floats(y.tolist(), f.tolist(), tau.tolist(), 0.02, 50))

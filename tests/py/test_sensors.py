@@ -1,5 +1,6 @@
 """Sensor models: the paper's noise profile made concrete, noise statistics,
 the body-frame attitude-noise convention and the reported covariance."""
+
 import numpy as np
 
 from bench.sim.sensors import Imu, NoiseProfile, PoseSensor

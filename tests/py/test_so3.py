@@ -1,4 +1,5 @@
 """SO(3) through the bindings: properties and boundary validation."""
+
 import fsw_bindings as fb
 import numpy as np
 import pytest

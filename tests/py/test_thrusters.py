@@ -1,4 +1,5 @@
 """Small seeded checks of the thruster-learning bench (bench/campaigns/thrusters.py)."""
+
 import json
 
 import numpy as np

@@ -2,6 +2,7 @@
 (bench/gap/validate_basilisk.py refly), on the stored answers of the seed
 2050 campaign with the diagnosis of each run stood in for: which runs are
 flown, and the answers before and after counted run by run."""
+
 from __future__ import annotations
 
 import gzip

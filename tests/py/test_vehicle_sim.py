@@ -1,6 +1,7 @@
 """Logs of any described vehicle: pulse-width-modulated valves integrated
 exactly, IMU samples as interval means on jittered clocks, the replay's
 valve integration agreeing with the simulator's."""
+
 import numpy as np
 
 from bench.gap.plans import characterisation_plan
@@ -42,8 +43,12 @@ def test_pwm_pulse_gives_its_duty_in_the_accelerometer():
     # One thruster at 30 % duty of each 0.1 s cycle, a 20 Hz IMU: the mean
     # specific force per sample (noise-free) is the open fraction times F / m.
     desc = inspector_12kg()
-    desc["imu"] = dict(desc["imu"], accel_noise_density_mps2_rthz=1e-12, gyro_noise_density_rps_rthz=1e-12,
-                       q_body_imu=[1.0, 0.0, 0.0, 0.0])
+    desc["imu"] = dict(
+        desc["imu"],
+        accel_noise_density_mps2_rthz=1e-12,
+        gyro_noise_density_rps_rthz=1e-12,
+        q_body_imu=[1.0, 0.0, 0.0, 0.0],
+    )
     desc["imu"]["position_b_m"] = desc["vehicle"]["com_b_m"]
     cmd_t = np.arange(1.0, 3.0, 0.1)
     on = np.zeros((cmd_t.size, 12))
@@ -65,8 +70,9 @@ def test_pwm_pulse_gives_its_duty_in_the_accelerometer():
 def test_jittered_stamps_and_pose_between_ticks():
     desc = inspector_12kg()
     plan = characterisation_plan(desc, seed=2, per_run=12, fire_s=0.5, coast_s=1.0, passes=1)
-    log, _ = simulate(desc, plan, {}, seed=2, clocks=Clocks(imu_jitter_s=0.0025, imu_drop_frac=0.02,
-                                                            pose_phase_s=0.537))
+    log, _ = simulate(
+        desc, plan, {}, seed=2, clocks=Clocks(imu_jitter_s=0.0025, imu_drop_frac=0.02, pose_phase_s=0.537)
+    )
     t = log["imu"]["t_s"]
     d = np.diff(t)
     assert d.std() > 0.001 and d.max() > 0.09  # jitter, and dropped samples
@@ -85,8 +91,14 @@ def test_gyro_differences_are_exact_under_jitter_drops_and_pwm():
 
     desc = inspector_12kg()
     desc["imu"] = dict(desc["imu"], accel_noise_density_mps2_rthz=1e-12, gyro_noise_density_rps_rthz=1e-12)
-    log, _ = simulate(desc, characterisation_plan(desc, seed=8), {}, seed=1,
-                      clocks=Clocks(imu_jitter_s=0.0025, imu_drop_frac=0.02), with_truth=False)
+    log, _ = simulate(
+        desc,
+        characterisation_plan(desc, seed=8),
+        {},
+        seed=1,
+        clocks=Clocks(imu_jitter_s=0.0025, imu_drop_frac=0.02),
+        with_truth=False,
+    )
     d = prepare(log)
     reference(d)
     ch = dyn.build(d)

@@ -1,4 +1,5 @@
 """LED pose pipeline through the bindings, on images rendered by bench/sim/camera.py."""
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -109,10 +110,13 @@ def test_nees_over_renders_inside_its_band(est):
 
 
 def test_summary_by_range_counts_every_case_once():
-    cases = [{"status": "Ok", "range_m": 0.5, "nees": 4.0, "pos_err_m": 0.01, "att_err_deg": 0.1},
-             {"status": "Ok", "range_m": 2.5, "nees": 1e4, "pos_err_m": 0.01, "att_err_deg": 0.1},  # gross
-             {"status": "Ok", "range_m": 2.9, "nees": 8.0, "pos_err_m": 0.01, "att_err_deg": 0.1},
-             {"status": "TooFewLeds", "range_m": 4.5}, {"status": "AmbiguousIdentity", "range_m": 4.9}]
+    cases = [
+        {"status": "Ok", "range_m": 0.5, "nees": 4.0, "pos_err_m": 0.01, "att_err_deg": 0.1},
+        {"status": "Ok", "range_m": 2.5, "nees": 1e4, "pos_err_m": 0.01, "att_err_deg": 0.1},  # gross
+        {"status": "Ok", "range_m": 2.9, "nees": 8.0, "pos_err_m": 0.01, "att_err_deg": 0.1},
+        {"status": "TooFewLeds", "range_m": 4.5},
+        {"status": "AmbiguousIdentity", "range_m": 4.9},
+    ]
     rows = pc.summarise(cases)["by_range"]
     assert [r["range_m"] for r in rows] == [[0.3, 1.0], [1.0, 2.0], [2.0, 3.0], [3.0, 4.0], [4.0, 5.0]]
     assert [r["cases"] for r in rows] == [1, 0, 2, 0, 2] and [r["ok"] for r in rows] == [1, 0, 2, 0, 0]
