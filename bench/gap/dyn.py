@@ -155,7 +155,7 @@ def build(d: LogData) -> DynChannel | None:
     gyroscopic = -np.cross(w, w @ J.T) @ Jinv.T
     turn = (W @ Ti) @ Jinv.T + 0.5 * (gyroscopic[k - 1] + gyroscopic[k]) * h
     dg = (w[k] - w[k - 1] - turn) / sig_g
-    bounds, chols = _difference_whiteners(seg_id[k])
+    bounds, chols = _difference_whitening(seg_id[k])
     ch = DynChannel(
         t=None,
         e0=None,
@@ -175,6 +175,7 @@ def build(d: LogData) -> DynChannel | None:
     )
     ch.sig_g = sig_g
     ch.h = h
+    ch.turn = turn
     ch.W = W
     ch.c_bh = rotmats(d.ref_q) if d.ref_q is not None else None
     e_g = ch.whiten_gyro(dg)
@@ -182,6 +183,23 @@ def build(d: LogData) -> DynChannel | None:
     ch.t = np.concatenate([d.imu_t, d.imu_t[k]])
     ch.kind = np.concatenate([np.zeros(d.imu_t.size, int), np.ones(k.size, int)])
     return ch
+
+
+def _difference_whitening(seg_of_row: np.ndarray) -> tuple:
+    """([(start, stop)] row range of each segment, the banded Cholesky
+    factor of tridiag(-1, 2, -1) for each): differenced white noise
+    whitened segment by segment."""
+    bounds, chols = [], []
+    start = 0
+    for s in np.unique(seg_of_row):
+        n = int(np.sum(seg_of_row == s))
+        ab = np.zeros((2, n))
+        ab[0] = 2.0
+        ab[1, :-1] = -1.0
+        chols.append(cholesky_banded(ab, lower=True))
+        bounds.append((start, start + n))
+        start += n
+    return bounds, chols
 
 
 # --- Jacobians: rows = -(change of the predicted measurement) / sigma ----------
@@ -320,7 +338,18 @@ def _jac_drag(ch):
     return _stack(ch, da, None)
 
 
+def _jac_clock(ch):
+    # Every time of the log on a clock fast by eps: true intervals are the
+    # tagged ones over 1 + eps, so each predicted change of the rate (valve
+    # open seconds and the gyroscopic term, both integrals over time) shrinks
+    # by 1 + eps: d(turn)/d(eps) = -turn. The accelerometer rows compare
+    # means over the same interval (the valves' open fraction of it does
+    # not change with the clock): no signature there.
+    return _stack(ch, None, None, -ch.turn[:, :, None])
+
+
 _JAC = {
+    "clock_drift": _jac_clock,
     "differential_drag": _jac_drag,
     "accel_bias": _jac_accel_bias,
     "thrust_loss": _jac_thrust_loss,

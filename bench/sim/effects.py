@@ -338,7 +338,7 @@ EFFECTS: dict[str, EffectSpec] = {
         EffectSpec(
             "clock_drift",
             "sensor",
-            False,
+            True,
             1,
             "1",
             "the IMU clock runs fast: its time tags are (1 + eps) t",
@@ -402,7 +402,7 @@ _MAX_SIZE = {
 # Measured (docs/EFFECTS.md): shown only by the error against truth; not shown
 # at all up to max_size (min_detectable is then max_size, a bound).
 _NEEDS_TRUTH = {"camera_lever_arm"}
-_NOT_DETECTABLE = {"host_eccentricity", "differential_j2", "clock_drift"}
+_NOT_DETECTABLE = {"host_eccentricity", "differential_j2"}
 _NEEDS_IMAGES = {"lens_distortion"}
 EFFECTS = {
     n: replace(

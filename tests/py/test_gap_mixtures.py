@@ -169,7 +169,7 @@ def test_mixture_scores_split_by_separability_and_kind():
         key(0, "pair", 2.0, ["thrust_loss", "gyro_bias"]),
         key(1, "pair", 2.0, ["thruster_misalignment", "gyro_bias"]),
         key(2, "in+out", 2.0, ["accel_bias", "fuel_slosh"]),
-        key(3, "in+out", 2.0, ["accel_bias", "clock_drift"]),
+        key(3, "in+out", 2.0, ["accel_bias", "led_occlusion"]),
     ]
     answers = [
         ans(0, ["gyro_bias", "thrust_loss"], "explained", shrink=0.9),
@@ -189,7 +189,7 @@ def test_mixture_scores_split_by_separability_and_kind():
     assert at2["n"] == 4 and at2["exact_set"] == 0.5 and at2["named_are_real"] == 0.5
     assert at2["exact_set_among_named"] == 0.75  # run 1's set is the alternative its ambiguous answer names
     assert at2["out_of_library_left_unexplained"] == 0.5
-    # runs 1 (a look-alike set) and 3 (a clock drift the library reproduces) are scored apart
+    # runs 1 (a look-alike set) and 3 (an out-of-library part the library reproduces) are scored apart
     assert at2["separable"]["n"] == 2 and at2["separable"]["exact_set"] == 1.0
     assert at2["separable"]["out_of_library_left_unexplained"] == 1.0
     assert res["true_set_shrink"]["in-library sets 2x"] == {"median": 0.8, "n": 2}
