@@ -372,14 +372,67 @@ def pairs(seed: int = 11) -> list:
     return out
 
 
+def rediagnose(path: str, member: str) -> list:
+    """The recorded campaign's runs that carry ``member`` (its stored
+    ``.full.json.gz``), flown again at their recorded sizes and diagnosed by
+    today's library, run for run: [{"run", "members", "kind", "before",
+    "after"}]. A member that has joined the library since counts as
+    in-library: an in + out run whose out-of-library member it was is now a
+    pair, and its exact set is both."""
+    import gzip
+    import json
+
+    from bench.gap import null as nullmod
+    from bench.sim.effects import EFFECTS
+
+    rec = json.load(gzip.open(path))
+    by = {a["run"]: a for a in rec["answers"]}
+    cal = nullmod.load(manoeuvres=rec.get("manoeuvres", "docking"))
+    out = []
+    for key in rec["keys"]:
+        if member not in key["members"] or not key.get("detectable", True) or key["run"] not in by:
+            continue
+        truth_in = sorted(e for e in key["members"] if EFFECTS[e].in_library)
+        kind = key["kind"] if len(truth_in) < len(key["members"]) else ("pair", "triple")[len(truth_in) - 2]
+        after = _run_one(key, (rec["duration_s"], cal))
+        row = {
+            "run": key["run"],
+            "scale": key["scale"],
+            "members": key["members"],
+            "kind": kind,
+            "before": {k: by[key["run"]][k] for k in ("verdict", "named")},
+            "after": {k: after[k] for k in ("verdict", "named", "true_set_shrink", "separability")},
+        }
+        row["exact_set"] = set(after["named"]) == set(truth_in) and after["verdict"] != "unexplained"
+        row["named_are_real"] = set(after["named"]) <= set(key["members"])
+        out.append(row)
+        print(
+            f"run {key['run']} {kind} {key['scale']:g}x {'+'.join(key['members'])}: before "
+            f"{row['before']['verdict']} {'+'.join(row['before']['named'])}; now {after['verdict']} "
+            f"{'+'.join(after['named'])}",
+            file=sys.stderr,
+        )
+    return out
+
+
 def main(argv=None):
     import argparse
     import json
 
-    ap = argparse.ArgumentParser(description="The four pairs of effects on one log, alone and together")
-    ap.add_argument("what", choices=("pairs",))
+    ap = argparse.ArgumentParser(
+        description="The four pairs of effects on one log, alone and together; or a "
+        "recorded campaign's runs that carry one effect, diagnosed again"
+    )
+    ap.add_argument("what", choices=("pairs", "rediagnose"))
     ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--record", help="rediagnose: the campaign's .full.json.gz")
+    ap.add_argument("--member", default="clock_drift", help="rediagnose: the runs that carry this effect")
     a = ap.parse_args(argv)
+    if a.what == "rediagnose":
+        if not a.record:
+            ap.error("rediagnose needs --record")
+        print(json.dumps(rediagnose(a.record, a.member), indent=1))
+        return
     print(json.dumps(pairs(a.seed), indent=1))
 
 
