@@ -155,7 +155,7 @@ def build(d: LogData) -> DynChannel | None:
     gyroscopic = -np.cross(w, w @ J.T) @ Jinv.T
     turn = (W @ Ti) @ Jinv.T + 0.5 * (gyroscopic[k - 1] + gyroscopic[k]) * h
     dg = (w[k] - w[k - 1] - turn) / sig_g
-    bounds, chols = _difference_whitening(seg_id[k])
+    bounds, chols = _difference_whiteners(seg_id[k])
     ch = DynChannel(
         t=None,
         e0=None,
@@ -183,23 +183,6 @@ def build(d: LogData) -> DynChannel | None:
     ch.t = np.concatenate([d.imu_t, d.imu_t[k]])
     ch.kind = np.concatenate([np.zeros(d.imu_t.size, int), np.ones(k.size, int)])
     return ch
-
-
-def _difference_whitening(seg_of_row: np.ndarray) -> tuple:
-    """([(start, stop)] row range of each segment, the banded Cholesky
-    factor of tridiag(-1, 2, -1) for each): differenced white noise
-    whitened segment by segment."""
-    bounds, chols = [], []
-    start = 0
-    for s in np.unique(seg_of_row):
-        n = int(np.sum(seg_of_row == s))
-        ab = np.zeros((2, n))
-        ab[0] = 2.0
-        ab[1, :-1] = -1.0
-        chols.append(cholesky_banded(ab, lower=True))
-        bounds.append((start, start + n))
-        start += n
-    return bounds, chols
 
 
 # --- Jacobians: rows = -(change of the predicted measurement) / sigma ----------
