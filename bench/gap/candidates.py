@@ -8,8 +8,10 @@ Effects that change the thrust (thrust loss, thruster misalignment, mass
 depletion) leave the navigation replay untouched (the accelerometer and gyro
 measure what the vehicle really did); they are seen through the dynamics
 channel (bench/gap/dyn.py), whose closed-form Jacobians cover them and the
-IMU effects (``nav=False``: dynamics channel only). The flexible mode has
-no candidate yet (``NOT_MODELLED``).
+IMU effects (``nav=False``: dynamics channel only). A drifting flight
+clock (``clock_drift``) rescales every time tag of the log in the replay
+and every interval of the dynamics channel. The flexible mode has no
+candidate yet (``NOT_MODELLED``).
 """
 
 from __future__ import annotations
@@ -123,6 +125,7 @@ _BUILDERS = {
     "host_eccentricity": _ecc,
     "differential_j2": _j2,
     "differential_drag": _drag,
+    "clock_drift": lambda th, d: Corrections(clock_eps=float(th[0])),
 }
 
 
@@ -275,6 +278,15 @@ CANDIDATES = {
             "a coast near the host: drag is constant along-track, independent of position and attitude; "
             "a slew shows the inspector's own drag turning in the accelerometer",
             bound=1e-2,
+        ),
+        Candidate(
+            "clock_drift",
+            "sensor",
+            ("eps [1]",),
+            0.01,
+            "slews and firings of known length: a fast clock stretches every interval, so the pose updates "
+            "read the rates too large while the gyro against the valve torques reads them too small",
+            bound=0.05,
         ),
     )
 }

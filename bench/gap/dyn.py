@@ -175,6 +175,7 @@ def build(d: LogData) -> DynChannel | None:
     )
     ch.sig_g = sig_g
     ch.h = h
+    ch.turn = turn
     ch.W = W
     ch.c_bh = rotmats(d.ref_q) if d.ref_q is not None else None
     e_g = ch.whiten_gyro(dg)
@@ -320,7 +321,18 @@ def _jac_drag(ch):
     return _stack(ch, da, None)
 
 
+def _jac_clock(ch):
+    # Every time of the log on a clock fast by eps: true intervals are the
+    # tagged ones over 1 + eps, so each predicted change of the rate (valve
+    # open seconds and the gyroscopic term, both integrals over time) shrinks
+    # by 1 + eps: d(turn)/d(eps) = -turn. The accelerometer rows compare
+    # means over the same interval (the valves' open fraction of it does
+    # not change with the clock): no signature there.
+    return _stack(ch, None, None, -ch.turn[:, :, None])
+
+
 _JAC = {
+    "clock_drift": _jac_clock,
     "differential_drag": _jac_drag,
     "accel_bias": _jac_accel_bias,
     "thrust_loss": _jac_thrust_loss,

@@ -16,6 +16,11 @@ Corrections (all optional, zero means "the nominal model"):
         omega = Exp(misalign) ((omega_raw - b_g) / (1 + s_g))
   pose  r = r_meas - C_hb(q_meas) lever_b + latency * v_ref(t_c)
         q = q_meas (+) latency * omega_bh_ref(t_c)
+  clock every time tag of the log (IMU ticks, pose capture and fusion
+        times) divided by 1 + clock_eps: the flight clock runs fast by
+        clock_eps, so its tags are (1 + clock_eps) t of true time t, and
+        the filter must integrate the rates and accelerations over true
+        intervals
 where the reference trajectory (v_ref, q_ref, r_ref at every IMU tick) comes
 from one nominal replay (``reference``): the latency and Hill-frame terms
 are small corrections linearised about it, so they cost no Python work per
@@ -324,6 +329,8 @@ class Corrections:
     hill_accel: np.ndarray | None = None
     # Extra body-frame specific force added to the corrected accelerometer (N, 3), or None.
     accel_extra_b: np.ndarray | None = None
+    # The flight clock's rate error: its tags are (1 + clock_eps) t.
+    clock_eps: float = 0.0
 
     def add(self, other: "Corrections") -> "Corrections":
         h = (
@@ -346,6 +353,7 @@ class Corrections:
             self.lever_arm_b + other.lever_arm_b,
             h,
             x,
+            self.clock_eps + other.clock_eps,
         )
 
 
@@ -369,16 +377,18 @@ def corrected_inputs(d: LogData, c: Corrections | None):
     r, q = d.pose_r, d.pose_q
     if np.any(c.lever_arm_b != 0.0):
         r = r - rotmats(q) @ c.lever_arm_b
-    r, q = _shift_poses(d, gyr, r, q, c.latency_s)
+    r, q = _shift_poses(d, gyr, r, q, c.latency_s, c.clock_eps)
     return acc, gyr, r, q
 
 
-def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, latency_s: float):
+def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, latency_s: float, clock_eps: float = 0.0):
     """Each pose moved over ``latency_s`` plus its own shift to the IMU tick
-    (LogData.pose_align_s), along the reference motion: r + tau v_ref,
+    (LogData.pose_align_s, on the flight clock: in true time over
+    1 + clock_eps), along the reference motion: r + tau v_ref,
     q (+) tau omega_bh. Needs the reference (replay.reference) unless every
     shift is zero."""
-    tau = latency_s + (d.pose_align_s if d.pose_align_s is not None else 0.0)
+    align = d.pose_align_s / (1.0 + clock_eps) if d.pose_align_s is not None else 0.0
+    tau = latency_s + align
     if not np.any(tau != 0.0):
         return r, q
     if d.ref_v is None:
@@ -447,12 +457,15 @@ def replay(
     nc = nav_config(d, gate_chi2)
     ukf = fb.NavUkf(nc)
     v0sig = d.pose_v0_sigma if d.pose_v0_sigma is not None else np.full(d.pose_tc.size, V0_SIGMA_MPS)
-    t = d.imu_t
+    # A flight clock fast by clock_eps: true time is its tag over 1 + clock_eps.
+    to_true = 1.0 / (1.0 + c.clock_eps) if c is not None and c.clock_eps != 0.0 else 1.0
+    t = d.imu_t * to_true
+    t_init = d.t_init * to_true
     # Initialise from the first pose at (or before) the first IMU interval.
     P0 = np.zeros((9, 9))
     P0[0:3, 0:3], P0[6:9, 6:9] = d.pose_R[0, 0:3, 0:3], d.pose_R[0, 3:6, 3:6]
     P0[3:6, 3:6] = v0sig[0] ** 2 * np.eye(3)
-    ukf.init(d.t_init, pr[0], np.zeros(3), pq[0], P0)
+    ukf.init(t_init, pr[0], np.zeros(3), pq[0], P0)
     m = d.pose_tc.size
     start = d.pose_start
     innov = np.zeros((m, 6))
@@ -461,13 +474,13 @@ def replay(
     ll = np.zeros(m)
     ok = np.zeros(m, bool)
     states = np.zeros((t.size, 10)) if record_states else None
-    tf, tc, R = d.pose_tf, d.pose_tc, d.pose_R
+    tf, tc, R = d.pose_tf * to_true, d.pose_tc * to_true, d.pose_R
     eps = 1e-9
     j = 1
-    while j < m and tc[j] <= d.t_init + 1e-9:
+    while j < m and tc[j] <= t_init + 1e-9:
         j += 1
     predict, update = ukf.predict, ukf.update_pose
-    k0 = int(np.searchsorted(t, d.t_init + eps, side="right"))
+    k0 = int(np.searchsorted(t, t_init + eps, side="right"))
     for k in range(k0, t.size):
         tk = t[k]
         if j < m and start[j] and tc[j] <= tk + eps:
@@ -495,7 +508,14 @@ def replay(
             j += 1
     sel = np.flatnonzero(ok)
     return ReplayResult(
-        t=tc[sel], index=sel, innovation=innov[sel], S=S[sel], nis=nis[sel], loglik=ll[sel], ok=ok[sel], states=states
+        t=d.pose_tc[sel],
+        index=sel,
+        innovation=innov[sel],
+        S=S[sel],
+        nis=nis[sel],
+        loglik=ll[sel],
+        ok=ok[sel],
+        states=states,
     )
 
 

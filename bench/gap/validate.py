@@ -58,6 +58,7 @@ SAME_PARAMETERS = (
     "com_offset",
     "thrust_loss",
     "mass_depletion",
+    "clock_drift",
 )
 
 

@@ -372,14 +372,78 @@ def pairs(seed: int = 11) -> list:
     return out
 
 
+def rediagnose(path: str, member: str | None = None) -> dict:
+    """The recorded campaign's runs (its stored ``.full.json.gz``; those that
+    carry ``member``, or every scored run), flown again at their recorded
+    sizes and diagnosed by today's library, run for run. A member that has
+    joined the library since counts as in-library: an in + out run whose
+    out-of-library member it was is now a pair, and its exact set is both.
+    Returns {"rows": [{"run", "scale", "members", "kind", "before", "after"}],
+    "scores_before", "scores_after"}: the same runs scored as today's
+    library counts them, with the recorded answers and with today's."""
+    import gzip
+    import json
+
+    from bench.gap import null as nullmod
+    from bench.sim.effects import EFFECTS
+
+    rec = json.load(gzip.open(path))
+    by = {a["run"]: a for a in rec["answers"]}
+    cal = nullmod.load(manoeuvres=rec.get("manoeuvres", "docking"))
+    rows, keys, before, after = [], [], [], []
+    for key in rec["keys"]:
+        if (member and member not in key["members"]) or not key.get("detectable", True) or key["run"] not in by:
+            continue
+        n_in = sum(EFFECTS[e].in_library for e in key["members"])
+        kind = key["kind"] if n_in < len(key["members"]) else ("pair", "triple")[n_in - 2]
+        keys.append(dict(key, kind=kind))
+        before.append(by[key["run"]])
+        after.append(_run_one(key, (rec["duration_s"], cal)))
+        was, now = before[-1], after[-1]
+        rows.append(
+            {
+                "run": key["run"],
+                "scale": key["scale"],
+                "members": key["members"],
+                "kind": kind,
+                "before": {k: was[k] for k in ("verdict", "named")},
+                "after": {k: now[k] for k in ("verdict", "named", "true_set_shrink")},
+            }
+        )
+        print(
+            f"run {key['run']} {kind} {key['scale']:g}x {'+'.join(key['members'])}: before {was['verdict']} "
+            f"{'+'.join(was['named'])}; now {now['verdict']} {'+'.join(now['named'])}",
+            file=sys.stderr,
+        )
+    return {
+        "record": str(path),
+        "member": member,
+        "rows": rows,
+        "scores_before": score_mixtures(keys, before),
+        "scores_after": score_mixtures(keys, after),
+        "keys": keys,
+        "answers": after,
+    }
+
+
 def main(argv=None):
     import argparse
     import json
 
-    ap = argparse.ArgumentParser(description="The four pairs of effects on one log, alone and together")
-    ap.add_argument("what", choices=("pairs",))
+    ap = argparse.ArgumentParser(
+        description="The four pairs of effects on one log, alone and together; or a "
+        "recorded campaign's runs that carry one effect, diagnosed again"
+    )
+    ap.add_argument("what", choices=("pairs", "rediagnose"))
     ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--record", help="rediagnose: the campaign's .full.json.gz")
+    ap.add_argument("--member", help="rediagnose: only the runs that carry this effect (default: every scored run)")
     a = ap.parse_args(argv)
+    if a.what == "rediagnose":
+        if not a.record:
+            ap.error("rediagnose needs --record")
+        print(json.dumps(rediagnose(a.record, a.member), indent=1))
+        return
     print(json.dumps(pairs(a.seed), indent=1))
 
 

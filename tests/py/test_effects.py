@@ -33,10 +33,11 @@ LIBRARY = {
     "host_eccentricity",
     "differential_j2",
     "differential_drag",
+    "clock_drift",
 }
 # flex_mode is simulated but has no diagnoser candidate: it tests "unexplained" too;
 # lens_distortion exists only with pose from rendered images.
-OUT_OF_LIBRARY = {"fuel_slosh", "clock_drift", "led_occlusion", "flex_mode", "lens_distortion"}
+OUT_OF_LIBRARY = {"fuel_slosh", "led_occlusion", "flex_mode", "lens_distortion"}
 
 
 def hill_fixed(r=(0.0, -0.75, 0.0), v=(0.0, 0.0, 0.0)):

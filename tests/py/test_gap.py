@@ -435,3 +435,41 @@ def test_bootstrap_interval_of_a_median_narrows_with_more_runs_and_holds_the_med
     assert lo_s < np.median(small) < hi_s and lo_l < np.median(large) < hi_l
     assert (hi_l - lo_l) < 0.4 * (hi_s - lo_s)  # about sqrt(40 / 1000) = 0.2 as wide
     assert median_interval(small) == (lo_s, hi_s)  # seeded
+
+
+def test_the_clock_candidate_undoes_a_drifting_flight_clock():
+    """A flight clock fast by eps on a docking-then-characterisation log: the
+    candidate's closed-form correction takes the drift's change of the
+    dynamics channel away, and the diagnosis names clock_drift alone with eps inside its
+    interval; the same valves flown without the drift give no gap and an
+    eps fit within its noise."""
+    from bench.gap import dyn
+    from bench.gap.attribute import candidate
+    from bench.gap.detectable import _bench_simulate
+    from bench.gap.plans import then_scripts
+
+    key = {"manoeuvres": "docking+characterisation"}
+    eps = 0.01  # four times its minimum detectable size in these logs
+    simulate = _bench_simulate(21, DURATION_S, then_scripts(key))
+    drifted, scripts = simulate({"clock_drift": [eps]})
+    null, _ = simulate({}, scripts)  # the same valves and noise, no drift
+    ch1, ch0 = dyn.build(prepare(drifted)), dyn.build(prepare(null))
+    change = ch1.e0 - ch0.e0
+    # The candidate's correction at eps (e0 + J eps) takes the change away.
+    correction = eps * ch0.jacobian("clock_drift")[..., 0]
+    gyro = ch0.kind == 1
+    assert np.sum(change[gyro] ** 2) > 100.0  # the drift shows on the gyro rows
+    assert np.sum((change + correction)[gyro] ** 2) < 1e-6 * np.sum(change[gyro] ** 2)
+    assert np.sum(change[~gyro] ** 2) < 1e-6 * np.sum(change[gyro] ** 2)  # and not on the accelerometer's
+    assert candidate(prepare(null), "clock_drift").bound == 0.05
+
+    cal = nullmod.load(manoeuvres=key["manoeuvres"])
+    r = public(diagnose(blind(drifted), calibration=cal))
+    assert r["verdict"] == "explained" and [m["effect"] for m in r["effects"]] == ["clock_drift"]
+    p = r["effects"][0]["parameters"]["eps [1]"]
+    assert abs(p["value"] - eps) < 2.0 * p["sigma"] and p["sigma"] < 0.1 * eps
+
+    res = diagnose(blind(null), calibration=cal)
+    assert public(res)["verdict"] == "no_gap"
+    fit = next(f for f in res["_internal"]["fits"] if f.name == "clock_drift")
+    assert abs(fit.theta[0]) < 3.0 * fit.sigma[0] and fit.sigma[0] < 0.1 * eps

@@ -169,7 +169,7 @@ def test_mixture_scores_split_by_separability_and_kind():
         key(0, "pair", 2.0, ["thrust_loss", "gyro_bias"]),
         key(1, "pair", 2.0, ["thruster_misalignment", "gyro_bias"]),
         key(2, "in+out", 2.0, ["accel_bias", "fuel_slosh"]),
-        key(3, "in+out", 2.0, ["accel_bias", "clock_drift"]),
+        key(3, "in+out", 2.0, ["accel_bias", "led_occlusion"]),
     ]
     answers = [
         ans(0, ["gyro_bias", "thrust_loss"], "explained", shrink=0.9),
@@ -189,9 +189,31 @@ def test_mixture_scores_split_by_separability_and_kind():
     assert at2["n"] == 4 and at2["exact_set"] == 0.5 and at2["named_are_real"] == 0.5
     assert at2["exact_set_among_named"] == 0.75  # run 1's set is the alternative its ambiguous answer names
     assert at2["out_of_library_left_unexplained"] == 0.5
-    # runs 1 (a look-alike set) and 3 (a clock drift the library reproduces) are scored apart
+    # runs 1 (a look-alike set) and 3 (an out-of-library part the library reproduces) are scored apart
     assert at2["separable"]["n"] == 2 and at2["separable"]["exact_set"] == 1.0
     assert at2["separable"]["out_of_library_left_unexplained"] == 1.0
     assert res["true_set_shrink"]["in-library sets 2x"] == {"median": 0.8, "n": 2}
     assert res["true_set_shrink"]["in + out 2x"]["n"] == 2
     assert any(line.startswith("at 2x, all kinds: exact set 50 %") for line in summary_lines(res))
+
+
+def test_a_drifting_clock_beside_a_flexible_panel_is_one_clock_not_scale_and_loss():
+    """A flight clock fast by 0.005 (twice its minimum detectable size in a
+    docking-then-characterisation log) with a flexible panel (out of the
+    library): the drift is named as the one-parameter clock, not as a gyro
+    scale factor with a thrust loss, and the panel stays a remainder."""
+    from bench.gap.plans import then_scripts
+
+    key = {"manoeuvres": "docking+characterisation"}
+    log, _ = reality.simulate_log_with_key(
+        11,
+        {"clock_drift": [0.005], "flex_mode": [0.3, 0.012]},
+        duration_s=120.0,
+        with_truth=False,
+        then_scripts=then_scripts(key),
+    )
+    r = public(diagnose(blind(log), calibration=nullmod.load(manoeuvres=key["manoeuvres"])))
+    named = [m["effect"] for m in r["effects"]]
+    assert named == ["clock_drift"] and not {"gyro_scale", "thrust_loss"} & set(named)
+    assert r["verdict"] == "partly_explained" and r["effect_set"]["remainder_where"]
+    assert r["effects"][0]["adds_dll_heldout"] > 3.0
