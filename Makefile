@@ -87,20 +87,28 @@ $(STAMPS)/install: $(STAMPS)/venv $(STAMPS)/cpp-configure $(NATIVE_SRC)
 # (several minutes of compiling on 2 cores) are built by `make bench`.
 BENCHMARKS ?= $(if $(CI),OFF,ON)
 
+# CI compiles the flight core once, with assertions on, and every test and
+# the bindings link it; elsewhere the core is a release build and the C++
+# tests link a second, checked copy (docs/ARCHITECTURE.md).
+CORE_ASSERTS ?= $(if $(CI),ON,OFF)
+
 # Warnings are errors here (PROXOPS_WERROR), as in CI.
 $(STAMPS)/cpp-configure: $(STAMPS)/venv $(CMAKE_SRC) Makefile
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
 	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=$(BENCHMARKS) -DPROXOPS_BUILD_PYTHON=OFF \
-	  -DPROXOPS_WERROR=ON >/dev/null
+	  -DPROXOPS_WERROR=ON -DPROXOPS_CORE_ASSERTS=$(CORE_ASSERTS) >/dev/null
 	@touch $@
 
 test-cpp: $(STAMPS)/cpp-configure
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
 	cd $(CPP_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2
 
+# pytest on this many processes (pytest-xdist); each test is independent.
+PYTEST_WORKERS ?= 2
+
 test-py: $(STAMPS)/install $(STAMPS)/cpp-configure $(FW_ELF)
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
-	PROXOPS_CPP_BUILD=$(abspath $(CPP_BUILD)) PROXOPS_FIRMWARE_BUILD=$(abspath $(FW_BUILD)) $(VPY) -m pytest -q
+	PROXOPS_CPP_BUILD=$(abspath $(CPP_BUILD)) PROXOPS_FIRMWARE_BUILD=$(abspath $(FW_BUILD)) $(VPY) -m pytest -q -n $(PYTEST_WORKERS)
 
 # The Cortex-M7 self-test firmware (CMakePresets.json "firmware"; -j2: the
 # machine is shared).
