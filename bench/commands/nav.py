@@ -64,35 +64,39 @@ def _yes_no(b) -> str:
 def _summary_rows(s: dict) -> list:
     """(metric, value, required, pass) for each of the campaign's checks."""
     c = s["checks"]
-    ok = _yes_no
     return [
-        ("max position error p95 [m]", s["max_pos_err_m"]["p95"], "<= 0.10", ok(c["pos_p95_le_0.10"])),
-        ("max position error median [m]", s["max_pos_err_m"]["median"], "<= 0.05", ok(c["pos_median_le_0.05"])),
-        ("max velocity error p95 [m/s]", s["max_vel_err_mps"]["p95"], "<= 0.03", ok(c["vel_p95_le_0.03"])),
-        ("max velocity error median [m/s]", s["max_vel_err_mps"]["median"], "<= 0.015", ok(c["vel_median_le_0.015"])),
+        ("max position error p95 [m]", s["max_pos_err_m"]["p95"], "<= 0.10", _yes_no(c["pos_p95_le_0.10"])),
+        ("max position error median [m]", s["max_pos_err_m"]["median"], "<= 0.05", _yes_no(c["pos_median_le_0.05"])),
+        ("max velocity error p95 [m/s]", s["max_vel_err_mps"]["p95"], "<= 0.03", _yes_no(c["vel_p95_le_0.03"])),
+        (
+            "max velocity error median [m/s]",
+            s["max_vel_err_mps"]["median"],
+            "<= 0.015",
+            _yes_no(c["vel_median_le_0.015"]),
+        ),
         (
             "NEES mean (9 dof), N-run band",
             s["nees_mean"],
             "[{:.3f}, {:.3f}]".format(*s["nees_band"]),
-            ok(c["nees_in_band"]),
+            _yes_no(c["nees_in_band"]),
         ),
         (
             "NIS mean (6 dof), N-run band",
             s["nis_mean"],
             "[{:.3f}, {:.3f}]".format(*s["nis_band"]),
-            ok(c["nis_in_band"]),
+            _yes_no(c["nis_in_band"]),
         ),
         (
             "NEES mean, per-sample band",
             s["nees_mean"],
             "[{:.3f}, {:.3f}]".format(*s["nees_band_per_sample"]),
-            ok(c["nees_in_per_sample_band"]) + " (samples correlated)",
+            _yes_no(c["nees_in_per_sample_band"]) + " (samples correlated)",
         ),
         (
             "NIS mean, per-sample band",
             s["nis_mean"],
             "[{:.3f}, {:.3f}]".format(*s["nis_band_per_sample"]),
-            ok(c["nis_in_per_sample_band"]),
+            _yes_no(c["nis_in_per_sample_band"]),
         ),
         (
             "NEES mean after updates (1 Hz)",
@@ -104,19 +108,19 @@ def _summary_rows(s: dict) -> list:
             "NEES mean every 10 s",
             s["nees_thinned_mean"],
             "[{:.3f}, {:.3f}]".format(*s["nees_thinned_band"]),
-            ok(s["nees_thinned_band"][0] <= s["nees_thinned_mean"] <= s["nees_thinned_band"][1]),
+            _yes_no(s["nees_thinned_band"][0] <= s["nees_thinned_mean"] <= s["nees_thinned_band"][1]),
         ),
         (
             "NEES N-run average: epochs in band",
             s["nees_ensemble"]["in_band_fraction"],
             "about 0.95 (1 Hz)",
-            ok(c["nees_ensemble_in_band_ge_0.95"]),
+            _yes_no(c["nees_ensemble_in_band_ge_0.95"]),
         ),
         (
             "NIS N-run average: epochs in band",
             s["nis_ensemble"]["in_band_fraction"],
             "about 0.95 (1 Hz)",
-            ok(c["nis_ensemble_in_band_ge_0.95"]),
+            _yes_no(c["nis_ensemble_in_band_ge_0.95"]),
         ),
     ]
 
