@@ -55,6 +55,9 @@ class Clocks:
     pose_jitter_s: float = 0.0
     pose_delay_s: float = 0.15  # delivery after capture
     gap_s: float = 2.0  # between segments
+    # Added to every time stamp written (a Unix epoch, as a flight computer
+    # writes them); the flight itself is simulated on times from zero.
+    epoch_s: float = 0.0
 
 
 POSE_POS_FRAC = 0.05
@@ -111,12 +114,14 @@ def simulate(
     clocks: Clocks | None = None,
     with_truth: bool = True,
     times: list | None = None,
+    noise_scale: float = 1.0,
 ) -> tuple:
     """(FlightLog, key): the log of ``plan`` flown by the described vehicle
     with ``effects``; the key holds the effects (not in the log). ``times``
     (one dict per segment: imu_t, pose_t on the IMU clock, pose_delay)
     replaces the clocks' draws with given time stamps (a null log of a real
-    flight, bench/gap/log_null.py)."""
+    flight, bench/gap/log_null.py). ``noise_scale`` multiplies every sensor
+    noise (0: a noise-free log, for checking models exactly)."""
     effects = dict(effects or {})
     unknown = sorted(set(effects) - set(KNOWN))
     if unknown:
@@ -126,7 +131,7 @@ def simulate(
     rng = np.random.default_rng(seed)
     veh, pfx = _vehicle_with_effects(desc, effects)
     T = 1.0 / (desc.imu_rate_hz or 10.0)
-    sensors = _Sensors.of(desc, effects)
+    sensors = _Sensors.of(desc, effects, noise_scale)
     streams = {
         k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von", "tt", "tr", "tv", "tq", "tw")
     }
@@ -151,14 +156,14 @@ def simulate(
         streams["tw"].append(st[:, 10:13])
         segments.append(
             {
-                "t_start_s": float(t0),
-                "t_end_s": float(t0 + seg.duration_s),
+                "t_start_s": float(t0 + clocks.epoch_s),
+                "t_end_s": float(t0 + seg.duration_s + clocks.epoch_s),
                 "manoeuvre": seg.manoeuvre,
                 "starts_at_rest": bool(np.all(seg.v0_hill_mps == 0.0)),
             }
         )
         t0 += seg.duration_s + clocks.gap_s
-    log = _log_of(streams, dict(description, segments=segments), desc.n_thrusters, seed, with_truth)
+    log = _log_of(streams, dict(description, segments=segments), desc.n_thrusters, seed, with_truth, clocks.epoch_s)
     key = {"seed": int(seed), "effects": {k: np.asarray(v, float).ravel().tolist() for k, v in effects.items()}}
     return log, key
 
@@ -176,9 +181,10 @@ class _Sensors:
     accel_bias: np.ndarray
     gyro_bias: np.ndarray
     gyro_scale: np.ndarray
+    noise_scale: float = 1.0
 
     @classmethod
-    def of(cls, desc, effects: dict) -> _Sensors:
+    def of(cls, desc, effects: dict, noise_scale: float = 1.0) -> _Sensors:
         c_bi = rotmat(desc.imu_q_body_imu)  # IMU axes -> body axes
         c_ib = c_bi.T
         if "imu_misalignment" in effects:
@@ -195,6 +201,7 @@ class _Sensors:
             np.asarray(effects.get("accel_bias", np.zeros(3)), float),
             np.asarray(effects.get("gyro_bias", np.zeros(3)), float),
             np.asarray(effects.get("gyro_scale", np.zeros(3)), float),
+            float(noise_scale),
         )
 
     def imu_samples(self, streams: dict, rng, clocks: Clocks, imu_t, f_mean, w_mean, alpha) -> None:
@@ -202,12 +209,12 @@ class _Sensors:
         rho, c_ib = self.rho, self.c_ib
         # The accelerometer sits at rho from the centre of mass (known to the log).
         f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
-        acc = (f_imu @ c_ib.T) + self.accel_bias + self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
+        acc = (f_imu @ c_ib.T) + self.accel_bias + self.noise_scale * self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
         # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
         gyr = (
             (1.0 + self.gyro_scale) * (w_mean @ c_ib.T)
             + self.gyro_bias
-            + self.desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
+            + self.noise_scale * self.desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
         )
         keep = np.ones(imu_t.size, bool)
         if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
@@ -223,8 +230,8 @@ class _Sensors:
         for tc, r, q in poses:
             r_meas = r + rotmat(q) @ (self.pref + self.lever)
             sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05)
-            r_meas = r_meas + sig * rng.standard_normal(3)
-            q_meas = qnormalize(qmul(q, qexp(POSE_ATT_SIGMA_RAD * rng.standard_normal(3))))
+            r_meas = r_meas + self.noise_scale * sig * rng.standard_normal(3)
+            q_meas = qnormalize(qmul(q, qexp(self.noise_scale * POSE_ATT_SIGMA_RAD * rng.standard_normal(3))))
             # Stamped on the pose clock: IMU time minus the description's offset, plus its known latency.
             stamp = tc - desc.pose_time_offset_s + desc.pose_latency_s
             streams["pc"].append(stamp)
@@ -234,9 +241,15 @@ class _Sensors:
             streams["prs"].append(sig)
 
 
-def _log_of(streams: dict, log_desc: dict, n_thrusters: int, seed: int, with_truth: bool) -> FlightLog:
-    """The flight log of the segments' streams (version 2, with ``log_desc``)."""
+def _log_of(
+    streams: dict, log_desc: dict, n_thrusters: int, seed: int, with_truth: bool, epoch_s: float = 0.0
+) -> FlightLog:
+    """The flight log of the segments' streams (version 2, with ``log_desc``),
+    every time stamp written ``epoch_s`` later."""
     cat = {k: (np.concatenate(v) if v and isinstance(v[0], np.ndarray) else np.asarray(v)) for k, v in streams.items()}
+    for k in ("imu_t", "vt", "tt"):
+        cat[k] = np.asarray(cat[k], float) + epoch_s
+    streams = dict(streams, pc=[x + epoch_s for x in streams["pc"]], pd=[x + epoch_s for x in streams["pd"]])
     pc = np.asarray(streams["pc"], float)
     if cat["von"].size == 0:
         cat["von"] = np.zeros((0, n_thrusters))
