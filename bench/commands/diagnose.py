@@ -91,7 +91,7 @@ def main(args):
     if args.scheduler is not None and "://" not in args.scheduler:
         raise ValueError(f"--scheduler {args.scheduler}: expected an address such as tcp://HOST:PORT")
     cluster.configure(args.scheduler, args.workers)
-    log = read_flight_log(args.log)
+    log = read_flight_log(args.log, relative_time=True)  # any epoch: stamps from the log's start
     cal = _load_calibration(args.calibration) if args.calibration else None
     try:
         res = diagnose(

@@ -11,6 +11,12 @@ from __future__ import annotations
 
 import math
 
+from bench.sim.flight_log import VALVE_OVERLAP_TOL_S
+
+# The count of valve pulses that ran past the next command and were ended
+# there (bench/gap/replay.py); every other entry of ``dropped`` is left out.
+CLIPPED = "valve pulses clipped at the next command"
+
 
 def _finite(*xs) -> bool:
     return all(x is not None and isinstance(x, (int, float)) and math.isfinite(x) for x in xs)
@@ -142,7 +148,11 @@ def examined_lines(out: dict) -> list:
         lines.append(ex["summary"])
     lines += [f"not examined: {x}" for x in ex.get("not_examined", [])]
     for why, n in (ex.get("dropped") or {}).items():
-        lines.append(f"left out: {n} {why}")
+        lines.append(
+            f"{n} {why} (each ran past it by less than {VALVE_OVERLAP_TOL_S * 1e3:g} ms)"
+            if why == CLIPPED
+            else f"left out: {n} {why}"
+        )
     d = ex.get("defaults_used") or []
     if d:
         lines.append("defaults taken (the log does not state them): " + "; ".join(d))

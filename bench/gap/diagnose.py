@@ -49,6 +49,7 @@ from bench.gap.attribute import BF_AMBIGUOUS, DELTA2_95, Context, Pass, bounded_
 from bench.gap.candidates import CANDIDATES, NOT_MODELLED, candidates_of
 from bench.gap.detection import detect, map_cells
 from bench.gap.replay import LogData, prepare
+from bench.sim.flight_log import relative_to_start
 from bench.so3 import rotmats
 
 HELDOUT_DLL_MIN = 3.0
@@ -236,8 +237,13 @@ def diagnose(
     with log_null.CalibrationMismatch when it does not hold), ``{}`` for no
     thresholds (the null runs themselves), or None: the committed one when
     the log is the bench's vehicle and manoeuvres, else one made for the log
-    (``make_calibration``; bench/gap/log_null.py)."""
+    (``make_calibration``; bench/gap/log_null.py).
+
+    Every time stamp is first taken from the log's own origin
+    (flight_log.relative_to_start; the answer's ``log.time_origin_s``), so a
+    log on a Unix epoch is diagnosed as the same log from zero."""
     t_start = time.time()
+    log = relative_to_start(log)
     d = prepare(log)
     cal, cal_info = _calibration(log, d, calibration, make_calibration, calibration_source, calibration_runs, progress)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
@@ -260,6 +266,7 @@ def diagnose(
             ctx, fits, scores, cal, thr_glr, thr_map, det.map_max_abs_z, verdict, ranking, ambiguous_with
         )
     out = _answer(d, ctx, det, cal, cal_info, fits, ranking, verdict, ambiguous_with, effect_set, detected)
+    out["log"]["time_origin_s"] = float(log.time_origin_s)
     out["elapsed_s"] = time.time() - t_start
     out["_internal"] = {
         "d": d,

@@ -112,7 +112,8 @@ def prepare(log) -> LogData:
     if not np.all(inside):
         dropped["imu samples outside every segment"] = int(np.sum(~inside))
         t, accel, gyro = t[inside], accel[inside], gyro[inside]
-    valves = open_fractions(log["valves"], t, dt, desc.n_thrusters) if log.has("valves") else None
+    vstream = _valve_stream(log, desc.n_thrusters, dropped)
+    valves = open_fractions(vstream, t, dt, desc.n_thrusters) if vstream is not None else None
     accel = _accel_at_com(accel, gyro, t, imu_seg, valves, desc)
     p = _poses_on_ticks(log["pose"], t, dt, imu_seg, seg_desc, desc, dropped)
     truth = {k: np.asarray(v) for k, v in log["truth"].items()} if log.has("truth") else None
@@ -138,8 +139,20 @@ def prepare(log) -> LogData:
         pose_align_s=p["align"],
         pose_v0_sigma=p["v0"],
         dropped=dropped,
-        valve_stream=dict(log["valves"]) if log.has("valves") else None,
+        valve_stream=vstream,
     )
+
+
+def _valve_stream(log, n_thrusters: int, dropped: dict) -> dict | None:
+    """The log's valves as on-times per thruster, every pulse ended at the
+    next command (those that ran past it counted in ``dropped``), or None."""
+    from bench.sim.flight_log import valve_on_times
+
+    if not log.has("valves"):
+        return None
+    vt, von, clipped = valve_on_times(log["valves"], n_thrusters)
+    _drop(dropped, "valve pulses clipped at the next command", np.ones(clipped, bool))
+    return {"t_s": vt, "on_time_s": von}
 
 
 def _runs(t: np.ndarray, dt: float, desc):
@@ -263,19 +276,17 @@ def open_fractions(valves: dict, t: np.ndarray, dt: float, n_thrusters: int) -> 
     valve was open. Valve i opens at t_s for on_time_s[i] (or, in the mask
     form, every valve of the mask for interval_s); pulses of any length, also
     shorter than an IMU interval or across its ends, are integrated exactly."""
-    vt = np.asarray(valves["t_s"], np.float64)
-    if "on_time_s" in valves:
-        on = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
-    else:
-        mask = np.asarray(valves["mask"]).astype(np.int64)
-        bits = (mask[:, None] >> np.arange(n_thrusters)[None, :]) & 1
-        on = bits * np.asarray(valves["interval_s"], float)[:, None]
+    from bench.sim.flight_log import STAMP_ROUNDING_S, valve_on_times
+
+    vt, on, _ = valve_on_times(valves, n_thrusters)  # a pulse ends at the next command
     out = np.zeros((t.size, n_thrusters))
     if vt.size == 0:
         return out
     for i in range(n_thrusters):
         out[:, i] = (_open_time(vt, on[:, i], t) - _open_time(vt, on[:, i], t - dt)) / dt
-    return np.clip(out, 0.0, 1.0)
+    # Open or closed for all but the stamps' own rounding: exactly so.
+    eps = STAMP_ROUNDING_S / dt
+    return np.where(out < eps, 0.0, np.where(out > 1.0 - eps, 1.0, out))
 
 
 def _open_time(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:

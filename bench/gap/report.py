@@ -46,7 +46,7 @@ def _gap_map_png(cells, path: Path):
     plt.close(fig)
 
 
-def _residuals_png(series, label, path: Path, what: str):
+def _residuals_png(series, label, path: Path, what: str, origin_s: float = 0.0):
     """series: [(name, t, before, after or None, held mask, sample interval)],
     one row each: whitened residuals over time (held-out blocks shaded) and
     their periodogram (1 = white)."""
@@ -73,7 +73,8 @@ def _residuals_png(series, label, path: Path, what: str):
         b.axhline(1.0, color="k", lw=0.5, ls=":")
     ax[0, 0].legend(loc="upper right", fontsize=7)
     ax[0, 0].set_title(what, fontsize=9)
-    ax[-1, 0].set_xlabel("time [s] (shaded: held-out blocks)")
+    since = f" from {origin_s:.0f} s" if origin_s else ""
+    ax[-1, 0].set_xlabel(f"time [s]{since} (shaded: held-out blocks)")
     ax[-1, 1].set_xlabel("frequency [Hz] (periodogram; 1 = white)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
@@ -246,7 +247,8 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     best = result["attribution"][0] if result["attribution"] else None
     series, what = residual_series(result)
     named = " + ".join(m["effect"] for m in result.get("effects") or []) if result["verdict"] != "unexplained" else ""
-    _residuals_png(series, named, out / "residuals.png", what)
+    origin = float(result["log"].get("time_origin_s") or 0.0)
+    _residuals_png(series, named, out / "residuals.png", what, origin)
 
     st = result["statistics"]
     loc = result["location"]
@@ -275,7 +277,8 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
         "",
         f"Log: {result['log']['duration_s']:.0f} s, {result['log']['pose_updates']} pose updates "
         f"({result['log']['train_updates']} train / {result['log']['heldout_updates']} held out); "
-        f"diagnosed in {result['elapsed_s']:.1f} s.",
+        f"diagnosed in {result['elapsed_s']:.1f} s."
+        + (f" Times are from {origin:.0f} s (the log's first IMU second)." if origin else ""),
     ]
     p = out / "README.md"
     p.write_text("\n".join(lines) + "\n")

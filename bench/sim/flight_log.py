@@ -8,7 +8,9 @@ names the stream, the field, the row and what is wrong.
 
 from __future__ import annotations
 
+import copy
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +21,13 @@ FORMAT_VERSION = 2
 READ_VERSIONS = (1, 2)
 QUAT_NORM_TOL = 1e-6
 PER_THRUSTER = -1  # FieldSpec.width: one column per thruster of the described vehicle
+# A valve pulse may run past the next command by up to this much (command
+# stamps jitter): it is clipped to end at the next command, and the diagnosis
+# counts it. A longer overlap is refused.
+VALVE_OVERLAP_TOL_S = 2e-3
+# An overlap this small is the rounding of the stamps themselves (float64
+# resolves 0.24 us at a Unix epoch of 1.7e9 s): clipped, not counted.
+STAMP_ROUNDING_S = 1e-6
 
 
 @dataclass(frozen=True)
@@ -30,6 +39,7 @@ class FieldSpec:
     integer: bool = False
     optional: bool = False  # the stream is valid without it (see the stream's own rule)
     nonnegative: bool = False
+    stamp: bool = False  # a time stamp (any epoch), not a duration
 
 
 @dataclass(frozen=True)
@@ -48,7 +58,7 @@ STREAMS = (
         "imu",
         "t_s",
         (
-            FieldSpec("t_s", None, "s"),
+            FieldSpec("t_s", None, "s", stamp=True),
             FieldSpec("accel_b_mps2", 3, "m/s^2"),
             FieldSpec("omega_bi_b_rps", 3, "rad/s"),
         ),
@@ -59,8 +69,8 @@ STREAMS = (
         "pose",
         "t_capture_s",
         (
-            FieldSpec("t_capture_s", None, "s"),
-            FieldSpec("t_delivered_s", None, "s"),
+            FieldSpec("t_capture_s", None, "s", stamp=True),
+            FieldSpec("t_delivered_s", None, "s", stamp=True),
             FieldSpec("r_hill_m", 3, "m"),
             FieldSpec("q_hb", 4, "1", quaternion=True),
             FieldSpec("r_sigma_m", None, "m"),
@@ -73,7 +83,7 @@ STREAMS = (
         "valves",
         "t_s",
         (
-            FieldSpec("t_s", None, "s"),
+            FieldSpec("t_s", None, "s", stamp=True),
             FieldSpec("on_time_s", PER_THRUSTER, "s", optional=True, nonnegative=True),
             FieldSpec("interval_s", None, "s", optional=True, nonnegative=True),
             FieldSpec("mask", None, "bit i = thruster i open", integer=True, optional=True, nonnegative=True),
@@ -86,7 +96,7 @@ STREAMS = (
         "estimate",
         "t_s",
         (
-            FieldSpec("t_s", None, "s"),
+            FieldSpec("t_s", None, "s", stamp=True),
             FieldSpec("r_hill_m", 3, "m"),
             FieldSpec("v_hill_mps", 3, "m/s"),
             FieldSpec("q_hb", 4, "1", quaternion=True),
@@ -99,7 +109,7 @@ STREAMS = (
         "update",
         "t_s",
         (
-            FieldSpec("t_s", None, "s"),
+            FieldSpec("t_s", None, "s", stamp=True),
             FieldSpec("status", None, "0 ok, 1 gated, 2 not positive definite, 3 bad input", integer=True),
             FieldSpec("fused", None, "0/1", integer=True),
             FieldSpec("innovation", 6, "[m, m, m, rad, rad, rad]"),
@@ -114,7 +124,7 @@ STREAMS = (
         "truth",
         "t_s",
         (
-            FieldSpec("t_s", None, "s"),
+            FieldSpec("t_s", None, "s", stamp=True),
             FieldSpec("r_hill_m", 3, "m"),
             FieldSpec("v_hill_mps", 3, "m/s"),
             FieldSpec("q_hb", 4, "1", quaternion=True),
@@ -154,6 +164,10 @@ class FlightLog:
     # Format version 2: the vehicle, IMU, pose sensor, orbit and segments
     # (bench/sim/log_description.py); None: everything at the bench's defaults.
     description: dict | None = None
+    # The absolute time of the stamps' zero: relative_to_start moves every
+    # stamp (and segment time) by it, so stamp + time_origin_s is the time
+    # the log was written with.
+    time_origin_s: float = 0.0
 
     def has(self, stream: str) -> bool:
         return stream in self.streams
@@ -232,7 +246,8 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
 
 
 def _check_valve_form(data: dict, n_thrusters: int) -> list:
-    """Exactly one of the two forms; a mask names only described thrusters."""
+    """Exactly one of the two forms; a pulse ends before the next command
+    (within VALVE_OVERLAP_TOL_S); a mask names only described thrusters."""
     has_on, has_mask = "on_time_s" in data, ("mask" in data or "interval_s" in data)
     if has_on and has_mask:
         return [Problem("valves", None, "give on_time_s or mask with interval_s, not both")]
@@ -243,7 +258,7 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
         dur = np.asarray(data["on_time_s"] if has_on else data.get("interval_s", np.zeros(t.size)))
         if np.issubdtype(dur.dtype, np.number) and dur.shape[:1] == t.shape:
             longest = dur.reshape(t.size, -1).max(axis=1)
-            over = longest[:-1] > np.diff(t) + 1e-9
+            over = longest[:-1] > np.diff(t) + VALVE_OVERLAP_TOL_S
             if np.any(over):
                 row = int(np.argmax(over))
                 field_ = "on_time_s" if has_on else "interval_s"
@@ -252,7 +267,8 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
                         f"valves/{field_}",
                         row,
                         f"pulse of {float(longest[row]):.6g} s runs past the next "
-                        f"command ({float(np.diff(t)[row]):.6g} s later)",
+                        f"command ({float(np.diff(t)[row]):.6g} s later) by more than the "
+                        f"{VALVE_OVERLAP_TOL_S * 1e3:g} ms allowed",
                     )
                 ]
     if has_mask:
@@ -300,6 +316,71 @@ def validate_log(log: FlightLog) -> list:
         if name not in STREAM_BY_NAME:
             problems.append(Problem(name, None, f"unknown stream (known: {', '.join(STREAM_BY_NAME)})"))
     return problems
+
+
+def time_origin(log: FlightLog) -> float:
+    """The log's own zero: its earliest IMU stamp rounded down to a whole
+    second (0 when the IMU stamps are missing or unreadable: the validator
+    names them). Subtracting a whole number of seconds is exact in float64,
+    so every stamp keeps its fractional part as it was stored."""
+    imu = log.streams.get("imu")
+    t = imu.get("t_s") if isinstance(imu, dict) else None
+    a = np.asarray(t) if t is not None else np.zeros(0)
+    if a.ndim != 1 or not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
+        return 0.0
+    a = a[np.isfinite(a)]
+    return float(np.floor(np.min(a))) if a.size else 0.0
+
+
+def relative_to_start(log: FlightLog) -> FlightLog:
+    """The log with every time stamp of every stream and the description's
+    segment times measured from its time_origin (kept in ``time_origin_s``):
+    a log on a Unix epoch and the same log from zero read alike. The log
+    itself is not changed."""
+    origin = time_origin(log)
+    if origin == 0.0:
+        return log
+    streams = {}
+    for name, data in log.streams.items():
+        spec = STREAM_BY_NAME.get(name)
+        if spec is not None and isinstance(data, dict):
+            data = dict(data)
+            for f in spec.fields:
+                a = np.asarray(data.get(f.name, np.zeros(0)))
+                if (
+                    f.stamp
+                    and f.name in data
+                    and (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating))
+                ):
+                    data[f.name] = a.astype(np.float64) - origin
+        streams[name] = data
+    description = copy.deepcopy(log.description)
+    segs = description.get("segments") if isinstance(description, dict) else None
+    for sg in segs if isinstance(segs, list) else []:
+        for key in ("t_start_s", "t_end_s") if isinstance(sg, dict) else ():
+            v = sg.get(key)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+                sg[key] = float(v) - origin
+    return FlightLog(streams, copy.deepcopy(log.config), description, log.time_origin_s + origin)
+
+
+def valve_on_times(valves: dict, n_thrusters: int) -> tuple:
+    """(t (N,), on (N, K), clipped) of a valves stream in either form: each
+    command's open time per thruster, every pulse ended at the next command
+    at the latest. ``clipped`` counts the pulses that ran past it by more
+    than STAMP_ROUNDING_S (the validator refuses more than
+    VALVE_OVERLAP_TOL_S)."""
+    t = np.asarray(valves["t_s"], np.float64)
+    if "on_time_s" in valves:
+        on = np.array(valves["on_time_s"], dtype=np.float64).reshape(t.size, -1)
+    else:
+        mask = np.asarray(valves["mask"]).astype(np.int64)
+        bits = (mask[:, None] >> np.arange(n_thrusters)[None, :]) & 1
+        on = bits * np.asarray(valves["interval_s"], np.float64)[:, None]
+    room = np.diff(t)[:, None]
+    clipped = int(np.sum(on[:-1] > room + STAMP_ROUNDING_S))
+    on[:-1] = np.minimum(on[:-1], room)
+    return t, on, clipped
 
 
 def write_flight_log(path, log: FlightLog, validate: bool = True) -> Path:
@@ -357,8 +438,10 @@ def _json_attr(h, name: str, path) -> dict:
     return val
 
 
-def read_flight_log(path, validate: bool = True) -> FlightLog:
-    """Read and (by default) validate a log; FlightLogError names what is wrong."""
+def read_flight_log(path, validate: bool = True, relative_time: bool = False) -> FlightLog:
+    """Read and (by default) validate a log; FlightLogError names what is
+    wrong. ``relative_time``: every stamp from the log's own origin
+    (relative_to_start) before it is validated, as the diagnosis reads it."""
     import h5py
 
     path = Path(path)
@@ -399,10 +482,13 @@ def read_flight_log(path, validate: bool = True) -> FlightLog:
             except OSError as exc:
                 raise FlightLogError(f"{path}: {name}: unreadable ({exc})") from None
     log = FlightLog(streams=streams, config=config, description=description)
+    if relative_time:
+        log = relative_to_start(log)
     if validate:
         problems = validate_log(log)
         if problems:
-            raise FlightLogError(f"{path}: " + "; ".join(str(p) for p in problems[:5]))
+            origin = f" (times from {log.time_origin_s:.0f} s, the log's first IMU second)" if log.time_origin_s else ""
+            raise FlightLogError(f"{path}: " + "; ".join(str(p) for p in problems[:5]) + origin)
     return log
 
 
