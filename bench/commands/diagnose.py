@@ -84,7 +84,7 @@ def main(args):
     from bench.gap.log_null import CalibrationMismatch
     from bench.report import write_json
     from bench.runner import cluster
-    from bench.sim.flight_log import read_flight_log
+    from bench.sim.flight_log import FlightLogError, read_flight_log
 
     _check_output(args.json, "json")
     _check_output(args.report, "report")
@@ -103,6 +103,8 @@ def main(args):
         )
     except CalibrationMismatch as exc:
         raise ValueError(str(exc)) from None
+    except FlightLogError as exc:  # a log the diagnosis cannot look at (too short, a run without a pose)
+        raise FlightLogError(f"{args.log}: {exc}") from None
     out = public(res)
     if args.report:
         from bench.gap.report import write_report

@@ -61,36 +61,48 @@ def register(sub):
     p.set_defaults(func=main)
 
 
-def _effects(text: str) -> dict:
-    src = Path(text)
-    if not text.lstrip().startswith("{") and src.exists():
-        text = src.read_text()
-    try:
-        eff = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--effects: not JSON ({exc})") from None
-    if not isinstance(eff, dict):
-        raise ValueError("--effects: expected a JSON object, name -> parameters")
-    from bench.sim.effects import canonical
+def _description(args) -> dict:
+    """The description to fly: --description's file, or --vehicle's."""
+    if not args.description:
+        from bench.sim.vehicles import VEHICLES
 
-    for name, p in eff.items():
-        if name not in ("thrust_loss", "thruster_misalignment"):  # sized per vehicle, checked by the engine
-            canonical(name, p)
-    return eff
+        return VEHICLES[args.vehicle]()
+    path = Path(args.description)
+    if not path.is_file():
+        raise FileNotFoundError(f"--description {path}: no such file")
+    try:
+        description = json.loads(path.read_text())
+    except ValueError as exc:
+        raise ValueError(f"--description {path}: not JSON ({exc})") from None
+    if not isinstance(description, dict):
+        raise ValueError(f"--description {path}: expected a JSON object (docs/FLIGHT_LOG.md)")
+    return description
+
+
+def _check_outputs(args) -> None:
+    for opt, path in (("--out", args.out), ("--key", args.key)):
+        if path is not None and Path(path).is_dir():
+            raise ValueError(f"{opt} {path}: is a folder; give a file name")
 
 
 def main(args):
+    from bench.commands.effect_args import check_effects, read_effects
     from bench.gap.plans import characterisation_plan
     from bench.sim.flight_log import validate_log, write_flight_log
+    from bench.sim.log_description import DescriptionError, resolve
     from bench.sim.vehicle_sim import Clocks
 
-    if args.description:
-        description = json.loads(Path(args.description).read_text())
+    _check_outputs(args)
+    description = _description(args)
+    try:
+        desc = resolve(description)
+    except DescriptionError as exc:
+        raise ValueError(f"--description {args.description}: {exc}" if args.description else str(exc)) from None
+    if args.engine == "basilisk":
+        from bench.basilisk_sim import EFFECTS_HERE as known
     else:
-        from bench.sim.vehicles import VEHICLES
-
-        description = VEHICLES[args.vehicle]()
-    effects = _effects(args.effects)
+        from bench.sim.vehicle_sim import KNOWN as known
+    effects = check_effects(read_effects(args.effects), desc, known)
     if args.clocks == "as-real-logs":
         from bench.gap.validate_vehicle import clocks_for
 
@@ -107,9 +119,10 @@ def main(args):
     log.config = dict(log.config or {}, engine=args.engine, manoeuvres=args.manoeuvres)
     problems = validate_log(log)
     if problems:
-        raise ValueError("the simulated log does not validate: " + "; ".join(problems[:5]))
+        raise ValueError("the simulated log does not validate: " + "; ".join(str(x) for x in problems[:5]))
     write_flight_log(args.out, log)
     if args.key:
+        Path(args.key).parent.mkdir(parents=True, exist_ok=True)
         Path(args.key).write_text(json.dumps(dict(key, engine=args.engine), indent=1) + "\n")
     n = log.streams["imu"]["t_s"].size
     print(

@@ -49,7 +49,7 @@ from bench.gap.attribute import BF_AMBIGUOUS, DELTA2_95, Context, Pass, bounded_
 from bench.gap.candidates import CANDIDATES, NOT_MODELLED, candidates_of
 from bench.gap.detection import detect, map_cells
 from bench.gap.replay import LogData, prepare
-from bench.sim.flight_log import relative_to_start
+from bench.sim.flight_log import FlightLogError, relative_to_start
 from bench.so3 import rotmats
 
 HELDOUT_DLL_MIN = 3.0
@@ -241,10 +241,12 @@ def diagnose(
 
     Every time stamp is first taken from the log's own origin
     (flight_log.relative_to_start; the answer's ``log.time_origin_s``), so a
-    log on a Unix epoch is diagnosed as the same log from zero."""
+    log on a Unix epoch is diagnosed as the same log from zero. A log too
+    short to diagnose is refused (FlightLogError, ``check_enough``)."""
     t_start = time.time()
     log = relative_to_start(log)
     d = prepare(log)
+    check_enough(d)
     cal, cal_info = _calibration(log, d, calibration, make_calibration, calibration_source, calibration_runs, progress)
     n_screen = sum(c.n_params for c in CANDIDATES.values() if c.nav)
     prog = _Progress(1 + n_screen, progress)
@@ -279,6 +281,37 @@ def diagnose(
         "held_shrink": scores.shrink,
     }
     return out
+
+
+MIN_IMU_S = 1.0  # the slewing regime averages the gyro over 1 s (localise.dyn_regimes)
+
+
+def check_enough(d: LogData) -> None:
+    """Refuse (FlightLogError, naming the field) a log the diagnosis cannot
+    look at: less than MIN_IMU_S of IMU samples inside the segments, a
+    stated segment whose run has no pose on its IMU ticks (a run starts at
+    its first pose), or no pose update at all (a pose after a run's first)."""
+    need = max(2, int(round(MIN_IMU_S / d.dt_s)))
+    if d.imu_t.size < need:
+        raise FlightLogError(
+            f"imu/t_s: {d.imu_t.size} samples inside the segments, the diagnosis needs at least {need} "
+            f"({MIN_IMU_S:g} s at {1.0 / d.dt_s:g} Hz)"
+        )
+    with_pose = np.unique(d.imu_seg[np.clip(d.pose_tick, 0, None)])
+    bare = np.setdiff1d(np.unique(d.imu_seg), with_pose)
+    if bare.size and d.desc.segments:
+        t0 = float(d.imu_t[d.imu_seg == bare[0]][0])
+        i = int(np.searchsorted([sg.t_start_s for sg in d.desc.segments], t0, side="right")) - 1
+        raise FlightLogError(
+            f"/description_json: segments[{i}]: no pose within one IMU interval of its IMU samples "
+            "(a run starts at its first pose: check the pose clock, pose_sensor.time_offset_s)"
+        )
+    updates = int(d.pose_tc.size - d.pose_start.sum())
+    if updates < 1:
+        raise FlightLogError(
+            f"pose/t_capture_s: {d.pose_tc.size} pose(s) on the IMU ticks, each the first of its run: the "
+            "diagnosis needs at least one more (a run starts at its first pose, the next ones are compared)"
+        )
 
 
 def _calibration(log, d: LogData, calibration, make_calibration: bool, source, runs, progress) -> tuple:
@@ -743,6 +776,8 @@ def examined(d: LogData, ctx: Context, detected: bool) -> dict:
     not state."""
     ok = np.isfinite(ctx.nominal.nis)
     channels = {"pose": {"examined": bool(ok.sum() > 0), "rows": int(ok.sum())}}
+    if not channels["pose"]["examined"]:
+        channels["pose"]["why"] = "no pose update accepted by the filter"
     not_examined = []
     if ctx.ch is None:
         for name in ("accelerometer vs valves", "gyro vs valve torques"):

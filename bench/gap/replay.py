@@ -98,6 +98,7 @@ def prepare(log) -> LogData:
     point and clock, orbit, vehicle, segments; pose capture times are moved
     to the nearest IMU tick (the flight filter fuses a pose at a stored tick),
     the motion over that shift corrected like a known latency."""
+    from bench.sim.flight_log import FlightLogError
     from bench.sim.log_description import resolve
 
     desc = resolve(getattr(log, "description", None), log.config)
@@ -109,6 +110,8 @@ def prepare(log) -> LogData:
     accel = np.asarray(imu["accel_b_mps2"], float) @ c_bi.T
     gyro = np.asarray(imu["omega_bi_b_rps"], float) @ c_bi.T
     inside, imu_seg, seg_desc = _runs(t, dt, desc)
+    if not np.any(inside):
+        raise FlightLogError("/description_json: segments: no IMU sample inside any segment")
     if not np.all(inside):
         dropped["imu samples outside every segment"] = int(np.sum(~inside))
         t, accel, gyro = t[inside], accel[inside], gyro[inside]
@@ -116,6 +119,8 @@ def prepare(log) -> LogData:
     valves = open_fractions(vstream, t, dt, desc.n_thrusters) if vstream is not None else None
     accel = _accel_at_com(accel, gyro, t, imu_seg, valves, desc)
     p = _poses_on_ticks(log["pose"], t, dt, imu_seg, seg_desc, desc, dropped)
+    if p["tc"].size == 0:
+        raise FlightLogError("pose/t_capture_s: no pose within one IMU interval of an IMU sample of its run")
     truth = {k: np.asarray(v) for k, v in log["truth"].items()} if log.has("truth") else None
     return LogData(
         imu_t=t,

@@ -40,6 +40,7 @@ class FieldSpec:
     optional: bool = False  # the stream is valid without it (see the stream's own rule)
     nonnegative: bool = False
     stamp: bool = False  # a time stamp (any epoch), not a duration
+    positive: bool = False  # a standard deviation: > 0
 
 
 @dataclass(frozen=True)
@@ -73,8 +74,8 @@ STREAMS = (
             FieldSpec("t_delivered_s", None, "s", stamp=True),
             FieldSpec("r_hill_m", 3, "m"),
             FieldSpec("q_hb", 4, "1", quaternion=True),
-            FieldSpec("r_sigma_m", None, "m"),
-            FieldSpec("att_sigma_rad", None, "rad"),
+            FieldSpec("r_sigma_m", None, "m", positive=True),
+            FieldSpec("att_sigma_rad", None, "rad", positive=True),
         ),
         True,
         "LED pose measurements: inspector position in the Hill frame and attitude body->Hill",
@@ -176,7 +177,9 @@ class FlightLog:
         return self.streams[stream]
 
 
-def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
+def _check_stream(name: str, data: dict, n_thrusters: int | None = 8) -> list:
+    """The stream's problems; ``n_thrusters`` None (the description is wrong)
+    leaves out what depends on the thruster count."""
     spec = STREAM_BY_NAME[name]
     problems = []
     lengths = {}
@@ -193,6 +196,8 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
             problems.append(Problem(where, None, f"not numeric (dtype {arr.dtype})"))
             continue
         width = n_thrusters if f.width == PER_THRUSTER else f.width
+        if f.width == PER_THRUSTER and width is None:
+            width = arr.shape[1] if arr.ndim == 2 else -1
         expected = (
             "(N,)"
             if width is None
@@ -222,6 +227,9 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
         if f.integer and np.any(arr != np.round(arr)):
             row = int(np.argmax(arr != np.round(arr)))
             problems.append(Problem(where, row, f"expected an integer, got {arr[row]}"))
+        if f.positive and np.any(arr <= 0):
+            row = int(np.argmax(arr <= 0))
+            problems.append(Problem(where, row, f"not positive ({arr[row]})"))
         if f.nonnegative and np.any(arr < 0):
             row = int(np.argmax(arr < 0 if arr.ndim == 1 else np.any(arr < 0, axis=1)))
             problems.append(Problem(where, row, f"negative ({arr[row]})"))
@@ -240,12 +248,16 @@ def _check_stream(name: str, data: dict, n_thrusters: int = 8) -> list:
             if np.any(bad):
                 row = int(np.argmax(bad)) + 1
                 problems.append(
-                    Problem(f"{name}/{spec.time_field}", row, f"time not increasing ({t[row - 1]!r} then {t[row]!r})")
+                    Problem(
+                        f"{name}/{spec.time_field}",
+                        row,
+                        f"time not increasing ({float(t[row - 1])!r} then {float(t[row])!r})",
+                    )
                 )
     return problems
 
 
-def _check_valve_form(data: dict, n_thrusters: int) -> list:
+def _check_valve_form(data: dict, n_thrusters: int | None) -> list:
     """Exactly one of the two forms; a pulse ends before the next command
     (within VALVE_OVERLAP_TOL_S); a mask names only described thrusters."""
     has_on, has_mask = "on_time_s" in data, ("mask" in data or "interval_s" in data)
@@ -276,6 +288,8 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
         if missing:
             return [Problem(f"valves/{missing[0]}", None, "missing field (mask and interval_s go together)")]
         m = np.asarray(data["mask"])
+        if n_thrusters is None:
+            return []
         if np.issubdtype(m.dtype, np.number) and m.ndim == 1 and m.size and np.all(np.isfinite(m)):
             over = m.astype(np.int64) >> n_thrusters
             if np.any(over != 0):
@@ -287,15 +301,18 @@ def _check_valve_form(data: dict, n_thrusters: int) -> list:
 
 
 def validate_log(log: FlightLog) -> list:
-    """Every contract violation in an in-memory log (empty list: valid)."""
+    """Every contract violation in an in-memory log (empty list: valid). A
+    wrong description is named alone for what depends on it (the valves'
+    thruster count, the segments), so no knock-on problem follows it."""
     from bench.sim.log_description import DescriptionError, resolve
 
     problems = []
-    n_thr = 8
+    desc = None
     try:
-        n_thr = resolve(log.description, log.config).n_thrusters
+        desc = resolve(log.description, log.config)
     except DescriptionError as exc:
         problems.append(Problem("/description_json", None, str(exc)))
+    n_thr = desc.n_thrusters if desc is not None else None
     for spec in STREAMS:
         if spec.name not in log.streams:
             if spec.required:
@@ -315,7 +332,36 @@ def validate_log(log: FlightLog) -> list:
     for name in log.streams:
         if name not in STREAM_BY_NAME:
             problems.append(Problem(name, None, f"unknown stream (known: {', '.join(STREAM_BY_NAME)})"))
+    if desc is not None and desc.segments and not problems:
+        problems.extend(_check_segments(log, desc))
     return problems
+
+
+def _check_segments(log: FlightLog, desc) -> list:
+    """The first stated segment that holds no IMU sample or no pose capture
+    (on the IMU clock): a run needs both (its first pose starts it)."""
+    t = np.asarray(log["imu"]["t_s"], np.float64)
+    tc = np.asarray(log["pose"]["t_capture_s"], np.float64) + desc.pose_time_offset_s - desc.pose_latency_s
+    for i, sg in enumerate(desc.segments):
+        span = f"{sg.t_start_s:.9g} to {sg.t_end_s:.9g} s"
+        if not np.any((t >= sg.t_start_s) & (t <= sg.t_end_s + 1e-9)):
+            return [
+                Problem(
+                    "/description_json",
+                    None,
+                    f"segments[{i}]: holds no IMU sample ({span}, the IMU stamps run from {t[0]:.9g} to {t[-1]:.9g} s)",
+                )
+            ]
+        if not np.any((tc >= sg.t_start_s) & (tc <= sg.t_end_s + 1e-9)):
+            return [
+                Problem(
+                    "/description_json",
+                    None,
+                    f"segments[{i}]: holds no pose capture ({span}, the captures on the IMU clock run from "
+                    f"{tc[0]:.9g} to {tc[-1]:.9g} s): a run starts at its first pose",
+                )
+            ]
+    return []
 
 
 def time_origin(log: FlightLog) -> float:

@@ -184,6 +184,8 @@ def _thrusters(x, where: str) -> list:
 def _segments(x, where: str) -> list:
     if not isinstance(x, list):
         raise DescriptionError(f"{where}: expected a list of segments")
+    if not x:
+        raise DescriptionError(f"{where}: an empty list (leave the field out to have the runs found from the data)")
     out = []
     for i, s in enumerate(x):
         w = f"{where}[{i}]"
