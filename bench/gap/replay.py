@@ -228,10 +228,12 @@ def _poses_on_ticks(pose: dict, t, dt, imu_seg, seg_desc, desc, dropped: dict) -
         own = np.searchsorted(starts, grid[j], side="right") - 1 == pseg
         _drop(dropped, "poses whose nearest IMU tick is in another run", pin & near & ~own)
         keep &= pin & own
+        near |= ~pin  # counted once, as outside every segment
     _drop(dropped, "poses more than one IMU interval from every IMU tick", ~near)
+    kept = np.flatnonzero(keep)
     dup = np.zeros(tc.size, bool)
-    dup[1:] = j[1:] == j[:-1]
-    _drop(dropped, "poses on an IMU tick already taken by an earlier pose", dup & keep)
+    dup[kept[1:]] = j[kept[1:]] == j[kept[:-1]]
+    _drop(dropped, "poses on an IMU tick already taken by an earlier pose", dup)
     keep &= ~dup
     j, align, td, pr, pq, rs, asg = (x[keep] for x in (j, align, td, pr, pq, rs, asg))
     tc_tick = grid[j]

@@ -146,6 +146,22 @@ def test_read_for_diagnosis_keeps_the_origin(tmp_path):
     assert read_flight_log(tmp_path / "e.h5").time_origin_s == 0.0  # as stored unless asked
 
 
+def test_a_pose_off_every_imu_tick_is_left_out_and_counted_once():
+    log = jittered_log("on_time")
+    t = log["imu"]["t_s"]
+    lost = (t > 40.25) & (t < 41.0)  # the second run's IMU starts at 41.05, its first pose is at 40.787
+    log.streams["imu"] = {k: v[~lost] for k, v in log["imu"].items()}
+    pose = log["pose"]
+    i = int(np.searchsorted(pose["t_capture_s"], 35.0))  # between the runs, far from every tick
+    log.streams["pose"] = {k: np.insert(v, i, v[i], axis=0) for k, v in pose.items()}
+    log["pose"]["t_capture_s"][i] = 35.0
+    assert validate_log(log) == []
+    d = prepare(log)
+    left_out = {k: v for k, v in d.dropped.items() if k != CLIPPED}
+    assert left_out == {"poses outside every segment": 1, "poses more than one IMU interval from every IMU tick": 1}
+    assert d.pose_tc.size == log["pose"]["t_capture_s"].size - 2
+
+
 def _numbers(x, path=""):
     if isinstance(x, dict):
         for k, v in x.items():
