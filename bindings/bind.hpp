@@ -7,6 +7,7 @@ void bind_so3(pybind11::module_& m);
 void bind_cw(pybind11::module_& m);
 void bind_link(pybind11::module_& m);
 void bind_nav(pybind11::module_& m);
+void bind_nav_replay(pybind11::module_& m);
 void bind_flight_app(pybind11::module_& m);
 void bind_blr(pybind11::module_& m);
 void bind_modal(pybind11::module_& m);

@@ -11,6 +11,7 @@ PYBIND11_MODULE(fsw_bindings, m) {
   bind_cw(m);
   bind_link(m);
   bind_nav(m);
+  bind_nav_replay(m);
   bind_flight_app(m);
   bind_blr(m);
   bind_modal(m);
