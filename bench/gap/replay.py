@@ -466,74 +466,84 @@ def nav_config(d: LogData, gate_chi2: float = 0.0):
     return nc
 
 
-def replay(
-    d: LogData, c: Corrections | None = None, record_states: bool = False, gate_chi2: float = 0.0
-) -> ReplayResult:
-    import fsw_bindings as fb
+@dataclass
+class ReplayInputs:
+    """What the navigation filter is given for one replay: the configuration
+    and the streams with the corrections applied, every time on the true
+    clock (fsw_bindings.nav_replay's arguments)."""
 
+    cfg: object  # fsw_bindings.NavConfig
+    imu_t: np.ndarray
+    accel: np.ndarray
+    gyro: np.ndarray
+    pose_tc: np.ndarray
+    pose_tf: np.ndarray
+    pose_r: np.ndarray
+    pose_q: np.ndarray
+    pose_R: np.ndarray
+    pose_start: np.ndarray
+    pose_v0_sigma: np.ndarray
+    t_init: float
+
+
+def replay_inputs(d: LogData, c: Corrections | None = None, gate_chi2: float = 0.0) -> tuple:
+    """(the log as replayed, ReplayInputs) for ``replay(d, c, gate_chi2=...)``."""
     acc, gyr, pr, pq = corrected_inputs(d, c)
-    nc = nav_config(d, gate_chi2)
-    ukf = fb.NavUkf(nc)
     v0sig = d.pose_v0_sigma if d.pose_v0_sigma is not None else np.full(d.pose_tc.size, V0_SIGMA_MPS)
     # A flight clock fast by clock_eps: true time is its tag over 1 + clock_eps.
     to_true = 1.0 / (1.0 + c.clock_eps) if c is not None and c.clock_eps != 0.0 else 1.0
-    t = d.imu_t * to_true
-    t_init = d.t_init * to_true
-    # Initialise from the first pose at (or before) the first IMU interval.
-    P0 = np.zeros((9, 9))
-    P0[0:3, 0:3], P0[6:9, 6:9] = d.pose_R[0, 0:3, 0:3], d.pose_R[0, 3:6, 3:6]
-    P0[3:6, 3:6] = v0sig[0] ** 2 * np.eye(3)
-    ukf.init(t_init, pr[0], np.zeros(3), pq[0], P0)
-    m = d.pose_tc.size
-    start = d.pose_start
-    innov = np.zeros((m, 6))
-    S = np.zeros((m, 6, 6))
-    nis = np.zeros(m)
-    ll = np.zeros(m)
-    ok = np.zeros(m, bool)
-    states = np.zeros((t.size, 10)) if record_states else None
-    tf, tc, R = d.pose_tf * to_true, d.pose_tc * to_true, d.pose_R
-    eps = 1e-9
-    j = 1
-    while j < m and tc[j] <= t_init + 1e-9:
-        j += 1
-    predict, update = ukf.predict, ukf.update_pose
-    k0 = int(np.searchsorted(t, t_init + eps, side="right"))
-    for k in range(k0, t.size):
-        tk = t[k]
-        if j < m and start[j] and tc[j] <= tk + eps:
-            # A new approach (the flight filter was reset): start again from its first pose.
-            P0[0:3, 0:3], P0[6:9, 6:9] = R[j, 0:3, 0:3], R[j, 3:6, 3:6]
-            P0[3:6, 3:6] = v0sig[j] ** 2 * np.eye(3)
-            ukf = fb.NavUkf(nc)
-            ukf.init(tc[j], pr[j], np.zeros(3), pq[j], P0)
-            predict, update = ukf.predict, ukf.update_pose
-            j += 1
-            if tk > tc[j - 1] + eps:
-                predict(tk, acc[k], gyr[k])
-        else:
-            predict(tk, acc[k], gyr[k])
-        if record_states:
-            states[k] = ukf.state()
-        while j < m and tf[j] <= tk + eps and not start[j]:
-            rec = update(tc[j], pr[j], pq[j], R[j])
-            if rec.status == "ok":
-                ok[j] = True
-                innov[j] = rec.innovation
-                S[j] = rec.innovation_cov
-                nis[j] = rec.nis
-                ll[j] = rec.log_likelihood
-            j += 1
+    return d, ReplayInputs(
+        cfg=nav_config(d, gate_chi2),
+        imu_t=d.imu_t * to_true,
+        accel=acc,
+        gyro=gyr,
+        pose_tc=d.pose_tc * to_true,
+        pose_tf=d.pose_tf * to_true,
+        pose_r=pr,
+        pose_q=pq,
+        pose_R=d.pose_R,
+        pose_start=d.pose_start,
+        pose_v0_sigma=v0sig,
+        t_init=d.t_init * to_true,
+    )
+
+
+def replay(
+    d: LogData, c: Corrections | None = None, record_states: bool = False, gate_chi2: float = 0.0
+) -> ReplayResult:
+    """The flight filter over the log in one call (fsw_bindings.nav_replay,
+    fsw/include/fsw/app/nav_replay.hpp): initialised from the first pose at
+    t_init, reset at each run's first pose, a predict per IMU sample, each
+    other pose fused once the replay clock reaches its fusion time."""
+    import fsw_bindings as fb
+
+    d, x = replay_inputs(d, c, gate_chi2)
+    out = fb.nav_replay(
+        x.cfg,
+        x.imu_t,
+        x.accel,
+        x.gyro,
+        x.pose_tc,
+        x.pose_tf,
+        x.pose_r,
+        x.pose_q,
+        x.pose_R,
+        x.pose_start,
+        x.pose_v0_sigma,
+        x.t_init,
+        record_states,
+    )
+    ok = out["fused"]
     sel = np.flatnonzero(ok)
     return ReplayResult(
         t=d.pose_tc[sel],
         index=sel,
-        innovation=innov[sel],
-        S=S[sel],
-        nis=nis[sel],
-        loglik=ll[sel],
+        innovation=out["innovation"][sel],
+        S=out["innovation_cov"][sel],
+        nis=out["nis"][sel],
+        loglik=out["log_likelihood"][sel],
         ok=ok[sel],
-        states=states,
+        states=out["states"],
     )
 
 
