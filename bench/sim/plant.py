@@ -282,16 +282,24 @@ class Plant:
             return self._step_effects(np.asarray(force_b_n, float), np.asarray(torque_b_nm, float), dt_s)
         s = self.state
         force_b = np.asarray(force_b_n, dtype=float)
-        torque_b = np.asarray(torque_b_nm, dtype=float)
         q_ib0 = self.q_ib(s.t_s, s.q_hb)
-        y = np.concatenate([s.r_hill_m, s.v_hill_mps, s.q_hb, s.omega_bi_b_rps])
-        n_sub = max(1, int(np.ceil(dt_s / self.substep_s - 1e-9)))
-        y = np.array(self._rk4_floats(y.tolist(), force_b.tolist(), torque_b.tolist(), dt_s / n_sub, n_sub))
-        t1 = s.t_s + dt_s
-        self.state = PlantState(t1, y[0:3].copy(), y[3:6].copy(), qnormalize(y[6:10]), y[10:13].copy())
-        q_ib1 = self.q_ib(t1, self.state.q_hb)
+        self.advance_rigid(force_b, torque_b_nm, dt_s)
+        q_ib1 = self.q_ib(self.state.t_s, self.state.q_hb)
         omega_mean = qlog(qmul(qconj(q_ib0), q_ib1)) / dt_s
         return StepResult(dt_s, force_b / self.mass_kg, omega_mean)
+
+    def advance_rigid(self, force_b_n, torque_b_nm, dt_s: float) -> None:
+        """The state of the rigid-body plant (no effects) moved on by dt_s
+        with the wrench held: step_wrench's integration without its
+        StepResult (the mean specific force is the force over the mass; a
+        caller that keeps the attitudes needs no mean rate)."""
+        s = self.state
+        y = np.concatenate([s.r_hill_m, s.v_hill_mps, s.q_hb, s.omega_bi_b_rps]).tolist()
+        f = np.asarray(force_b_n, dtype=float).tolist()
+        tau = np.asarray(torque_b_nm, dtype=float).tolist()
+        n_sub = max(1, int(np.ceil(dt_s / self.substep_s - 1e-9)))
+        y = np.array(self._rk4_floats(y, f, tau, dt_s / n_sub, n_sub))
+        self.state = PlantState(s.t_s + dt_s, y[0:3].copy(), y[3:6].copy(), qnormalize(y[6:10]), y[10:13].copy())
 
     # --- physical effects (docs/EFFECTS.md) ---------------------------------
 
