@@ -68,6 +68,7 @@ class Context:
     held_nav: np.ndarray
     train_dyn: np.ndarray | None
     held_dyn: np.ndarray | None
+    split: object = None  # quantify.Split: the blocks, and the valves not fired in both halves
 
 
 @dataclass
@@ -251,36 +252,32 @@ def screen(ctx: Context, names=None, progress=None) -> list:
 
 
 def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
-    """Refit with the full filter likelihood on the training rows (both channels)."""
+    """Refit with the full filter likelihood on the training rows (both
+    channels; the dynamics channel with the candidate applied exactly)."""
     from scipy.optimize import least_squares
 
-    d, nominal = ctx.d, ctx.nominal
+    d, nominal, ch = ctx.d, ctx.nominal, ctx.ch
     c: Candidate = candidate(d, fit.name)
-    Jd_full = getattr(fit, "Jd_full", None)
-    if Jd_full is None:
-        Jd_full = _dyn_jac(ctx, fit.name)
-    e_dyn0 = ctx.ch.e0 if ctx.ch is not None else None
+    has_dyn = ch is not None and ch.jacobian(fit.name) is not None
 
     def dyn_after(theta):
-        if e_dyn0 is None:
+        if ch is None:
             return None
-        if Jd_full is None:
-            return e_dyn0
-        return e_dyn0 + np.einsum("rak,k->ra", Jd_full, theta)
+        return ch.residual({fit.name: theta}) if has_dyn else ch.e0
 
+    sc = np.full(c.n_params, c.scale)
+    ub, lb = c.bound / c.scale, c.lower / c.scale
+    u0 = np.clip(np.nan_to_num(fit.theta / sc), 0.999 * lb, 0.999 * ub)
     if c.nav:
         rows_ok = np.isfinite(nominal.white[ctx.train_nav]).all(axis=1)
-        sc = np.full(c.n_params, c.scale)
 
         def resid(u):
             w = run_pass(d, c.corrections(u * sc, d)).white[ctx.train_nav][rows_ok].ravel()
             parts = [np.nan_to_num(w, nan=1e3)]
-            if e_dyn0 is not None and Jd_full is not None:
+            if has_dyn:
                 parts.append(dyn_after(u * sc)[ctx.train_dyn].ravel())
             return np.concatenate(parts)
 
-        ub, lb = c.bound / c.scale, c.lower / c.scale
-        u0 = np.clip(np.nan_to_num(fit.theta / sc), 0.999 * lb, 0.999 * ub)
         kw = dict(max_nfev=max_nfev * (c.n_params + 1), diff_step=1e-3)
         sol = (
             least_squares(resid, u0, method="trf", bounds=(lb, ub), **kw)
@@ -292,12 +289,27 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
         sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
         after = run_pass(d, c.corrections(theta, d))
         dll = float(np.nansum(after.loglik[ctx.train_nav]) - np.nansum(nominal.loglik[ctx.train_nav]))
+    elif has_dyn:
+        # Dynamics only: the exact channel is cheap, so the fit is refined on it
+        # from the screen's linearised one (a tilt is a rotation, a mass flow
+        # divides, a sensor error enters the gyroscopic term).
+        sol = least_squares(
+            lambda u: dyn_after(u * sc)[ctx.train_dyn].ravel(),
+            u0,
+            method="trf",
+            bounds=(lb, ub),
+            max_nfev=max_nfev,
+            x_scale=1.0,
+        )
+        theta, J_u = sol.x * sc, sol.jac
+        sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
+        after, dll = nominal, 0.0
     else:
         theta, sigma, after, dll = fit.theta, fit.sigma, nominal, 0.0
         J_u = getattr(fit, "J_u", np.zeros((0, c.n_params)))
     ad = dyn_after(theta)
     if ad is not None:
-        e0 = e_dyn0[ctx.train_dyn].ravel()
+        e0 = ch.e0[ctx.train_dyn].ravel()
         e1 = ad[ctx.train_dyn].ravel()
         dll += 0.5 * float(e0 @ e0 - e1 @ e1)
     n_obs = int(np.isfinite(nominal.white[ctx.train_nav]).all(axis=1).sum()) * 6 + (

@@ -4,11 +4,13 @@ a small parameter vector to corrections of the filter's inputs
 physics (bench/sim/effects.py): the diagnoser sees an effect only through what
 it does to the IMU and pose streams and to the relative dynamics.
 
-Effects that change the thrust (thrust loss, thruster misalignment, mass
-depletion) leave the navigation replay untouched (the accelerometer and gyro
-measure what the vehicle really did); they are seen through the dynamics
-channel (bench/gap/dyn.py), whose closed-form Jacobians cover them and the
-IMU effects (``nav=False``: dynamics channel only). A drifting flight
+Effects that change the thrust or the mass properties (thrust loss,
+thruster misalignment, a centre-of-mass offset, mass depletion) leave the
+navigation replay untouched: the accelerometer and gyro measure what the
+vehicle really did, and the replay navigates the IMU's own point, which a
+pose reference point fixed in the body follows whatever the mass does. They
+are seen through the dynamics channel (bench/gap/dyn.py), which models them
+and the IMU's own errors exactly (``nav=False``: dynamics channel only). A drifting flight
 clock (``clock_drift``) rescales every time tag of the log in the replay
 and every interval of the dynamics channel. The flexible mode has no
 candidate yet (``NOT_MODELLED``).
@@ -21,7 +23,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from bench.gap.replay import Corrections, LogData, rate_derivative
+from bench.gap.replay import Corrections, LogData
 
 
 @dataclass(frozen=True)
@@ -59,16 +61,6 @@ def _t(d: LogData) -> np.ndarray:
     return d.imu_t - d.t_init
 
 
-def _rate_derivative(d: LogData) -> np.ndarray:
-    """d(gyro)/dt by central differences within each run (one-sided at its
-    ends): a chained log's next run starts from rest, not from the last
-    run's final rate. Differences over the time stamps (jitter, dropped samples)."""
-
-    seg = getattr(d, "imu_seg", None)
-    seg = seg if seg is not None else np.concatenate([[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
-    return rate_derivative(d.gyro, d.imu_t, seg)
-
-
 def _ecc(theta, d: LogData) -> Corrections:
     # First order in e of the relative motion about an elliptical host orbit,
     # minus the circular CW model: M = M0 + n t, theta = [e cos M0, e sin M0].
@@ -104,18 +96,7 @@ def _drag(theta, d: LogData) -> Corrections:
     return Corrections(hill_accel=a)
 
 
-def _com(theta, d: LogData) -> Corrections:
-    # Accelerometer away from the centre of mass: with the centre of mass at
-    # c from the IMU (body axes) the IMU reads a_cm - wdot x c - w x (w x c);
-    # wdot from the gyro by central differences.
-    w = d.gyro
-    wdot = _rate_derivative(d)
-    extra = np.cross(wdot, theta) + np.cross(w, np.cross(w, theta))
-    return Corrections(accel_extra_b=extra)
-
-
 _BUILDERS = {
-    "com_offset": _com,
     "accel_bias": lambda th, d: Corrections(accel_bias=th),
     "gyro_bias": lambda th, d: Corrections(gyro_bias=th),
     "gyro_scale": lambda th, d: Corrections(gyro_scale=th),
@@ -205,6 +186,7 @@ CANDIDATES = {
             0.01,
             "fast slews with pure couples: the accelerometer's lever arm reads w x (w x c) and wdot x c",
             bound=0.1,
+            nav=False,
         ),
         Candidate(
             "accel_bias",

@@ -52,14 +52,15 @@ def map_cells(d: LogData, p: Pass) -> list:
 
 def context(d: LogData) -> Context:
     """The nominal pass over a prepared log, its dynamics channel, and the
-    training / held-out split of both channels (even / odd time blocks)."""
+    training / held-out split of both channels (alternate time blocks that
+    excite every fired valve in both halves, quantify.excitation_split)."""
     nominal = pass_from(reference(d), d)
     ch = dyn.build(d)
-    edges = quantify.block_edges(d.imu_t[0], d.imu_t[-1])
-    train, held = quantify.split_blocks(d.pose_tc, edges=edges)
+    split = quantify.excitation_split(d.imu_t, d.valves * d.dt_s if d.valves is not None else None)
+    train, held = split.masks(d.pose_tc)
     ok = np.isfinite(nominal.nis)
-    train_dyn, held_dyn = quantify.split_blocks(ch.t, edges=edges) if ch is not None else (None, None)
-    return Context(d, nominal, ch, train & ok, held & ok, train_dyn, held_dyn)
+    train_dyn, held_dyn = split.masks(ch.t) if ch is not None else (None, None)
+    return Context(d, nominal, ch, train & ok, held & ok, train_dyn, held_dyn, split)
 
 
 @dataclass

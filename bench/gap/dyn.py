@@ -1,29 +1,55 @@
 """The dynamics channel: the IMU against what the nominal vehicle model says
 the commanded valves should do. The navigation filter cannot see an effect
 that changes the thrust (the accelerometer and gyro measure what really
-happened), but this replay can:
+happened), but this channel can:
 
-  accel    e_a,k = (a_meas,k - F_nom(valves_k) / m) / sigma_a          (body, per IMU sample)
-  gyro     d_k = w_k - w_{k-1} - (alpha_{k-1} + alpha_k) dt / 2,
-           alpha = J^-1 (tau_nom(valves) - w x J w),
+  accel    e_a,k = (a_k - a_pred,k) / sigma_a                      (body axes, at the IMU, per sample)
+           a_pred = F(valves) / m + alpha x rho + w x (w x rho),
+           alpha = J^-1 (tau(valves) - w x J w),  rho the IMU from the centre of mass
+  gyro     d_k = w_k - w_{k-1} - turn_k,
+           turn_k = J^-1 (torque's open seconds over the two intervals) + the gyroscopic term's mean
            whitened with the exact MA(1) covariance sigma_g^2 tridiag(-1, 2, -1)
            of differenced white noise (banded Cholesky per segment).
 
-Under the nominal model both are N(0, 1) per row. Each candidate's effect
-on these rows is linear in its parameters (to first order), so its
-Jacobian is computed in closed form here (``jacobian``); candidates with no
-signature on this channel return None.
+Under the nominal model both are N(0, 1) per row.
+
+Every candidate that touches this channel enters it exactly, in the axes it
+acts in (``DynChannel.residual``): the IMU's own errors (bias, scale factor,
+misalignment) are undone on the raw samples in the IMU's axes before they
+are turned into body axes, so they reach every place the measured rate is
+used, the gyroscopic term ``w x J w`` and the accelerometer's lever arm
+included; a thrust loss, a nozzle tilt (a rotation of the valve's
+direction), a centre-of-mass offset (torque arms and the accelerometer's
+lever arm), propellant use (the mass at each sample), the inspector's own
+drag and a drifting clock (every interval over 1 + eps) change the
+prediction. A candidate's Jacobian is the central difference of that exact
+residual (``jacobian``), so the screen, the fits and the corrections all
+use one model; candidates with no signature here return None.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import cholesky_banded, solve_banded
 
 from bench.gap.replay import LogData
-from bench.so3 import rotmats
+from bench.so3 import rotmats, rotvec_matrix
+
+# Candidates with a signature in this channel, and the parameters each takes.
+DYN_CANDIDATES = (
+    "accel_bias",
+    "gyro_bias",
+    "gyro_scale",
+    "imu_misalignment",
+    "clock_drift",
+    "thrust_loss",
+    "thruster_misalignment",
+    "com_offset",
+    "mass_depletion",
+    "differential_drag",
+)
 
 
 def _skew_rows(v: np.ndarray) -> np.ndarray:
@@ -37,26 +63,34 @@ def _skew_rows(v: np.ndarray) -> np.ndarray:
 
 @dataclass
 class DynChannel:
-    t: np.ndarray  # time of each row (2 N rows: accel block then gyro block; each row has 3 axes)
-    e0: np.ndarray  # (R, 3) whitened residual rows
+    t: np.ndarray  # time of each row (accel rows, one per IMU sample, then gyro rows; each row has 3 axes)
+    e0: np.ndarray  # (R, 3) whitened residual rows under the nominal model
     kind: np.ndarray  # (R,) 0 accel, 1 gyro
-    # for Jacobians
     sig_a: float
+    sig_g: float
     gyro_rows: np.ndarray  # IMU indices k of the gyro rows (difference k-1 -> k)
     seg_bounds: list  # [(start, stop)] row ranges of each gyro segment (whitening)
     chol: list  # banded Cholesky factor per segment
-    F: np.ndarray  # (N, 3) nominal force per IMU sample [N]
-    open_: np.ndarray  # (N, 8) valve open flags
-    alpha: np.ndarray  # (N, 3) nominal angular acceleration
-    w: np.ndarray  # (N, 3) gyro
-    vs: np.ndarray  # (N,) valve-seconds since the segment start (before the sample)
-    mass: float
+    open_: np.ndarray  # (N, K) open fraction of each IMU interval per valve
+    W: np.ndarray  # (rows, K) each valve's effective open seconds in each gyro difference
+    h: np.ndarray  # (rows, 1) spacing of the two samples of each gyro difference [s]
+    vs: np.ndarray  # (N, K) the run's valve-seconds used, averaged over each valve's open time in each interval
     dt: float
-    veh: object
+    veh: object  # the described vehicle about the described centre of mass
+    rho: np.ndarray  # the IMU from the described centre of mass (body axes)
+    c_bi: np.ndarray  # IMU axes -> body axes
+    accel_raw: np.ndarray  # (N, 3) IMU axes
+    gyro_raw: np.ndarray  # (N, 3) IMU axes
+    c_hb: np.ndarray | None  # (N, 3, 3) body -> Hill along the reference trajectory, or None
+    _jac: dict = field(default_factory=dict)
 
     @property
     def rows(self) -> int:
         return self.e0.shape[0]
+
+    @property
+    def mass(self) -> float:
+        return float(self.veh.mass_kg)
 
     def whiten_gyro(self, x: np.ndarray) -> np.ndarray:
         """Whiten (n_gyro_rows, ...) differenced-gyro quantities already divided by sigma_g."""
@@ -81,10 +115,130 @@ class DynChannel:
             adj[a : b - 1] = True
         return adj
 
+    def mounting(self, p: dict) -> np.ndarray:
+        """IMU axes -> body axes with the candidates' misalignment: the IMU
+        reads C(e)^T C_ib v."""
+        return self.c_bi @ rotvec_matrix(p["imu_misalignment"]) if "imu_misalignment" in p else self.c_bi
+
+    def imu_body(self, p: dict) -> tuple:
+        """(specific force, rate) (N, 3) in body axes at the IMU, with the
+        candidates' sensor errors undone in the IMU's own axes: the IMU
+        reads (1 + s) C(e)^T C_ib v + b, so v = C_bi C(e) (x - b) / (1 + s).
+        The model's estimate of the motion (for the gyroscopic term and the
+        lever arm), not the rows' measurement side."""
+        M = self.mounting(p)
+        a = self.accel_raw - p["accel_bias"] if "accel_bias" in p else self.accel_raw
+        w = self.gyro_raw - p["gyro_bias"] if "gyro_bias" in p else self.gyro_raw
+        if "gyro_scale" in p:
+            w = w / (1.0 + np.asarray(p["gyro_scale"], float))
+        return a @ M.T, w @ M.T
+
+    def thrusters(self, p: dict) -> tuple:
+        """(K, 3) forces and (K, 3) torques about the true centre of mass of
+        each valve at full thrust, with the candidates' thrust changes."""
+        veh = self.veh
+        k = veh.n_thrusters
+        dirs = np.asarray(veh.directions_b, float)
+        if "thruster_misalignment" in p:
+            phi = np.asarray(p["thruster_misalignment"], float).reshape(k, 3)
+            dirs = np.einsum("kij,kj->ki", _rotvec_matrices(phi), dirs)
+        thrust = np.asarray(veh.thrust_n, float) * np.asarray(veh.thrust_scale, float) * np.ones(k)
+        if "thrust_loss" in p:
+            thrust = thrust * (1.0 - np.asarray(p["thrust_loss"], float))
+        F = thrust[:, None] * dirs
+        pos = np.asarray(veh.positions_b_m, float)
+        if "com_offset" in p:
+            pos = pos - np.asarray(p["com_offset"], float)
+        return F, np.cross(pos, F)
+
+    def residual(self, params: dict | None = None) -> np.ndarray:
+        """(R, 3) whitened rows with the candidates ``params`` ({name: theta})
+        applied exactly; ``residual()`` is the nominal model's ``e0``."""
+        p = {k: np.asarray(v, float) for k, v in (params or {}).items()}
+        _, w = self.imu_body(p)
+        Fi, Ti = self.thrusters(p)
+        J = np.asarray(self.veh.inertia_kgm2, float)
+        Jinv = np.linalg.inv(J)
+        to_true = 1.0 / (1.0 + float(p["clock_drift"][0])) if "clock_drift" in p else 1.0
+        gyroscopic = -np.cross(w, w @ J.T) @ Jinv.T
+        alpha = (self.open_ @ Ti) @ Jinv.T + gyroscopic
+        rho = self.rho - p["com_offset"] if "com_offset" in p else self.rho
+        if "mass_depletion" in p:
+            # Each valve's thrust over the mass while it was open (propellant
+            # used by every valve so far in the run).
+            m = self.mass - float(p["mass_depletion"][0]) * self.vs * to_true
+            force = (self.open_ / m) @ Fi
+        else:
+            force = (self.open_ @ Fi) / self.mass
+        a_pred = force + np.cross(alpha, rho) + np.cross(w, np.cross(w, rho))
+        if "differential_drag" in p and self.c_hb is not None:
+            a_pred = a_pred + self.c_hb[:, 1, :] * float(p["differential_drag"][0])
+        k = self.gyro_rows
+        turn = ((self.W @ Ti) @ Jinv.T + 0.5 * (gyroscopic[k - 1] + gyroscopic[k]) * self.h) * to_true
+        # The rows compare the IMU's own readings with what the model predicts
+        # it reads ((1 + s) C(e)^T C_ib v + b), in the IMU's axes, turned into
+        # body axes by the described mounting (a rotation keeps them white).
+        # Predicting the reading, not correcting it, keeps the measurement
+        # noise out of the parameters' derivatives: a scale factor fitted to
+        # corrected readings would shrink their noise and look like a gain.
+        M = self.mounting(p)
+        a_hat = a_pred @ M + (p["accel_bias"] if "accel_bias" in p else 0.0)
+        d_hat = turn @ M
+        if "gyro_scale" in p:
+            d_hat = d_hat * (1.0 + np.asarray(p["gyro_scale"], float))
+        e_a = ((self.accel_raw - a_hat) / self.sig_a) @ self.c_bi.T
+        d_meas = self.gyro_raw[k] - self.gyro_raw[k - 1]
+        e_g = self.whiten_gyro(((d_meas - d_hat) / self.sig_g) @ self.c_bi.T)
+        return np.vstack([e_a, e_g])
+
     def jacobian(self, name: str) -> np.ndarray | None:
-        """d(e)/d(theta) (R, 3, k): the change of the whitened rows per unit parameter."""
-        f = _JAC.get(name)
-        return None if f is None else f(self)
+        """d(e)/d(theta) (R, 3, k) at the nominal model: central differences
+        of the exact residual (None: no signature in this channel)."""
+        if name not in DYN_CANDIDATES or (name == "differential_drag" and self.c_hb is None):
+            return None
+        if name not in self._jac:
+            self._jac[name] = _central_jacobian(self, name)
+        return self._jac[name]
+
+
+def _n_params(ch: DynChannel, name: str) -> int:
+    k = ch.veh.n_thrusters
+    return {"thrust_loss": k, "thruster_misalignment": 3 * k, "mass_depletion": 1, "clock_drift": 1}.get(
+        name, 2 if name == "differential_drag" else 3
+    )
+
+
+# Steps of the central differences: small against each parameter's typical
+# size, so the second-order terms are far below the first (the residual is
+# smooth in every parameter).
+_STEP = {
+    "accel_bias": 1e-6,
+    "gyro_bias": 1e-6,
+    "gyro_scale": 1e-5,
+    "imu_misalignment": 1e-6,
+    "clock_drift": 1e-6,
+    "thrust_loss": 1e-5,
+    "thruster_misalignment": 1e-6,
+    "com_offset": 1e-6,
+    "mass_depletion": 1e-8,
+    "differential_drag": 1e-7,
+}
+
+
+def _central_jacobian(ch: DynChannel, name: str) -> np.ndarray:
+    n = _n_params(ch, name)
+    h = _STEP[name]
+    out = np.zeros((ch.rows, 3, n))
+    for i in range(n):
+        th = np.zeros(n)
+        th[i] = h
+        out[:, :, i] = (ch.residual({name: th}) - ch.residual({name: -th})) / (2.0 * h)
+    return out
+
+
+def _rotvec_matrices(phi: np.ndarray) -> np.ndarray:
+    """(K, 3) rotation vectors -> (K, 3, 3) rotation matrices."""
+    return np.array([rotvec_matrix(x) for x in phi])
 
 
 def _open_seconds_before(n_open: np.ndarray, seg_id: np.ndarray) -> np.ndarray:
@@ -123,21 +277,15 @@ def build(d: LogData) -> DynChannel | None:
 
     desc = d.desc if d.desc is not None else resolve(None, d.config)
     veh = desc.vehicle()
-    sig_a, sig_g = desc.accel_sigma_mps2, desc.gyro_sigma_rps
     open_ = np.asarray(d.valves, float)  # (N, K) open fraction of each interval
-    Fi = veh.thruster_forces_b_n()  # (K, 3)
-    Ti = veh.thruster_torques_b_nm()
-    F = open_ @ Fi
-    tau = open_ @ Ti
-    J = np.asarray(veh.inertia_kgm2, float)
-    Jinv = np.linalg.inv(J)
-    w = d.gyro
-    alpha = (tau - np.cross(w, w @ J.T)) @ Jinv.T
-    e_a = (d.accel - F / veh.mass_kg) / sig_a
     # Segments (runs) reset the gyro differences and the mass.
     seg_id = d.imu_seg if d.imu_seg is not None else np.concatenate([[0], np.cumsum(np.diff(d.imu_t) > 1.5 * d.dt_s)])
     brk = np.concatenate([[True], np.diff(seg_id) != 0])
-    vs = _open_seconds_before(open_.sum(axis=1) * d.dt_s, seg_id)
+    if d.valve_stream is not None:
+        vs = open_weighted_run_seconds(d.valve_stream, d.imu_t, d.dt_s, open_.shape[1], seg_id)
+    else:
+        used = open_.sum(axis=1) * d.dt_s
+        vs = np.repeat((_open_seconds_before(used, seg_id) + 0.5 * used)[:, None], open_.shape[1], axis=1)
     k = np.flatnonzero(~brk)  # difference k-1 -> k within a segment
     # Consecutive interval means are their centres' spacing apart (the time
     # stamps' difference: jitter and dropped samples included).
@@ -152,58 +300,31 @@ def build(d: LogData) -> DynChannel | None:
         if d.valve_stream is not None
         else 0.5 * (open_[k - 1] + open_[k]) * h
     )
-    gyroscopic = -np.cross(w, w @ J.T) @ Jinv.T
-    turn = (W @ Ti) @ Jinv.T + 0.5 * (gyroscopic[k - 1] + gyroscopic[k]) * h
-    dg = (w[k] - w[k - 1] - turn) / sig_g
     bounds, chols = _difference_whiteners(seg_id[k])
+    c_bi = d.c_bi if d.c_bi is not None else np.eye(3)
     ch = DynChannel(
-        t=None,
+        t=np.concatenate([d.imu_t, d.imu_t[k]]),
         e0=None,
-        kind=None,
-        sig_a=sig_a,
+        kind=np.concatenate([np.zeros(d.imu_t.size, int), np.ones(k.size, int)]),
+        sig_a=desc.accel_sigma_mps2,
+        sig_g=desc.gyro_sigma_rps,
         gyro_rows=k,
         seg_bounds=bounds,
         chol=chols,
-        F=F,
         open_=open_,
-        alpha=alpha,
-        w=w,
+        W=W,
+        h=h,
         vs=vs,
-        mass=veh.mass_kg,
         dt=d.dt_s,
         veh=veh,
+        rho=np.asarray(desc.imu_position_b_m - desc.com_b_m, float),
+        c_bi=c_bi,
+        accel_raw=d.imu_accel_raw if d.imu_accel_raw is not None else d.accel @ c_bi,
+        gyro_raw=d.imu_gyro_raw if d.imu_gyro_raw is not None else d.gyro @ c_bi,
+        c_hb=rotmats(d.ref_q) if d.ref_q is not None else None,
     )
-    ch.sig_g = sig_g
-    ch.h = h
-    ch.turn = turn
-    ch.W = W
-    ch.c_bh = rotmats(d.ref_q) if d.ref_q is not None else None
-    e_g = ch.whiten_gyro(dg)
-    ch.e0 = np.vstack([e_a, e_g])
-    ch.t = np.concatenate([d.imu_t, d.imu_t[k]])
-    ch.kind = np.concatenate([np.zeros(d.imu_t.size, int), np.ones(k.size, int)])
+    ch.e0 = ch.residual()
     return ch
-
-
-# --- Jacobians: rows = -(change of the predicted measurement) / sigma ----------
-
-
-def _stack(
-    ch: DynChannel, da: np.ndarray | None, dalpha: np.ndarray | None, dturn: np.ndarray | None = None
-) -> np.ndarray:
-    """da: (N, 3, k) change of the predicted accelerometer; dalpha: (N, 3, k)
-    change of the predicted angular acceleration (gyro differences follow);
-    or dturn: (rows, 3, k) the change of each gyro difference directly."""
-    k = next(x for x in (da, dalpha, dturn) if x is not None).shape[2]
-    n = ch.F.shape[0]
-    out = np.zeros((ch.rows, 3, k))
-    if da is not None:
-        out[:n] = -da / ch.sig_a
-    if dalpha is not None or dturn is not None:
-        g = ch.gyro_rows
-        dd = (dturn if dturn is not None else 0.5 * (dalpha[g - 1] + dalpha[g]) * ch.h[:, :, None]) / ch.sig_g
-        out[n:] = -ch.whiten_gyro(dd.reshape(g.size, -1)).reshape(g.size, 3, k)
-    return out
 
 
 def _open_time_integral(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -221,17 +342,63 @@ def _open_time_integral(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np
     return full
 
 
+def _pulses(valves: dict, n_thrusters: int) -> tuple:
+    """(command times (C,), on-times (C, K)) of a valves stream in either
+    form, each pulse ended at the next command (bench/sim/flight_log.py)."""
+    from bench.sim.flight_log import valve_on_times
+
+    vt, on, _ = valve_on_times(valves, n_thrusters)
+    return vt, on
+
+
+def open_weighted_run_seconds(valves: dict, t: np.ndarray, dt: float, n_thrusters: int, seg: np.ndarray):
+    """(N, K): the valve-seconds every valve has used since its run began
+    (the propellant gone), averaged over valve i's open time within each
+    IMU interval (t_k - dt, t_k]: the mass each valve's thrust acted on,
+    exactly for pulses of any length and jittered or dropped samples."""
+    from bench.gap.replay import open_time
+
+    vt, on = _pulses(valves, n_thrusters)
+    pulses = [(vt[on[:, i] > 0.0], on[on[:, i] > 0.0, i]) for i in range(n_thrusters)]
+
+    def used(x):  # all valves' open seconds up to x
+        return sum(open_time(s, du, x) for s, du in pulses if s.size)
+
+    def used_integral(x):  # its integral over time up to x
+        return sum(_open_time_integral(s, du, x) for s, du in pulses if s.size)
+
+    brk = np.flatnonzero(np.diff(seg) != 0) + 1
+    starts = np.r_[0, brk]
+    v0 = used(t[starts] - dt)[np.searchsorted(starts, np.arange(t.size), side="right") - 1]
+    out = np.zeros((t.size, n_thrusters))
+    for i, (s, du) in enumerate(pulses):
+        if not s.size:
+            continue
+        e = s + du
+        full = np.concatenate([[0.0], np.cumsum(used_integral(e) - used_integral(s))])
+        pulse = (s, e, full, used_integral)
+        open_s = open_time(s, du, t) - open_time(s, du, t - dt)
+        weighted = _open_times_used(t, *pulse) - _open_times_used(t - dt, *pulse) - v0 * open_s
+        out[:, i] = np.where(open_s > 0.0, weighted / np.where(open_s > 0.0, open_s, 1.0), 0.0)
+    return out
+
+
+def _open_times_used(x, s, e, full, used_integral):
+    """The integral up to x of one valve's open indicator (pulses [s, e))
+    times the valve-seconds used so far: ``full`` holds it over each whole
+    pulse, cumulated; a pulse still open at x counts up to x."""
+    j = np.searchsorted(s, x, side="left")
+    last = np.clip(j - 1, 0, None)
+    part = (j > 0) & (x < e[last])
+    return full[j] - np.where(part, used_integral(e[last]) - used_integral(x), 0.0)
+
+
 def turn_weights(valves: dict, t: np.ndarray, rows: np.ndarray, dt: float, n_thrusters: int) -> np.ndarray:
     """(len(rows), K): for each difference of consecutive interval means
     (sample k - 1 to k, k in ``rows``), the effective open seconds of each
     valve: mean over (t_k - dt, t_k] minus mean over (t_{k-1} - dt, t_{k-1}]
     of the cumulative open time."""
-    vt = np.asarray(valves["t_s"], np.float64)
-    if "on_time_s" in valves:
-        on = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
-    else:
-        mask = np.asarray(valves["mask"]).astype(np.int64)
-        on = ((mask[:, None] >> np.arange(n_thrusters)[None, :]) & 1) * np.asarray(valves["interval_s"], float)[:, None]
+    vt, on = _pulses(valves, n_thrusters)
     a, b = t[rows], t[rows - 1]
     out = np.zeros((rows.size, n_thrusters))
     for i in range(n_thrusters):
@@ -246,99 +413,3 @@ def turn_weights(valves: dict, t: np.ndarray, rows: np.ndarray, dt: float, n_thr
             + _open_time_integral(s, du, b - dt)
         ) / dt
     return out
-
-
-def _jac_accel_bias(ch):
-    n = ch.F.shape[0]
-    return _stack(ch, np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), None)
-
-
-def _jac_thrust_loss(ch):
-    # a = sum_i (1 - loss_i) F_i open_i / m
-    Fi = ch.veh.thruster_forces_b_n()
-    Ti = ch.veh.thruster_torques_b_nm()
-    Jinv = np.linalg.inv(np.asarray(ch.veh.inertia_kgm2, float))
-    da = -(ch.open_[:, None, :] * Fi.T[None, :, :]) / ch.mass
-    dturn = -(ch.W[:, None, :] * (Ti @ Jinv.T).T[None, :, :])
-    return _stack(ch, da, None, dturn)
-
-
-def _jac_misalign(ch):
-    # d_i -> d_i + phi_i x d_i: force change -T [d_i]x phi_i, torque r_i x that.
-    veh = ch.veh
-    T = np.linalg.norm(veh.thruster_forces_b_n(), axis=1)
-    Jinv = np.linalg.inv(np.asarray(veh.inertia_kgm2, float))
-    n, nt = ch.F.shape[0], veh.n_thrusters
-    da = np.zeros((n, 3, 3 * nt))
-    dturn = np.zeros((ch.gyro_rows.size, 3, 3 * nt))
-    for i in range(nt):
-        d = veh.directions_b[i]
-        r = veh.positions_b_m[i]
-        Sd = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
-        Sr = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
-        dF = -T[i] * Sd  # d(force)/d(phi_i)
-        da[:, :, 3 * i : 3 * i + 3] = ch.open_[:, i, None, None] * dF[None] / ch.mass
-        dturn[:, :, 3 * i : 3 * i + 3] = ch.W[:, i, None, None] * (Jinv @ Sr @ dF)[None]
-    return _stack(ch, da, None, dturn)
-
-
-def _jac_com(ch):
-    # Torques about the true centre of mass c: tau - c x F = tau + [F]x c;
-    # accelerometer at the body origin: a_cm - alpha x c - w x (w x c).
-    Jinv = np.linalg.inv(np.asarray(ch.veh.inertia_kgm2, float))
-    dturn = Jinv[None] @ _skew_rows(ch.W @ ch.veh.thruster_forces_b_n())
-    Sw = _skew_rows(ch.w)
-    da = -_skew_rows(ch.alpha) - Sw @ Sw
-    return _stack(ch, da, None, dturn)
-
-
-def _jac_mass(ch):
-    # a = F / (m - mdot V): d a / d mdot = F V / m^2 (V valve-seconds used so far)
-    da = (ch.F * ch.vs[:, None] / ch.mass**2)[:, :, None]
-    return _stack(ch, da, None)
-
-
-def _jac_gyro_scale(ch):
-    n = ch.F.shape[0]
-    dal = np.zeros((n, 3, 3))
-    dal[:, [0, 1, 2], [0, 1, 2]] = ch.alpha
-    return _stack(ch, None, dal)
-
-
-def _jac_imu_misalign(ch):
-    # The IMU reads C(phi)^T v ~ v + [v]x phi.
-    a_nom = ch.F / ch.mass
-    return _stack(ch, _skew_rows(a_nom), _skew_rows(ch.alpha))
-
-
-def _jac_drag(ch):
-    # The accelerometer senses the inspector's own drag, along Hill y:
-    # C_bh e_y = row 1 of C_hb. The host's drag has no signature here.
-    n = ch.F.shape[0]
-    da = np.zeros((n, 3, 2))
-    if ch.c_bh is not None:
-        da[:, :, 0] = ch.c_bh[:, 1, :]
-    return _stack(ch, da, None)
-
-
-def _jac_clock(ch):
-    # Every time of the log on a clock fast by eps: true intervals are the
-    # tagged ones over 1 + eps, so each predicted change of the rate (valve
-    # open seconds and the gyroscopic term, both integrals over time) shrinks
-    # by 1 + eps: d(turn)/d(eps) = -turn. The accelerometer rows compare
-    # means over the same interval (the valves' open fraction of it does
-    # not change with the clock): no signature there.
-    return _stack(ch, None, None, -ch.turn[:, :, None])
-
-
-_JAC = {
-    "clock_drift": _jac_clock,
-    "differential_drag": _jac_drag,
-    "accel_bias": _jac_accel_bias,
-    "thrust_loss": _jac_thrust_loss,
-    "thruster_misalignment": _jac_misalign,
-    "com_offset": _jac_com,
-    "mass_depletion": _jac_mass,
-    "gyro_scale": _jac_gyro_scale,
-    "imu_misalignment": _jac_imu_misalign,
-}

@@ -11,9 +11,17 @@ R = diag(r_sigma^2 I3, att_sigma^2 I3). The filter starts at the first pose
 ``V0_SIGMA_MPS``), as the bench's docking scenario does. Gating is off by
 default: a gap must show in the innovations, not vanish behind the gate.
 
-Corrections (all optional, zero means "the nominal model"):
-  IMU   accel = Exp(misalign) ((accel_raw - b_a) / (1 + s_a)) + C_bh a_extra_hill
-        omega = Exp(misalign) ((omega_raw - b_g) / (1 + s_g))
+The filter navigates the IMU's own point: its accelerometer measures that
+point's specific force exactly, whatever the vehicle's mass properties or
+valves do, so no lever-arm term (which needs the angular acceleration, and
+so the vehicle model) enters the navigation channel; each pose is moved
+from its reference point to the IMU along the measured attitude (a
+body-fixed offset the description states).
+
+Corrections (all optional, zero means "the nominal model"), the IMU's own
+errors in the IMU's axes (C_bi the described mounting):
+  IMU   accel = C_bi Exp(misalign) ((accel_raw - b_a) / (1 + s_a)) + C_bh a_extra_hill
+        omega = C_bi Exp(misalign) ((omega_raw - b_g) / (1 + s_g))
   pose  r = r_meas - C_hb(q_meas) lever_b + latency * v_ref(t_c)
         q = q_meas (+) latency * omega_bh_ref(t_c)
   clock every time tag of the log (IMU ticks, pose capture and fusion
@@ -29,7 +37,7 @@ step. Everything is precomputed with numpy; the loop only calls the filter.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -46,11 +54,11 @@ MU_EARTH = 3.986004418e14
 @dataclass
 class LogData:
     imu_t: np.ndarray
-    accel: np.ndarray  # specific force at the centre of mass, body axes
+    accel: np.ndarray  # specific force at the IMU, body axes
     gyro: np.ndarray  # body axes
     pose_tc: np.ndarray  # capture time on the IMU clock, moved to the nearest IMU tick
     pose_tf: np.ndarray  # replay time at which the pose is fused
-    pose_r: np.ndarray  # centre of mass in the Hill frame
+    pose_r: np.ndarray  # the IMU's position in the Hill frame
     pose_q: np.ndarray
     pose_R: np.ndarray  # (M, 6, 6)
     pose_tick: np.ndarray  # IMU index at the capture time (-1: before the first sample)
@@ -71,6 +79,12 @@ class LogData:
     pose_v0_sigma: np.ndarray | None = None  # (M,) initial velocity sigma where a pose starts a run
     valve_stream: dict | None = None  # the log's valves stream (open times over any span: open_fractions)
     dropped: dict = field(default_factory=dict)  # samples the replay could not use, and why
+    # The raw IMU samples in the IMU's own axes and its mounting (IMU -> body
+    # axes): sensor candidates are undone there (corrected_inputs, dyn.py).
+    imu_accel_raw: np.ndarray | None = None
+    imu_gyro_raw: np.ndarray | None = None
+    c_bi: np.ndarray | None = None
+    imu_from_com_b: np.ndarray | None = None  # the IMU from the described centre of mass (body axes)
 
     @property
     def duration_s(self) -> float:
@@ -94,8 +108,8 @@ POSE_V0_SIGMA_MOVING_MPS = 0.05  # a run that does not start at rest
 def prepare(log) -> LogData:
     """Arrays of a FlightLog, ready to replay (the first pose of each run
     initialises it). Everything the log's description states (format
-    version 2) is applied here: IMU mounting and lever arm, pose reference
-    point and clock, orbit, vehicle, segments; pose capture times are moved
+    version 2) is applied here: IMU mounting, pose reference point (moved to
+    the IMU) and clock, orbit, vehicle, segments; pose capture times are moved
     to the nearest IMU tick (the flight filter fuses a pose at a stored tick),
     the motion over that shift corrected like a known latency."""
     from bench.sim.flight_log import FlightLogError
@@ -107,17 +121,17 @@ def prepare(log) -> LogData:
     dt = 1.0 / desc.imu_rate_hz if desc.imu_rate_hz else (float(np.median(np.diff(t))) if t.size > 1 else 0.1)
     dropped = {}
     c_bi = rotmats(desc.imu_q_body_imu[None])[0]  # IMU axes -> body axes
-    accel = np.asarray(imu["accel_b_mps2"], float) @ c_bi.T
-    gyro = np.asarray(imu["omega_bi_b_rps"], float) @ c_bi.T
+    accel_raw = np.asarray(imu["accel_b_mps2"], float)
+    gyro_raw = np.asarray(imu["omega_bi_b_rps"], float)
     inside, imu_seg, seg_desc = _runs(t, dt, desc)
     if not np.any(inside):
         raise FlightLogError("/description_json: segments: no IMU sample inside any segment")
     if not np.all(inside):
         dropped["imu samples outside every segment"] = int(np.sum(~inside))
-        t, accel, gyro = t[inside], accel[inside], gyro[inside]
+        t, accel_raw, gyro_raw = t[inside], accel_raw[inside], gyro_raw[inside]
+    accel, gyro = accel_raw @ c_bi.T, gyro_raw @ c_bi.T
     vstream = _valve_stream(log, desc.n_thrusters, dropped)
     valves = open_fractions(vstream, t, dt, desc.n_thrusters) if vstream is not None else None
-    accel = _accel_at_com(accel, gyro, t, imu_seg, valves, desc)
     p = _poses_on_ticks(log["pose"], t, dt, imu_seg, seg_desc, desc, dropped)
     if p["tc"].size == 0:
         raise FlightLogError("pose/t_capture_s: no pose within one IMU interval of an IMU sample of its run")
@@ -145,6 +159,10 @@ def prepare(log) -> LogData:
         pose_v0_sigma=p["v0"],
         dropped=dropped,
         valve_stream=vstream,
+        imu_accel_raw=accel_raw,
+        imu_gyro_raw=gyro_raw,
+        c_bi=c_bi,
+        imu_from_com_b=np.asarray(desc.imu_position_b_m - desc.com_b_m, float),
     )
 
 
@@ -176,26 +194,8 @@ def _runs(t: np.ndarray, dt: float, desc):
     return inside, imu_seg, [desc.segments[i] for i in held]
 
 
-def _accel_at_com(accel, gyro, t, imu_seg, valves, desc):
-    """The accelerometer moved to the centre of mass (a known lever arm rho):
-    minus alpha x rho + w x (w x rho), alpha the interval's mean angular
-    acceleration from the valve torques when the valves are known (exact
-    under the nominal model; a finite difference of the gyro would smear
-    every valve's on and off edges), else from the gyro."""
-    rho = desc.imu_position_b_m - desc.com_b_m
-    if not np.any(rho != 0.0):
-        return accel
-    if valves is not None:
-        veh = desc.vehicle()
-        J = np.asarray(veh.inertia_kgm2, float)
-        wdot = (valves @ veh.thruster_torques_b_nm() - np.cross(gyro, gyro @ J.T)) @ np.linalg.inv(J).T
-    else:
-        wdot = rate_derivative(gyro, t, imu_seg)
-    return accel - np.cross(wdot, rho) - np.cross(gyro, np.cross(gyro, rho))
-
-
 def _poses_on_ticks(pose: dict, t, dt, imu_seg, seg_desc, desc, dropped: dict) -> dict:
-    """The pose stream on the IMU clock, about the centre of mass, each pose
+    """The pose stream on the IMU clock, moved to the IMU's point, each pose
     at its nearest IMU tick of its own run (the shift kept as ``align`` for
     the latency-like correction), with its covariance, run starts and the
     initial velocity sigma of each run."""
@@ -205,7 +205,7 @@ def _poses_on_ticks(pose: dict, t, dt, imu_seg, seg_desc, desc, dropped: dict) -
     pq = np.asarray(pose["q_hb"], float)
     rs = np.asarray(pose["r_sigma_m"], float)
     asg = np.asarray(pose["att_sigma_rad"], float)
-    pref = desc.pose_reference_b_m - desc.com_b_m
+    pref = desc.pose_reference_b_m - desc.imu_position_b_m
     if np.any(pref != 0.0):
         pr = pr - rotmats(pq) @ pref
     # Nearest tick: the IMU samples and the start of the first interval.
@@ -268,16 +268,6 @@ def _drop(dropped: dict, why: str, mask) -> None:
         dropped[why] = dropped.get(why, 0) + k
 
 
-def rate_derivative(gyro: np.ndarray, t: np.ndarray, seg: np.ndarray) -> np.ndarray:
-    """d(gyro)/dt by differences within each run (one-sided at its ends)."""
-    out = np.zeros_like(gyro)
-    brk = np.flatnonzero(np.diff(seg) != 0) + 1
-    for a, b in zip(np.r_[0, brk], np.r_[brk, t.size]):
-        if b - a > 1:
-            out[a:b] = np.gradient(gyro[a:b], t[a:b], axis=0)
-    return out
-
-
 def open_fractions(valves: dict, t: np.ndarray, dt: float, n_thrusters: int) -> np.ndarray:
     """(N, K): the fraction of each IMU interval (t_k - dt, t_k] that each
     valve was open. Valve i opens at t_s for on_time_s[i] (or, in the mask
@@ -290,13 +280,13 @@ def open_fractions(valves: dict, t: np.ndarray, dt: float, n_thrusters: int) -> 
     if vt.size == 0:
         return out
     for i in range(n_thrusters):
-        out[:, i] = (_open_time(vt, on[:, i], t) - _open_time(vt, on[:, i], t - dt)) / dt
+        out[:, i] = (open_time(vt, on[:, i], t) - open_time(vt, on[:, i], t - dt)) / dt
     # Open or closed for all but the stamps' own rounding: exactly so.
     eps = STAMP_ROUNDING_S / dt
     return np.where(out < eps, 0.0, np.where(out > 1.0 - eps, 1.0, out))
 
 
-def _open_time(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:
+def open_time(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Total open time up to each t of pulses [start_j, start_j + dur_j)
     (pulses do not overlap)."""
     cum = np.concatenate([[0.0], np.cumsum(dur)])
@@ -378,14 +368,9 @@ class Corrections:
 def corrected_inputs(d: LogData, c: Corrections | None):
     """(accel (N,3), gyro (N,3), pose_r (M,3), pose_q (M,4)) with ``c`` applied."""
     if c is None:
-        r, q = _shift_poses(d, d.gyro, d.pose_r, d.pose_q, 0.0)
+        r, q = _shift_poses(d, d.gyro, d.pose_r, d.pose_q, 0.0, 0.0, d.accel)
         return d.accel, d.gyro, r, q
-    acc = (d.accel - c.accel_bias) / (1.0 + c.accel_scale)
-    gyr = (d.gyro - c.gyro_bias) / (1.0 + c.gyro_scale)
-    if np.any(c.imu_misalign != 0.0):
-        M = rotvec_matrix(c.imu_misalign)
-        acc = acc @ M.T
-        gyr = gyr @ M.T
+    acc, gyr = _imu_corrected(d, c)
     if c.accel_extra_b is not None:
         acc = acc + c.accel_extra_b
     if c.hill_accel is not None:
@@ -395,16 +380,70 @@ def corrected_inputs(d: LogData, c: Corrections | None):
     r, q = d.pose_r, d.pose_q
     if np.any(c.lever_arm_b != 0.0):
         r = r - rotmats(q) @ c.lever_arm_b
-    r, q = _shift_poses(d, gyr, r, q, c.latency_s, c.clock_eps)
+    r, q = _shift_poses(d, gyr, r, q, c.latency_s, c.clock_eps, acc)
     return acc, gyr, r, q
 
 
-def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, latency_s: float, clock_eps: float = 0.0):
-    """Each pose moved over ``latency_s`` plus its own shift to the IMU tick
-    (LogData.pose_align_s, on the flight clock: in true time over
-    1 + clock_eps), along the reference motion: r + tau v_ref,
-    q (+) tau omega_bh. Needs the reference (replay.reference) unless every
-    shift is zero."""
+def retimed(d: LogData, c: Corrections | None) -> tuple:
+    """(d, c) as the replay runs them. Every pose is fused at its capture
+    tick: the flight filter's delayed update equals the on-time delivery
+    (nav_ukf.hpp), and fusing at capture needs no history, which at 50 Hz
+    holds only 0.3 s of delay. A latency correction is moved into the
+    ticks: each pose (but a run's first, which starts the filter) at the
+    tick nearest its true capture time in its own run, after the run's
+    start, so the filter's own IMU propagation carries it over whole
+    intervals and only the rest (under half an interval) is shifted along
+    the reference (``_shift_poses``), whose velocity is an estimate:
+    shifted whole, a 0.1 s latency left 0.5 % of its effect in the
+    innovations of a noise-free log (the reference's velocity error times
+    the latency), retimed 0.03 %."""
+    if d.pose_tc.size == 0:
+        return d, c
+    if c is None or c.latency_s == 0.0 or d.pose_align_s is None:
+        return replace(d, pose_tf=d.pose_tc), c
+    n = d.imu_t.size
+    k_old = d.pose_tick
+    tt = d.pose_tc - d.pose_align_s - c.latency_s * (1.0 + c.clock_eps)  # true capture, flight clock
+    seg = d.imu_seg if d.imu_seg is not None else np.zeros(n, int)
+    ks = np.clip(k_old, 0, n - 1)
+    first = np.searchsorted(seg, seg, side="left")[ks]
+    last = np.searchsorted(seg, seg, side="right")[ks] - 1
+    # After the tick where the run's filter started (its first pose).
+    run_start = np.maximum.accumulate(np.where(d.pose_start, np.arange(k_old.size), 0))
+    lo = np.maximum(first, k_old[run_start] + 1)
+    j = np.clip(np.searchsorted(d.imu_t, tt), 1, n - 1)
+    j = np.where(np.abs(d.imu_t[j - 1] - tt) <= np.abs(d.imu_t[j] - tt), j - 1, j)
+    k_new = np.where(d.pose_start, k_old, np.clip(j, lo, np.maximum(last, lo)))
+    tick = np.where(k_new >= 0, d.imu_t[np.clip(k_new, 0, n - 1)], d.imu_t[0] - d.dt_s)
+    d2 = replace(d, pose_tick=k_new, pose_tc=tick, pose_tf=tick, pose_align_s=tick - tt)
+    return d2, replace(c, latency_s=0.0)
+
+
+def _imu_corrected(d: LogData, c: Corrections) -> tuple:
+    """The IMU's own errors undone in its own axes, then turned into body
+    axes: the IMU reads (1 + s) C(e)^T C_ib v + b."""
+    if d.imu_accel_raw is None:  # a LogData built by hand: its IMU axes are the body axes
+        raw_a, raw_g, c_bi = d.accel, d.gyro, np.eye(3)
+    else:
+        raw_a, raw_g, c_bi = d.imu_accel_raw, d.imu_gyro_raw, d.c_bi
+    M = c_bi @ rotvec_matrix(c.imu_misalign) if np.any(c.imu_misalign != 0.0) else c_bi
+    acc = ((raw_a - c.accel_bias) / (1.0 + c.accel_scale)) @ M.T
+    gyr = ((raw_g - c.gyro_bias) / (1.0 + c.gyro_scale)) @ M.T
+    return acc, gyr
+
+
+def _shift_poses(
+    d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, latency_s: float, clock_eps: float = 0.0, acc=None
+):
+    """Each pose moved from its true capture time to its IMU tick: over
+    ``latency_s`` plus its own shift to the tick (LogData.pose_align_s, on
+    the flight clock: in true time over 1 + clock_eps). The position along
+    the reference's velocity and the measured acceleration, the attitude
+    by the measured rates over the shift (``gyr``, corrected, each sample's
+    rate over its own interval) and the Hill frame's turn. ``retimed``
+    keeps the shift under about half an IMU interval, so the reference's
+    velocity error matters little. Needs the reference (replay.reference)
+    unless every shift is zero."""
     align = d.pose_align_s / (1.0 + clock_eps) if d.pose_align_s is not None else 0.0
     tau = latency_s + align
     if not np.any(tau != 0.0):
@@ -413,18 +452,44 @@ def _shift_poses(d: LogData, gyr: np.ndarray, r: np.ndarray, q: np.ndarray, late
         if latency_s != 0.0:
             raise ValueError("latency corrections need the reference trajectory (replay.reference)")
         return r, q  # the first nominal pass: shifts follow once the reference exists
-    tau = np.broadcast_to(tau, (r.shape[0],))
-    k = np.clip(d.pose_tick, 0, d.imu_t.size - 1)
-    r = r + tau[:, None] * d.ref_v[k]
-    # The body rate over the latency: the IMU interval that ends at the
-    # pose's tick (sample k), never the next one, which at a run's last
-    # pose belongs to the next run.
-    w_bh = gyr[k] - np.einsum("nji,j->ni", rotmats(d.ref_q[k]), np.array([0.0, 0.0, d.n_radps]))
-    q = qmul_many(q, qexp_many(tau[:, None] * w_bh))
-    return r, q
+    tau = np.array(np.broadcast_to(tau, (r.shape[0],)), float)
+    n = d.imu_t.size
+    t = d.imu_t / (1.0 + clock_eps)
+    k = np.clip(d.pose_tick, 0, n - 1)
+    seg = d.imu_seg if d.imu_seg is not None else np.zeros(n, int)
+    first = np.searchsorted(seg, seg, side="left")[k]  # each pose's run: its first and last sample
+    last = np.searchsorted(seg, seg, side="right")[k] - 1
+    t_tick = np.where(d.pose_tick >= 0, t[k], t[0] - d.dt_s / (1.0 + clock_eps))  # -1: the first interval's start
+    tt = t_tick - tau  # the true capture time
+    # r(t_k) = r(tt) + tau v(t_k) - a tau^2 / 2, v and a at the tick (the
+    # reference velocity, the measured specific force turned into Hill axes).
+    a_hill = np.einsum("nij,nj->ni", rotmats(d.ref_q[k]), acc[k]) if acc is not None else 0.0
+    r = r + tau[:, None] * d.ref_v[k] - 0.5 * tau[:, None] ** 2 * a_hill
+    q = qmul_many(qexp_many(np.outer(-d.n_radps * tau, [0.0, 0.0, 1.0])), q)
+    return r, qmul_many(q, _body_turn(gyr, t, tt, t_tick, k, first, last))
 
 
-# --- the replay ----------------------------------------------------------------
+def _body_turn(gyr: np.ndarray, t: np.ndarray, tt: np.ndarray, t_tick: np.ndarray, k, first, last) -> np.ndarray:
+    """(M, 4) the body's turn from each capture time ``tt`` to its tick
+    ``t_tick`` (sample k's time, or the first interval's start), from the
+    rates of the samples between (each sample's rate held over
+    (t_{i-1}, t_i], as the filter integrates it), within the pose's run."""
+    out = np.tile([1.0, 0.0, 0.0, 0.0], (tt.size, 1))
+    # Captured after its tick (a pose shifted back): the next sample's rate, inside the run.
+    after = tt > t_tick
+    if np.any(after):
+        nxt = np.where(t_tick < t[k], k, np.minimum(k + 1, last))
+        out[after] = qexp_many(gyr[nxt[after]] * (t_tick - tt)[after, None])
+    # Captured before: each sample from the tick back to the one whose interval holds tt.
+    i = k.copy()
+    todo = ~after & (tt < t_tick)
+    while np.any(todo):
+        lo = np.where(i > first, t[np.maximum(i - 1, 0)], -np.inf)  # the run's first sample reaches back
+        span = np.where(todo, np.minimum(t[i], t_tick) - np.maximum(lo, tt), 0.0)
+        out = np.where(todo[:, None], qmul_many(qexp_many(gyr[i] * span[:, None]), out), out)
+        todo = todo & (lo > tt)
+        i = np.where(todo, i - 1, i)
+    return out
 
 
 @dataclass
@@ -462,7 +527,8 @@ def nav_config(d: LogData, gate_chi2: float = 0.0):
     if steps.size:
         nc.max_dt_s = max(float(nc.max_dt_s), float(np.max(steps)) * 1.01)
     nc.gate_chi2 = gate_chi2
-    nc.max_delay_s = max(0.5, float(np.max(d.pose_tf - d.pose_tc, initial=0.0)) + 2 * d.dt_s)
+    # Poses are fused at their capture ticks (retimed): a delay of a tick or two at most.
+    nc.max_delay_s = float(np.max(d.pose_tf - d.pose_tc, initial=0.0)) + 2 * d.dt_s
     return nc
 
 
@@ -488,6 +554,7 @@ class ReplayInputs:
 
 def replay_inputs(d: LogData, c: Corrections | None = None, gate_chi2: float = 0.0) -> tuple:
     """(the log as replayed, ReplayInputs) for ``replay(d, c, gate_chi2=...)``."""
+    d, c = retimed(d, c)
     acc, gyr, pr, pq = corrected_inputs(d, c)
     v0sig = d.pose_v0_sigma if d.pose_v0_sigma is not None else np.full(d.pose_tc.size, V0_SIGMA_MPS)
     # A flight clock fast by clock_eps: true time is its tag over 1 + clock_eps.

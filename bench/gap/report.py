@@ -176,10 +176,13 @@ def _ranking_lines(result: dict) -> list:
     ]
     for r in result["attribution"]:
         sh = r["shrink_heldout"]
-        pars = "; ".join(f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in r["parameters"].items())
+        pars = "; ".join(
+            f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" if v.get("value") is not None else f"{k}: not identifiable"
+            for k, v in r["parameters"].items()
+        )
         lines.append(
             f"| {r['effect']} | {r['kind']} | {r['evidence']['ln_bf']:.1f} | {r['evidence']['bic']:.1f} | {r['evidence']['dll_train']:.1f} | "
-            f"{r['evidence']['dll_heldout']:.1f} | {sh['fraction']:.2f} [{sh['ci95'][0]:.2f}, {sh['ci95'][1]:.2f}] | "
+            f"{r['evidence']['dll_heldout']:.1f} | {_shrink_cell(sh)} | "
             f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |"
         )
     lines += [
@@ -283,3 +286,10 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     p = out / "README.md"
     p.write_text("\n".join(lines) + "\n")
     return p
+
+
+def _shrink_cell(sh: dict) -> str:
+    """The held-out shrink with its interval, or why there is none."""
+    if not sh.get("measurable", True):
+        return "not measurable"
+    return f"{sh['fraction']:.2f} [{sh['ci95'][0]:.2f}, {sh['ci95'][1]:.2f}]"

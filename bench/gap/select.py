@@ -173,12 +173,6 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
     sc = np.concatenate([np.full(c.n_params, c.scale) for c in cands])
     lb = np.concatenate([np.full(c.n_params, c.lower / c.scale) for c in cands])
     ub = np.concatenate([np.full(c.n_params, c.bound / c.scale) for c in cands])
-    jd = [
-        fits_by[n].Jd_full
-        if getattr(fits_by[n], "Jd_full", None) is not None
-        else (ctx.ch.jacobian(n) if ctx.ch is not None else None)
-        for n in names
-    ]
     e_dyn0 = ctx.ch.e0 if ctx.ch is not None else None
     any_nav = any(c.nav for c in cands)
     rows_ok = np.isfinite(nominal.white[ctx.train_nav]).all(axis=1)
@@ -191,13 +185,8 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
         return out
 
     def dyn_after(theta):
-        if e_dyn0 is None:
-            return None
-        out = e_dyn0.copy()
-        for J, th in zip(jd, split(theta).values()):
-            if J is not None:
-                out = out + np.einsum("rak,k->ra", J, th)
-        return out
+        # Every member applied at once, exactly (bench/gap/dyn.py).
+        return None if e_dyn0 is None else ctx.ch.residual(split(theta))
 
     def corr(theta):
         from bench.gap.replay import Corrections

@@ -209,26 +209,6 @@ def blind(log):
     return log
 
 
-IMU_AXIS_EFFECTS = ("accel_bias", "gyro_bias", "gyro_scale", "imu_misalignment")
-
-
-def truth_in_body_axes(effect: str, params, vehicle: str | None = None) -> np.ndarray:
-    """An effect's drawn parameters in the axes the diagnosis estimates them
-    in: the IMU's own errors are drawn in IMU axes and fitted in body axes
-    (bench/gap/replay.py turns the samples into body axes first), so on a
-    vehicle whose IMU is turned they are rotated (a scale factor per axis
-    goes over as the squared direction cosines weight it)."""
-    truth = np.asarray(params, float)
-    if vehicle is None or effect not in IMU_AXIS_EFFECTS:
-        return truth
-    from bench.sim.log_description import resolve
-    from bench.sim.vehicles import VEHICLES
-    from bench.so3 import rotmat
-
-    c_bi = rotmat(resolve(VEHICLES[vehicle]()).imu_q_body_imu)  # IMU axes -> body axes
-    return (c_bi**2) @ truth if effect == "gyro_scale" else c_bi @ truth
-
-
 def forced_fit(internal: dict, name: str) -> dict:
     """Fit one named candidate (whatever the ranking) and its held-out shrink."""
     from bench.gap.attribute import confirm, screen
@@ -428,11 +408,11 @@ def _by_scale_separable(inl: list) -> dict:
 
 def _coverage(inl: list) -> dict:
     """How often the 95 % intervals of the true effect's fit hold the drawn
-    parameters, compared in the axes the diagnosis fits."""
+    parameters (the IMU's own errors are drawn and fitted in its own axes)."""
     inside, total = 0, 0
     for k, a in inl:
         if k["effect"] in SAME_PARAMETERS and "true_fit" in a:
-            truth = truth_in_body_axes(k["effect"], k["effects"][k["effect"]], k.get("vehicle"))
+            truth = np.asarray(k["effects"][k["effect"]], float)
             th, sg = np.asarray(a["true_fit"]["theta"]), np.asarray(a["true_fit"]["sigma"])
             if truth.size == th.size:
                 ok = np.abs(th - truth) <= 1.96 * sg

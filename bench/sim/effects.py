@@ -488,6 +488,9 @@ class Realisation:
     profile: NoiseProfile
     c_imu_b: np.ndarray | None = None
     lever_arm_b_m: np.ndarray | None = None
+    # The body-fixed point the pose sensor reports, from the true centre of
+    # mass (a centre-of-mass offset moves the mass, not the camera's target).
+    pose_point_b_m: np.ndarray | None = None
     occlusion: tuple | None = None
     camera_latency_s: float = 0.0
     imu_clock_rate: float = 1.0
@@ -560,6 +563,8 @@ def realise(effects: EffectSet, vehicle: Vehicle, profile: NoiseProfile, seed: i
     if "gyro_scale" in e:
         prof = prof.with_(gyro_scale=tuple(np.asarray(prof.gyro_scale) + e["gyro_scale"]))
     out = Realisation(veh, pfx if plant_on else None, prof)
+    if "com_offset" in e:
+        out.pose_point_b_m = -np.asarray(e["com_offset"], float)  # the pose reports the body origin
     if "imu_misalignment" in e:
         # IMU axes = body axes turned by Exp(phi): a body vector reads C(phi)^T v in IMU axes.
         out.c_imu_b = rotmat(qexp(e["imu_misalignment"])).T

@@ -272,7 +272,10 @@ def _truth_and_sensors(cfg: ScenarioConfig, seed: int, images: bool, rng_imu, rn
         if fx.lens_k1 != 0.0 and not images:
             raise ValueError("lens_distortion needs pose_source 'images' (the synthetic pose sensor has no lens)")
         lens_k1 = fx.lens_k1
-        pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=fx.lever_arm_b_m, occlusion=fx.occlusion)
+        point = fx.lever_arm_b_m
+        if fx.pose_point_b_m is not None:
+            point = fx.pose_point_b_m + (point if point is not None else 0.0)
+        pose = PoseSensor(cfg.profile, rng_pose, lever_arm_b_m=point, occlusion=fx.occlusion)
         truth = _Truth(plant, imu, pose, fx.camera_latency_s, fx.imu_clock_rate)
     else:
         plant = Plant(

@@ -86,14 +86,3 @@ def test_the_default_path_makes_a_calibration_for_the_log(tmp_path, monkeypatch)
     assert "12 thrusters" in c["note"]
     assert r["gap_detected"] and r["attribution"][0]["effect"] == "gyro_bias"
     assert list((tmp_path / "null_calibration").glob("*.json"))
-
-
-def test_interval_coverage_compares_in_the_axes_the_diagnosis_fits():
-    """The 12 kg vehicle's IMU is turned 90 degrees about body z: a gyro
-    bias drawn along IMU x is fitted along body y."""
-    from bench.gap.validate import truth_in_body_axes
-
-    np.testing.assert_allclose(truth_in_body_axes("gyro_bias", [1e-3, 0, 0], "12kg"), [0, 1e-3, 0], atol=1e-15)
-    np.testing.assert_allclose(truth_in_body_axes("gyro_scale", [0.1, 0.2, 0.3], "12kg"), [0.2, 0.1, 0.3], atol=1e-12)
-    np.testing.assert_allclose(truth_in_body_axes("gyro_bias", [1e-3, 0, 0], None), [1e-3, 0, 0])
-    np.testing.assert_allclose(truth_in_body_axes("com_offset", [0.01, 0, 0], "12kg"), [0.01, 0, 0])
