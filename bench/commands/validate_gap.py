@@ -35,17 +35,19 @@ def register(sub):
     p.add_argument(
         "--vehicle",
         default="3kg",
-        choices=("3kg", "12kg"),
+        choices=("3kg", "12kg", "random"),
         help="3kg: the bench inspector's docking logs; 12kg: the twelve-thruster 6U-class inspector's "
         "characterisation logs with jittered time stamps, pulse-width-modulated valves and pose on "
-        "its own clock (--duration and --manoeuvres do not apply)",
+        "its own clock; random: a vehicle drawn for every run (2-50 kg, 6-16 valves, IMU turned and "
+        "off the centre of mass, Unix-epoch clocks), each log thresholded by a calibration made for it "
+        "(--duration and --manoeuvres do not apply)",
     )
     p.add_argument(
         "--engine",
         default="bench",
         choices=("bench", "basilisk"),
-        help="basilisk: the 12 kg campaign with every scored log flown by Basilisk (needs "
-        "pip install '.[basilisk]'; implies --vehicle 12kg; docs/BASILISK.md)",
+        help="basilisk: the 12 kg campaign (or with --vehicle random, the random vehicles') with every "
+        "scored log flown by Basilisk (needs pip install '.[basilisk]'; docs/BASILISK.md)",
     )
     p.add_argument(
         "--mixtures",
@@ -62,6 +64,11 @@ def _campaign(args):
     and by the null calibration it scores against."""
     from bench.runner.records import sha256
 
+    if args.vehicle == "random":
+        # No committed calibration: each log's is made for it (and keyed by it).
+        return campaign_from(
+            args, "validate-gap", {"runs": args.runs, "seed": args.seed, "vehicle": "random", "engine": args.engine}
+        )
     if args.vehicle == "12kg" or args.engine == "basilisk":
         from bench.gap.validate_vehicle import load_calibration
 
@@ -105,7 +112,12 @@ def main(args):
         for line in validate_mixtures.summary_lines(res):
             print(line)
         return 0
-    if args.engine == "basilisk":
+    if args.vehicle == "random":
+        from bench.gap import validate_random
+
+        res = validate_random.run_campaign(args.runs, args.seed, args.json, engine=args.engine, campaign=campaign)
+        res["manoeuvres"] = f"characterisation (random vehicles, {args.engine} logs)"
+    elif args.engine == "basilisk":
         from bench.gap import validate_basilisk
 
         res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, campaign=campaign)

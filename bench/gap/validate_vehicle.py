@@ -163,7 +163,7 @@ def _size_one(key, calibration):
     return key
 
 
-def _run_one(key, calibration, simulate=None):
+def _run_one(key, calibration, simulate=None, source: str = "the 12 kg vehicle's null calibration"):
     # simulate(key, effects): the flight of the key's run (default: this vehicle's plant).
     simulate = simulate or simulate_key
     from bench.gap.candidates import candidates_of
@@ -174,7 +174,7 @@ def _run_one(key, calibration, simulate=None):
     t0 = time.time()
     log = simulate(key)
     t_sim = time.time() - t0
-    res = diagnose(log, calibration=calibration, calibration_source="the 12 kg vehicle's null calibration")
+    res = diagnose(log, calibration=calibration, calibration_source=source)
     pub = public(res)
     out = {
         "run": key["run"],

@@ -20,6 +20,7 @@ GAP_LAYERS = (
             "validate",
             "validate_vehicle",
             "validate_basilisk",
+            "validate_random",
             "validate_mixtures",
             "perf_diagnose",
             "results_tables",
