@@ -118,10 +118,12 @@ def simulate(
 ) -> tuple:
     """(FlightLog, key): the log of ``plan`` flown by the described vehicle
     with ``effects``; the key holds the effects (not in the log). ``times``
-    (one dict per segment: imu_t, pose_t on the IMU clock, pose_delay)
-    replaces the clocks' draws with given time stamps (a null log of a real
-    flight, bench/gap/log_null.py). ``noise_scale`` multiplies every sensor
-    noise (0: a noise-free log, for checking models exactly)."""
+    (one dict per segment: imu_t, pose_t on the IMU clock, pose_delay, and
+    optionally each pose's r_sigma_m and att_sigma_rad) replaces the clocks'
+    draws with given time stamps and the pose noise model with the given
+    sigmas (a null log of a real flight, bench/gap/log_null.py).
+    ``noise_scale`` multiplies every sensor noise (0: a noise-free log, for
+    checking models exactly)."""
     effects = dict(effects or {})
     unknown = sorted(set(effects) - set(KNOWN))
     if unknown:
@@ -132,9 +134,7 @@ def simulate(
     veh, pfx = _vehicle_with_effects(desc, effects)
     T = 1.0 / (desc.imu_rate_hz or 10.0)
     sensors = _Sensors.of(desc, effects, noise_scale)
-    streams = {
-        k: [] for k in ("imu_t", "acc", "gyr", "pc", "pd", "pr", "pq", "prs", "vt", "von", "tt", "tr", "tv", "tq", "tw")
-    }
+    streams = {k: [] for k in "imu_t acc gyr pc pd pr pq prs pas vt von tt tr tv tq tw".split()}
     segments = []
     t0 = 0.0
     for i_seg, seg in enumerate(plan):
@@ -145,7 +145,7 @@ def simulate(
             seg, t0, veh, pfx, desc, T, clocks, rng, sensors.latency_s, tm
         )
         sensors.imu_samples(streams, rng, clocks, imu_t, f_mean, w_mean, alpha)
-        sensors.poses(streams, rng, poses, list(tm["pose_delay"]) if tm is not None else [], clocks.pose_delay_s)
+        sensors.poses(streams, rng, poses, tm, clocks.pose_delay_s)
         streams["vt"].append(t0 + seg.cmd_t_s)
         streams["von"].append(seg.cmd_on_s)
         st_t, st = states
@@ -209,7 +209,11 @@ class _Sensors:
         rho, c_ib = self.rho, self.c_ib
         # The accelerometer sits at rho from the centre of mass (known to the log).
         f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
-        acc = (f_imu @ c_ib.T) + self.accel_bias + self.noise_scale * self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
+        acc = (
+            (f_imu @ c_ib.T)
+            + self.accel_bias
+            + self.noise_scale * self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
+        )
         # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
         gyr = (
             (1.0 + self.gyro_scale) * (w_mean @ c_ib.T)
@@ -223,22 +227,32 @@ class _Sensors:
         streams["acc"].append(acc[keep])
         streams["gyr"].append(gyr[keep])
 
-    def poses(self, streams: dict, rng, poses: list, delays: list, delay_s: float) -> None:
-        """The segment's pose measurements; each delivered after the next of
-        ``delays`` (given time stamps) or ``delay_s``."""
+    def poses(self, streams: dict, rng, poses: list, times: dict | None, delay_s: float) -> None:
+        """The segment's pose measurements. With given ``times`` (its pose_t,
+        pose_delay and optionally r_sigma_m, att_sigma_rad per pose), each
+        pose is delivered after its own delay and its noise drawn at its own
+        stated sigmas; else after ``delay_s``, with POSE_POS_FRAC of the range
+        and POSE_ATT_SIGMA_RAD."""
         desc = self.desc
+        given = {float(t): i for i, t in enumerate(np.asarray(times["pose_t"], float))} if times is not None else {}
         for tc, r, q in poses:
+            i = given.get(float(tc))
             r_meas = r + rotmat(q) @ (self.pref + self.lever)
-            sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05)
+            if i is not None and "r_sigma_m" in times:
+                sig = float(times["r_sigma_m"][i])
+            else:
+                sig = POSE_POS_FRAC * max(np.linalg.norm(r_meas), 0.05)
+            att = float(times["att_sigma_rad"][i]) if i is not None and "att_sigma_rad" in times else POSE_ATT_SIGMA_RAD
             r_meas = r_meas + self.noise_scale * sig * rng.standard_normal(3)
-            q_meas = qnormalize(qmul(q, qexp(self.noise_scale * POSE_ATT_SIGMA_RAD * rng.standard_normal(3))))
+            q_meas = qnormalize(qmul(q, qexp(self.noise_scale * att * rng.standard_normal(3))))
             # Stamped on the pose clock: IMU time minus the description's offset, plus its known latency.
             stamp = tc - desc.pose_time_offset_s + desc.pose_latency_s
             streams["pc"].append(stamp)
-            streams["pd"].append(stamp + (delays.pop(0) if delays else delay_s))
+            streams["pd"].append(stamp + (float(times["pose_delay"][i]) if i is not None else delay_s))
             streams["pr"].append(r_meas)
             streams["pq"].append(q_meas)
             streams["prs"].append(sig)
+            streams["pas"].append(att)
 
 
 def _log_of(
@@ -262,7 +276,7 @@ def _log_of(
                 "r_hill_m": np.asarray(streams["pr"], float).reshape(-1, 3),
                 "q_hb": np.asarray(streams["pq"], float).reshape(-1, 4),
                 "r_sigma_m": np.asarray(streams["prs"], float),
-                "att_sigma_rad": np.full(pc.size, POSE_ATT_SIGMA_RAD),
+                "att_sigma_rad": np.asarray(streams["pas"], float),
             },
             "valves": {"t_s": cat["vt"], "on_time_s": cat["von"]},
         },
