@@ -6,30 +6,35 @@ vehicle, other sensors, other time stamps or valve commands) gets its own:
 the log's own flight is flown again by the truth plant with nothing
 unmodelled (bench/sim/vehicle_sim.py): the vehicle, IMU and pose sensor its
 description states, every run from its first pose at rest, the log's own
-valve commands, IMU time stamps and pose capture times, fresh sensor noise
-per run. Each such null log is diagnosed without thresholds, and each
-detection statistic gets the threshold that leaves FA_EACH of a fitted tail
-above it.
+valve commands, IMU time stamps, pose capture times, delivery delays and
+stated pose sigmas (each pose's noise drawn at its own r_sigma_m and
+att_sigma_rad), fresh sensor noise per run. Each such null log is diagnosed
+without thresholds, and each detection statistic gets the threshold that
+leaves FA_EACH of a fitted tail above it.
 
-The tail: a Gumbel distribution fitted by moments to the logarithm of the
-statistic (a Frechet tail). Both statistics are maxima (of |z| over the gap
-map's cells, of -log10 p over the candidates), and their null tails are
-heavier than a Gumbel on the raw values gives: on the committed 1000-run
-docking calibration the raw Gumbel fit puts the 99.5 % point of the map
-statistic at 5.16 against 5.54 measured; the fit on the logarithm at 5.69.
-Over 300 random 40-run subsets of that calibration the two thresholds
-together flagged a median 0.5 % (95th percentile 1.4 %) of the 1000 null
-runs in one seeded draw; tests/py/test_log_null.py repeats the check with
-its own seed and requires a median of at most 1 % and a 95th percentile of
-at most 2 %, on both committed calibrations.
+The tail (``tail_threshold``): the statistic's excesses over an order
+statistic (the top TAIL_FRACTION of the runs) are exponential, the tail of
+a Gumbel-domain maximum, with their scale unknown: the threshold is the
+(1 - FA_EACH) point of the predictive distribution (a Lomax: the
+exponential averaged over the scale's posterior), which holds a 40-run
+calibration's expected false-alarm rate at the target where the fitted
+scale alone would not. Only the values above the order statistic enter, so
+runs far below the tail do not move it (the earlier Gumbel fitted by moments
+to log(values), ``frechet_threshold``, was pulled up by them). Evidence on
+the committed 1000-run calibrations: ``python -m bench.gap.log_null tails``
+and tests/py/test_log_null.py.
 
 Made on demand and cached (``cache_dir``, default ~/.cache/proxops) under
-the SHA-256 of everything it depends on; the answer carries its size, wall
-time and whether it came from the cache.
+the SHA-256 of what the thresholds depend on (``key_contents``); an entry
+is checked when read and made again when it does not hold. The answer
+carries its size, wall time and whether it came from the cache.
+``python -m bench.gap.log_null far`` measures the false-alarm rate of the
+calibration on random vehicles (bench/sim/random_vehicle.py).
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import os
@@ -42,45 +47,87 @@ import numpy as np
 
 FA_EACH = 0.005
 DEFAULT_RUNS = 40
-VERSION = 1  # bump when the bootstrap or the diagnosis statistics change
+# 2: the tail fitted to the top of the values; the pose noise at the log's
+# own sigmas; the key without absolute times or the first pose.
+VERSION = 2  # bump when the bootstrap, the tail or the diagnosis statistics change
+STATISTICS = ("map_max_abs_z", "screen_logp")
+TAIL_FRACTION = 0.6  # the share of the runs, from the top, whose excesses are fitted
+TIME_QUANTUM_S = 1e-6  # time stamps in the key, relative to their run's start
+SIGMA_DIGITS = 3  # significant digits of the pose sigmas in the key
 EULER_GAMMA = 0.5772156649015329
 
 
+def tail_threshold(values, fa: float = FA_EACH) -> tuple:
+    """(threshold, tail): the (1 - fa) point of the predictive tail of
+    ``values`` (one statistic's null values), and what it was fitted to.
+
+    The k = TAIL_FRACTION * n largest values exceed the next one, u, by
+    excesses taken as exponential with an unknown scale (prior 1/scale);
+    the chance that a new value exceeds u is (k + 1) / (n + 1). Averaged over
+    the scale's posterior, P(x > u + e) = (k + 1) / (n + 1) (1 + e / S)^-k
+    with S the sum of the excesses, so the threshold is
+    u + S (((k + 1) / ((n + 1) fa))^(1 / k) - 1). Values below u do not
+    enter."""
+    v = np.sort(np.asarray(values, float).ravel())[::-1]
+    if v.size < 2 or not np.all(np.isfinite(v)):
+        raise ValueError(f"a tail needs at least 2 finite null values (got {v.size}, or some not finite)")
+    n = v.size
+    k = int(min(max(round(TAIL_FRACTION * n), 1), n - 1))
+    u = float(v[k])
+    s = float(np.sum(v[:k] - u))
+    above = (k + 1) / (n + 1)
+    thr = u + s * ((above / fa) ** (1.0 / k) - 1.0)
+    tail = {
+        "model": "exponential excesses over the k-th largest value's successor, scale unknown (predictive Lomax)",
+        "n": n,
+        "k": k,
+        "u": u,
+        "mean_excess": s / k,
+        "p_above_u": above,
+        "fa": fa,
+        "threshold": thr,
+    }
+    return thr, tail
+
+
 def frechet_threshold(values, fa: float = FA_EACH) -> float:
-    """The (1 - fa) quantile of a Gumbel fitted by moments to log(values)."""
+    """The (1 - fa) quantile of a Gumbel fitted by moments to log(values):
+    the tail model before ``tail_threshold`` (kept for the committed 12 kg
+    calibration, bench/gap/validate_vehicle.py, and for comparison). Small
+    values pull it up: it is fitted to all of them on a log scale."""
     v = np.log(np.maximum(np.asarray(values, float), 1e-12))
     beta = float(np.std(v, ddof=1)) * np.sqrt(6.0) / np.pi
     mu = float(np.mean(v)) - EULER_GAMMA * beta
     return float(np.exp(mu - beta * np.log(-np.log(1.0 - fa))))
 
 
+def thresholds_of(rows: list) -> tuple:
+    """({statistic: threshold}, {statistic: tail}, {statistic: null values})
+    of null runs' statistics."""
+    thr, tails, vals = {}, {}, {}
+    for k in STATISTICS:
+        vals[k] = np.array([r[k] for r in rows], float)
+        thr[k], tails[k] = tail_threshold(vals[k])
+    return thr, tails, vals
+
+
 def plan_of(log):
-    """(description, [PlanSegment], per-run times) of the flight in ``log``:
-    each run from its first pose, at rest, with the log's valve commands,
-    IMU time stamps and pose capture times."""
+    """(description, [PlanSegment], per-run times, prepared log) of the
+    flight in ``log``: each run from its first pose, at rest, with the log's
+    valve commands, IMU time stamps, pose capture times and delivery delays,
+    and each pose's stated sigmas (r_sigma_m, att_sigma_rad)."""
     from bench.gap.replay import prepare
     from bench.sim.vehicle_sim import PlanSegment
 
     d = prepare(log)
     desc = d.desc
     description = dict(log.description or {})
-    if "segments" in description:
-        description.pop("segments")
-    seg_ids = np.unique(d.imu_seg)
-    valves = log["valves"] if log.has("valves") else None
+    description.pop("segments", None)
+    vs = d.valve_stream  # each pulse ended at the next command at the latest, as the replay reads it
+    vt, von = (np.asarray(vs["t_s"], float), np.asarray(vs["on_time_s"], float)) if vs is not None else (None, None)
     plan, times = [], []
-    vt = von = None
-    if valves is not None:
-        vt = np.asarray(valves["t_s"], float)
-        if "on_time_s" in valves:
-            von = np.asarray(valves["on_time_s"], float).reshape(vt.size, -1)
-        else:
-            mask = np.asarray(valves["mask"]).astype(np.int64)
-            von = ((mask[:, None] >> np.arange(desc.n_thrusters)[None, :]) & 1) * np.asarray(
-                valves["interval_s"], float
-            )[:, None]
     pose_seg = d.imu_seg[np.clip(d.pose_tick, 0, d.imu_t.size - 1)]
-    for s in seg_ids:
+    for s in np.unique(d.imu_seg):
         it = d.imu_t[d.imu_seg == s]
         t0, t1 = float(it[0] - d.dt_s), float(it[-1])
         pm = np.flatnonzero(pose_seg == s)
@@ -93,28 +140,67 @@ def plan_of(log):
         else:
             cmd_t, cmd_on = np.zeros(0), np.zeros((0, desc.n_thrusters))
         plan.append(PlanSegment("other", t1 - t0, d.pose_r[j].copy(), d.pose_q[j].copy(), cmd_t, cmd_on))
-        # capture times on the IMU clock, before they were moved to IMU ticks
-        tc = d.pose_tc[pm] - d.pose_align_s[pm]
-        times.append({"imu_t": it.copy(), "pose_t": tc, "pose_delay": (d.pose_tf - d.pose_tc)[pm]})
+        times.append(
+            {
+                "imu_t": it.copy(),
+                # capture times on the IMU clock, before they were moved to IMU ticks
+                "pose_t": d.pose_tc[pm] - d.pose_align_s[pm],
+                "pose_delay": (d.pose_tf - d.pose_tc)[pm],
+                "r_sigma_m": np.sqrt(d.pose_R[pm, 0, 0]),
+                "att_sigma_rad": np.sqrt(d.pose_R[pm, 3, 3]),
+            }
+        )
     return description, plan, times, d
 
 
-def fingerprint(log, runs: int, seed: int) -> str:
-    """SHA-256 of everything a calibration for ``log`` depends on."""
-    description, plan, times, d = plan_of(log)
-    h = hashlib.sha256()
-    h.update(
-        json.dumps(
-            {"v": VERSION, "runs": runs, "seed": seed, "description": description, "has_valves": log.has("valves")},
-            sort_keys=True,
-            default=str,
-        ).encode()
-    )
+def _quantised(a, quantum: float) -> np.ndarray:
+    return np.round(np.asarray(a, float) / quantum).astype(np.int64)
+
+
+def _significant(a, digits: int = SIGMA_DIGITS) -> list:
+    return [f"{float(x):.{digits}g}" for x in np.ravel(a)]
+
+
+def key_contents(log, runs: int, seed: int, prepared=None) -> dict:
+    """What a calibration for ``log`` depends on, as the cache keys it: the
+    statistics' VERSION, runs, seed, the description (vehicle, sensors,
+    noise model; not its segments' absolute times), whether valves were
+    logged, and per run its length, valve commands and on-times, IMU time
+    stamps, pose capture times and delivery delays (all relative to the
+    run's start, in TIME_QUANTUM_S) and its poses' stated sigmas (to
+    SIGMA_DIGITS significant digits). Not the first pose: the runs start
+    there, but its noise does not move the thresholds (docs/GAP.md)."""
+    description, plan, times, d = prepared or plan_of(log)
+    q = TIME_QUANTUM_S
+    per_run = []
     for p, tm in zip(plan, times):
-        for a in (p.r0_hill_m, p.q0_hb, p.cmd_t_s, p.cmd_on_s, tm["imu_t"], tm["pose_t"], tm["pose_delay"]):
-            h.update(np.ascontiguousarray(np.asarray(a, float)).tobytes())
-    h.update(np.ascontiguousarray(d.pose_R[:, [0, 3], [0, 3]]).tobytes())
-    return h.hexdigest()
+        t0 = float(tm["imu_t"][0] - d.dt_s)
+        per_run.append(
+            {
+                "duration": int(_quantised(p.duration_s, q)),
+                "cmd_t": _quantised(p.cmd_t_s, q).tolist(),
+                "cmd_on": _quantised(p.cmd_on_s, q).tolist(),
+                "imu_t": _quantised(tm["imu_t"] - t0, q).tolist(),
+                "pose_t": _quantised(tm["pose_t"] - t0, q).tolist(),
+                "pose_delay": _quantised(tm["pose_delay"], q).tolist(),
+                "r_sigma_m": _significant(tm["r_sigma_m"]),
+                "att_sigma_rad": _significant(tm["att_sigma_rad"]),
+            }
+        )
+    return {
+        "version": VERSION,
+        "runs": int(runs),
+        "seed": int(seed),
+        "description": description,
+        "has_valves": bool(log.has("valves")),
+        "runs_flown": per_run,
+    }
+
+
+def fingerprint(log, runs: int, seed: int, prepared=None) -> str:
+    """SHA-256 of ``key_contents``."""
+    text = json.dumps(key_contents(log, runs, seed, prepared), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def null_log_like(log, seed: int, prepared=None):
@@ -155,27 +241,83 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("PROXOPS_CACHE", Path.home() / ".cache" / "proxops")) / "null_calibration"
 
 
+def unusable(cal, key: str | None = None, runs: int | None = None) -> str | None:
+    """Why the calibration ``cal`` (made for a log) cannot be used, None when
+    it can: it must be of this VERSION, made for ``key`` with ``runs`` runs,
+    hold every statistic's null values (finite) and thresholds that are
+    finite, positive and the ones its null values give."""
+    if not isinstance(cal, dict):
+        return "not a calibration"
+    if cal.get("version") != VERSION:
+        return f"made by version {cal.get('version')} of the statistics, not {VERSION}"
+    if key is not None and cal.get("fingerprint") != key:
+        return f"made for another log (fingerprint {str(cal.get('fingerprint'))[:12]}, this log's {key[:12]})"
+    thr = cal.get("thresholds")
+    for k in STATISTICS:
+        t = thr.get(k) if isinstance(thr, dict) else None
+        vals = cal.get(f"null_{k}")
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not np.isfinite(t) or t <= 0.0:
+            return f"thresholds.{k} missing, not finite or not positive"
+        if not isinstance(vals, list) or (runs is not None and len(vals) != runs):
+            return f"null_{k} missing or not {runs} values"
+        try:
+            expect = tail_threshold(vals)[0]
+        except (TypeError, ValueError):
+            return f"null_{k} not finite numbers"
+        if not np.isclose(t, expect, rtol=1e-9, atol=0.0):
+            return f"thresholds.{k} {t:.4g} is not its null values' {expect:.4g}"
+    return None
+
+
+def _cached(path: Path, key: str, runs: int) -> tuple:
+    """(calibration or None, why the entry at ``path`` was not used or None)."""
+    if not path.exists():
+        return None, None
+    try:
+        cal = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        return None, f"unreadable ({type(exc).__name__})"
+    why = unusable(cal, key, runs)
+    return (None, why) if why else (cal, None)
+
+
+def _store(cal: dict, path: Path, run_store) -> None:
+    """Write ``cal`` at ``path`` (atomically); the runs' store goes."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(cal, indent=1) + "\n")
+        tmp.replace(path)
+        cal["cached_at"] = str(path)
+        if run_store is not None:  # every run is in the cache entry now
+            shutil.rmtree(run_store.path, ignore_errors=True)
+    except OSError as exc:
+        print(f"note: calibration not cached ({exc})", file=sys.stderr)
+
+
 def calibrate_for_log(
     log, runs: int = DEFAULT_RUNS, seed: int = 7100, workers: int | None = None, cache_dir=None, progress: bool = True
 ) -> dict:
-    """The null calibration for ``log`` (from the cache when it was made before).
+    """The null calibration for ``log`` (from the cache when it was made
+    before and its entry holds; a damaged or mismatched entry is made again).
     Its runs are a campaign (bench/runner/runner.py) on the cluster the
     process was configured with, each kept as it finishes next to the cache
     entry, so an interrupted calibration resumes."""
     from bench.runner.runner import Campaign, results
     from bench.runner.store import RunStore
+    from bench.sim.flight_log import relative_to_start
 
+    log = relative_to_start(log)  # as diagnose() reads it (the key is relative to each run's start anyway)
     prepared = plan_of(log)
-    key = fingerprint(log, runs, seed)
+    key = fingerprint(log, runs, seed, prepared)
     cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     path = cdir / f"{key}.json"
-    if path.exists():
-        try:
-            cal = json.loads(path.read_text())
-            cal["from_cache"] = str(path)
-            return cal
-        except ValueError:
-            pass  # a damaged cache entry is made again
+    cal, why = _cached(path, key, runs)
+    if cal is not None:
+        cal["from_cache"] = str(path)
+        return cal
+    if why:
+        print(f"note: cached calibration {path.name} not used ({why}); making it again", file=sys.stderr)
     t0 = time.time()
     seeds = [int(s) for s in np.random.default_rng(seed).integers(0, 2**31, runs)]
     try:
@@ -196,13 +338,13 @@ def calibrate_for_log(
             f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
             f"seed {failed[0]['seed']}: {failed[0]['error']})"
         )
-    rows = results(recs)
-    z = np.array([r["map_max_abs_z"] for r in rows])
-    b = np.array([r["screen_logp"] for r in rows])
-    thr = {"map_max_abs_z": frechet_threshold(z), "screen_logp": frechet_threshold(b)}
+    thr, tails, vals = thresholds_of(results(recs))
+    z, b = vals["map_max_abs_z"], vals["screen_logp"]
     cal = {
         "thresholds": thr,
-        "method": "parametric bootstrap of the log's own flight, Frechet tail per statistic",
+        "tail": tails,
+        "method": "parametric bootstrap of the log's own flight; per statistic, the predictive exponential "
+        f"tail of its top {TAIL_FRACTION:.0%}",
         "false_alarm_target_each": FA_EACH,
         "runs": int(runs),
         "seed": int(seed),
@@ -213,17 +355,9 @@ def calibrate_for_log(
         "false_alarm_rate": float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"]))),
         "elapsed_s": time.time() - t0,
         "version": VERSION,
+        **({"made_again_because": why} if why else {}),
     }
-    try:
-        cdir.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(cal, indent=1) + "\n")
-        tmp.replace(path)
-        cal["cached_at"] = str(path)
-        if store is not None:  # every run is in the cache entry now
-            shutil.rmtree(store.path, ignore_errors=True)
-    except OSError as exc:
-        print(f"note: calibration not cached ({exc})", file=sys.stderr)
+    _store(cal, path, store)
     cal["from_cache"] = None
     return cal
 
@@ -285,6 +419,9 @@ def check_supplied(cal: dict, log, d, source: str) -> None:
                 f"{source}: thresholds.{k} missing or not a finite number: not a null calibration"
             )
     if cal.get("for_log"):
+        why = unusable(cal)
+        if why:
+            raise CalibrationMismatch(f"{source}: {why}. Leave out --calibration to make one for the log")
         key = fingerprint(log, int(cal.get("runs", DEFAULT_RUNS)), int(cal.get("seed", 7100)))
         if cal.get("fingerprint") != key:
             raise CalibrationMismatch(
@@ -360,6 +497,404 @@ def choose(
         "runs": cal["runs"],
         "elapsed_s": cal["elapsed_s"],
         "from_cache": cal.get("from_cache"),
+        **({"made_again_because": cal["made_again_because"]} if cal.get("made_again_because") else {}),
         "note": f"null calibration made for this log ({why}): {cal['runs']} simulated flights of its own "
         f"commands, " + ("from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s"),
     }
+
+
+# --- Evidence for the tail model, on the committed 1000-run calibrations ---
+
+
+def _plugin_exponential(values, fa: float = FA_EACH) -> float:
+    """The exponential tail of ``tail_threshold`` with its fitted scale (no
+    predictive): for comparison."""
+    v = np.sort(np.asarray(values, float))[::-1]
+    n = v.size
+    k = int(min(max(round(TAIL_FRACTION * n), 1), n - 1))
+    return float(v[k] + np.mean(v[:k] - v[k]) * np.log((k + 1) / (n + 1) / fa))
+
+
+def _gpd_ml(values, fa: float = FA_EACH, top: float = 0.25) -> float:
+    """A generalised Pareto fitted by maximum likelihood to the excesses of
+    the top ``top`` share (shape bounded to [-0.5, 0.5]): for comparison."""
+    from scipy.stats import genpareto
+
+    v = np.sort(np.asarray(values, float))[::-1]
+    n = v.size
+    k = max(int(round(top * n)), 3)
+    e = v[:k] - v[k]
+    xi, _, sig = genpareto.fit(e, floc=0.0)
+    if not -0.5 <= xi <= 0.5:
+        xi = float(np.clip(xi, -0.5, 0.5))
+        sig = genpareto.fit(e, f0=xi, floc=0.0)[2]
+    return float(v[k] + genpareto.ppf(1.0 - fa * (n + 1) / (k + 1), xi, 0.0, sig))
+
+
+TAIL_MODELS = {
+    "predictive exponential, top 60 % (used)": lambda v: tail_threshold(v)[0],
+    "Gumbel by moments on log(values) (before)": frechet_threshold,
+    "exponential, top 60 %, fitted scale": _plugin_exponential,
+    "generalised Pareto, top 25 %, ML shape": _gpd_ml,
+}
+LOWER_TAIL_DECADES = 1.0  # how far the synthetic long lower tail reaches down
+MAX_RATIO = 2.0  # a threshold at most this many times the largest null value
+
+
+def _stretched_low(v: np.ndarray, rng) -> np.ndarray:
+    """``v`` with its values below the tail's order statistic (the
+    (k + 1)-th largest) spread down by up to LOWER_TAIL_DECADES decades: a
+    long lower tail."""
+    out = v.copy()
+    k = int(min(max(round(TAIL_FRACTION * v.size), 1), v.size - 1))
+    low = np.argsort(v)[: v.size - k - 1]
+    out[low] = v[low] * 10.0 ** (-LOWER_TAIL_DECADES * rng.uniform(size=low.size))
+    return out
+
+
+def tail_evidence(draws: int = 1000, n: int = DEFAULT_RUNS, seed: int = 2026, models=None) -> dict:
+    """Per committed 1000-run calibration and tail model: over ``draws``
+    random ``n``-run subsets, the false-alarm rate of the two thresholds on
+    all 1000 null runs (both statistics: median and 95th percentile; each:
+    mean), the threshold over the subset's largest value (95th, 99th
+    percentile), and the same ratio when the subset's lower values are
+    stretched into a long lower tail (95th percentile, share above
+    MAX_RATIO)."""
+    from bench.gap import null as nullmod
+
+    models = models or TAIL_MODELS
+    out = {}
+    for manoeuvres in ("docking", "docking+characterisation"):
+        cal = nullmod.load(manoeuvres=manoeuvres)
+        vals = {k: np.array(cal[f"null_{k}"], float) for k in STATISTICS}
+        rng = np.random.default_rng(seed)
+        idx = [rng.choice(vals[STATISTICS[0]].size, n, replace=False) for _ in range(draws)]
+        low = {k: [_stretched_low(vals[k][i], rng) for i in idx] for k in STATISTICS}
+        rows = {}
+        for name, fn in models.items():
+            fa, each, ratio, ratio_low = [], {k: [] for k in STATISTICS}, [], []
+            for j, i in enumerate(idx):
+                thr = {k: fn(vals[k][i]) for k in STATISTICS}
+                over = {k: vals[k] > thr[k] for k in STATISTICS}
+                fa.append(float(np.mean(over[STATISTICS[0]] | over[STATISTICS[1]])))
+                for k in STATISTICS:
+                    each[k].append(float(np.mean(over[k])))
+                    ratio.append(thr[k] / vals[k][i].max())
+                    ratio_low.append(fn(low[k][j]) / low[k][j].max())
+            rows[name] = {
+                "false_alarm_median": float(np.median(fa)),
+                "false_alarm_p95": float(np.percentile(fa, 95)),
+                **{f"false_alarm_mean_{k}": float(np.mean(each[k])) for k in STATISTICS},
+                "ratio_to_max_p95": float(np.percentile(ratio, 95)),
+                "ratio_to_max_p99": float(np.percentile(ratio, 99)),
+                "long_lower_tail_ratio_p95": float(np.percentile(ratio_low, 95)),
+                "long_lower_tail_above_max_ratio": float(np.mean(np.array(ratio_low) > MAX_RATIO)),
+            }
+        out[manoeuvres] = rows
+    return {"draws": draws, "runs": n, "seed": seed, "fa_each": FA_EACH, "max_ratio": MAX_RATIO, "models": out}
+
+
+def _print_tails(ev: dict) -> None:
+    print(
+        f"{ev['draws']} random {ev['runs']}-run subsets of each committed 1000-run calibration (seed {ev['seed']}); "
+        "false alarms on its 1000 runs; threshold / largest of the subset"
+    )
+    for manoeuvres, rows in ev["models"].items():
+        print(f"\n{manoeuvres}:")
+        print("  model | FA both median, p95 | FA mean map, screen | ratio p95, p99 | long lower tail: p95, > 2")
+        for name, r in rows.items():
+            print(
+                f"  {name} | {r['false_alarm_median']:.4f}, {r['false_alarm_p95']:.4f} | "
+                f"{r['false_alarm_mean_map_max_abs_z']:.4f}, {r['false_alarm_mean_screen_logp']:.4f} | "
+                f"{r['ratio_to_max_p95']:.2f}, {r['ratio_to_max_p99']:.2f} | "
+                f"{r['long_lower_tail_ratio_p95']:.2f}, {r['long_lower_tail_above_max_ratio']:.1%}"
+            )
+
+
+# --- The false-alarm rate on random vehicles (``far``) ---
+
+
+def random_flight(vehicle_seed: int) -> tuple:
+    """(description, clocks, plan) of a random vehicle flying its
+    characterisation (bench/sim/random_vehicle.py, bench/gap/plans.py)."""
+    from bench.gap.plans import characterisation_plan
+    from bench.sim.random_vehicle import random_clocks, random_description
+
+    description = random_description(vehicle_seed)
+    clocks = random_clocks(vehicle_seed, description["imu"]["rate_hz"])
+    return description, clocks, characterisation_plan(description, vehicle_seed)
+
+
+def effect_free_log(vehicle_seed: int, seed: int):
+    """An effect-free log of the random vehicle's flight, noise and clock
+    draws from ``seed``, its time stamps from its own origin (as diagnose()
+    reads a log written on a Unix epoch)."""
+    from bench.sim.flight_log import relative_to_start
+    from bench.sim.vehicle_sim import simulate
+
+    description, clocks, plan = random_flight(vehicle_seed)
+    log, _ = simulate(description, plan, {}, seed=seed, clocks=clocks, with_truth=False)
+    return relative_to_start(log)
+
+
+def _log_statistics(item) -> dict:
+    from bench.gap.detection import null_statistics
+
+    return {"seed": int(item["seed"]), **null_statistics(effect_free_log(item["vehicle"], item["seed"]))}
+
+
+def _vehicle_summary(vehicle_seed: int) -> dict:
+    description, clocks, plan = random_flight(vehicle_seed)
+    v, imu = description["vehicle"], description["imu"]
+    return {
+        "vehicle_seed": int(vehicle_seed),
+        "mass_kg": v["mass_kg"],
+        "thrusters": len(v["thrusters"]),
+        "imu_rate_hz": imu["rate_hz"],
+        "runs_flown": len(plan),
+        "flight_s": float(sum(p.duration_s for p in plan)),
+    }
+
+
+def far_vehicle(vehicle_seed: int, n_logs: int, runs: int, seed: int, campaign, cache_dir=None) -> dict:
+    """One random vehicle: a calibration made for one effect-free log (its
+    ``runs`` null runs), then that log and ``n_logs`` fresh effect-free logs
+    of the same vehicle, plan and clocks (other seeds) against its
+    thresholds. Raises ValueError when the vehicle's log cannot be diagnosed."""
+    rng = np.random.default_rng([int(seed), int(vehicle_seed)])
+    seeds = [int(s) for s in rng.integers(0, 2**31, n_logs + 1)]
+    out = _vehicle_summary(vehicle_seed)
+    from bench.gap.detection import null_statistics
+
+    log0 = effect_free_log(vehicle_seed, seeds[0])
+    own = null_statistics(log0)  # raises where the log cannot be diagnosed, before the calibration
+    cal = calibrate_for_log(log0, runs=runs, cache_dir=cache_dir, progress=campaign.progress)
+    thr = cal["thresholds"]
+    recs = campaign.map(
+        f"vehicle-{vehicle_seed}",
+        _log_statistics,
+        [{"vehicle": int(vehicle_seed), "seed": s} for s in seeds[1:]],
+        label=f"vehicle {vehicle_seed}: {n_logs} effect-free logs",
+    )
+    logs = [dict(r["result"]) if r is not None and r.get("ok") else None for r in recs]
+    failed = [r.get("error") for r in recs if r is not None and not r.get("ok")]
+
+    def judged(s: dict) -> dict:
+        over = {k: bool(s[k] > thr[k]) for k in STATISTICS}
+        return {**s, "over": over, "false_alarm": any(over.values())}
+
+    old = {k: frechet_threshold(cal[f"null_{k}"]) for k in STATISTICS}
+    out.update(
+        thresholds=thr,
+        tail=cal.get("tail"),
+        null_max={k: float(np.max(cal[f"null_{k}"])) for k in STATISTICS},
+        thresholds_before=old,  # the Gumbel on log(values) of the same null runs
+        calibration_s=cal.get("elapsed_s"),
+        calibration_from_cache=bool(cal.get("from_cache")),
+        own_log=judged({"seed": seeds[0], **own}),
+        logs=[judged(s) for s in logs if s is not None],
+        failed_logs=failed,
+    )
+    return out
+
+
+def _moved_start(prepared: tuple, plan: list) -> tuple:
+    """``prepared`` (plan_of) with every run starting at ``plan``'s start
+    pose instead of the log's first pose."""
+    import dataclasses
+
+    description, runs_flown, times, d = prepared
+    if len(runs_flown) != len(plan):
+        raise ValueError(f"the log holds {len(runs_flown)} runs, the plan {len(plan)}")
+    moved = [
+        dataclasses.replace(p, r0_hill_m=q.r0_hill_m.copy(), q0_hb=q.q0_hb.copy()) for p, q in zip(runs_flown, plan)
+    ]
+    return description, moved, times, d
+
+
+def _one_from(item, flights):
+    return _one(item["seed"], flights[item["start"]])
+
+
+def _spread(values, draws: int = 200, seed: int = 0) -> float:
+    """The standard deviation of tail_threshold over resamples of ``values``."""
+    rng = np.random.default_rng(seed)
+    v = np.asarray(values, float)
+    return float(np.std([tail_threshold(rng.choice(v, v.size))[0] for _ in range(draws)]))
+
+
+def start_pose_effect(vehicle_seed: int, runs: int, seed: int, campaign) -> dict:
+    """Whether the start pose moves the thresholds: one random vehicle's
+    calibration runs (same seeds) flown from its log's first pose and from
+    the plan's true start; per statistic both thresholds, the threshold's
+    own resampling spread, and the runs' paired differences."""
+    from bench.so3 import qconj, qlog, qmul
+
+    _, _, plan = random_flight(vehicle_seed)
+    log0 = effect_free_log(vehicle_seed, int(np.random.default_rng([int(seed), int(vehicle_seed)]).integers(2**31)))
+    prepared = plan_of(log0)
+    flights = {"first pose": (log0, prepared), "true start": (log0, _moved_start(prepared, plan))}
+    seeds = [int(s) for s in np.random.default_rng(7100).integers(0, 2**31, runs)]
+    recs = campaign.map(
+        f"start-{vehicle_seed}",
+        _one_from,
+        [{"seed": s, "start": w} for w in flights for s in seeds],
+        shared=flights,
+        label=f"vehicle {vehicle_seed}: null runs from two start poses",
+    )
+    rows = [r["result"] for r in recs]
+    a, b = thresholds_of(rows[:runs]), thresholds_of(rows[runs:])
+    p0, q0 = prepared[1][0], plan[0]
+    out = {
+        "vehicle_seed": int(vehicle_seed),
+        "first_pose_offset_m": float(np.linalg.norm(p0.r0_hill_m - q0.r0_hill_m)),
+        "first_pose_offset_deg": float(np.degrees(2 * np.linalg.norm(qlog(qmul(qconj(q0.q0_hb), p0.q0_hb))))),
+    }
+    for k in STATISTICS:
+        out[k] = {
+            "threshold_first_pose": a[0][k],
+            "threshold_true_start": b[0][k],
+            "threshold_spread": _spread(a[2][k]),
+            "paired_abs_difference_median": float(np.median(np.abs(a[2][k] - b[2][k]))),
+            "null_values_spread": float(np.std(a[2][k], ddof=1)),
+        }
+    return out
+
+
+def _rate(k: int, n: int) -> dict:
+    """k of n, with the 95 % Clopper-Pearson interval."""
+    from scipy.stats import beta
+
+    lo = float(beta.ppf(0.025, k, n - k + 1)) if k > 0 else 0.0
+    hi = float(beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
+    return {"false_alarms": int(k), "logs": int(n), "rate": k / n if n else None, "interval95": [lo, hi]}
+
+
+def far_summary(scored: list) -> dict:
+    """The false-alarm rates over every vehicle's fresh logs and own logs,
+    and how far the thresholds sit above their null runs."""
+    logs = [s for v in scored for s in v["logs"]]
+    own = [v["own_log"] for v in scored]
+    ratio = {k: [v["thresholds"][k] / v["null_max"][k] for v in scored] for k in STATISTICS}
+    ratio_before = {k: [v["thresholds_before"][k] / v["null_max"][k] for v in scored] for k in STATISTICS}
+    return {
+        "vehicles": len(scored),
+        "fresh_logs": _rate(sum(s["false_alarm"] for s in logs), len(logs)),
+        "fresh_logs_by_statistic": {k: _rate(sum(s["over"][k] for s in logs), len(logs)) for k in STATISTICS},
+        "own_logs": _rate(sum(s["false_alarm"] for s in own), len(own)),
+        "threshold_over_null_max": {k: [float(np.median(r)), float(np.max(r))] for k, r in ratio.items()},
+        "threshold_before_over_null_max": {k: [float(np.median(r)), float(np.max(r))] for k, r in ratio_before.items()},
+    }
+
+
+def far(vehicles: int, n_logs: int, runs: int, seed: int, campaign, cache_dir=None) -> dict:
+    """``far_vehicle`` for random vehicles seed, seed + 1, ... until
+    ``vehicles`` of them could be diagnosed (at most 3 * vehicles drawn);
+    the others are listed with why."""
+    t0 = time.time()
+    scored, skipped = [], []
+    vs = int(seed)
+    while len(scored) < vehicles and vs < seed + 3 * vehicles:
+        try:
+            scored.append(far_vehicle(vs, n_logs, runs, seed, campaign, cache_dir))
+        except ValueError as exc:
+            skipped.append({**_vehicle_summary(vs), "error": f"{type(exc).__name__}: {exc}"})
+            campaign.say(f"vehicle {vs}: not diagnosable ({exc})")
+        vs += 1
+    return {
+        "question": "false-alarm rate of the calibration made for a log, on effect-free logs of random vehicles",
+        "vehicles_asked": int(vehicles),
+        "logs_per_vehicle": int(n_logs),
+        "runs": int(runs),
+        "seed": int(seed),
+        "version": VERSION,
+        "summary": far_summary(scored),
+        "vehicles": scored,
+        "not_diagnosable": skipped,
+        "elapsed_s": time.time() - t0,
+    }
+
+
+def _print_far(res: dict) -> None:
+    s = res["summary"]
+    f, o = s["fresh_logs"], s["own_logs"]
+    print(
+        f"{s['vehicles']} random vehicles ({len(res['not_diagnosable'])} drawn could not be diagnosed), "
+        f"{res['runs']} null runs each"
+    )
+    if f["logs"]:
+        print(
+            f"fresh effect-free logs: {f['false_alarms']} of {f['logs']} flagged = {f['rate']:.1%} "
+            f"(95 % interval {f['interval95'][0]:.1%} to {f['interval95'][1]:.1%}); "
+            + ", ".join(f"{k} {v['false_alarms']}" for k, v in s["fresh_logs_by_statistic"].items())
+        )
+    if o["logs"]:
+        print(f"the calibrated logs themselves: {o['false_alarms']} of {o['logs']} flagged")
+    for v in res["not_diagnosable"]:
+        print(f"  vehicle {v['vehicle_seed']} ({v['imu_rate_hz']:g} Hz IMU): {v['error']}")
+
+
+def _runner_arguments(p) -> None:
+    p.add_argument("--workers", type=int, default=None, help="local Dask worker processes (default: all cores)")
+    p.add_argument("--store", default=None, help="results store (default: the campaigns')")
+
+
+def _campaign(a, name: str, arguments: dict):
+    """The campaign (bench/runner) of a subcommand: its runs on a local
+    cluster of --workers, each kept in the results store as it finishes."""
+    from bench.runner import cluster
+    from bench.runner.runner import Campaign
+    from bench.runner.store import RunStore
+
+    cluster.configure(None, a.workers)  # the calibrations' campaigns too
+    return Campaign(RunStore(name, arguments, root=a.store), workers=a.workers)
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m bench.gap.log_null", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="what", required=True)
+    t = sub.add_parser("tails", help="the tail models on random subsets of the committed 1000-run calibrations")
+    t.add_argument("--draws", type=int, default=1000)
+    t.add_argument("--runs", type=int, default=DEFAULT_RUNS)
+    t.add_argument("--seed", type=int, default=2026)
+    f = sub.add_parser("far", help="false-alarm rate of calibrations made for logs of random vehicles")
+    f.add_argument("--vehicles", type=int, default=20, help="random vehicles to score (seeds --seed, --seed + 1, ...)")
+    f.add_argument("--logs", type=int, default=10, help="fresh effect-free logs per vehicle")
+    f.add_argument("--runs", type=int, default=DEFAULT_RUNS, help="null runs per calibration")
+    f.add_argument("--seed", type=int, default=1)
+    f.add_argument("--cache", default=None, help="where the calibrations are cached (default: the diagnosis's)")
+    st = sub.add_parser("start", help="whether the start pose moves a calibration's thresholds")
+    st.add_argument("--vehicles", type=int, default=3)
+    st.add_argument("--runs", type=int, default=DEFAULT_RUNS)
+    st.add_argument("--seed", type=int, default=1)
+    for p in (f, st):
+        _runner_arguments(p)
+    for p in (t, f, st):
+        p.add_argument("--json", default=None)
+    return ap
+
+
+def main(argv=None) -> None:
+    a = _parser().parse_args(argv)
+    if a.what == "tails":
+        res = tail_evidence(a.draws, a.runs, a.seed)
+        _print_tails(res)
+    elif a.what == "start":
+        campaign = _campaign(a, "log-null-start", {"runs": a.runs, "seed": a.seed, "version": VERSION})
+        res = {"vehicles": [start_pose_effect(a.seed + i, a.runs, a.seed, campaign) for i in range(a.vehicles)]}
+        res["command"] = f"python -m bench.gap.log_null start --vehicles {a.vehicles} --runs {a.runs} --seed {a.seed}"
+        print(json.dumps(res, indent=1))
+    else:
+        args = {"vehicles": a.vehicles, "logs": a.logs, "runs": a.runs, "seed": a.seed, "version": VERSION}
+        res = far(a.vehicles, a.logs, a.runs, a.seed, _campaign(a, "log-null-far", args), a.cache)
+        res["command"] = (
+            f"python -m bench.gap.log_null far --vehicles {a.vehicles} --logs {a.logs} --runs {a.runs} --seed {a.seed}"
+        )
+        _print_far(res)
+    if a.json:
+        Path(a.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
