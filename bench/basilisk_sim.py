@@ -737,7 +737,10 @@ def simulate(
             }
         )
         t0 += seg.duration_s + clocks.gap_s
-    log = _log_of(out, description, segments, seed, h, with_truth)
+    for sg in segments:  # stamps written on the clocks' epoch (the flight simulated from zero)
+        sg["t_start_s"] += clocks.epoch_s
+        sg["t_end_s"] += clocks.epoch_s
+    log = _log_of(out, description, segments, seed, h, with_truth, clocks.epoch_s)
     key = {
         "seed": int(seed),
         "engine": "basilisk",
@@ -785,13 +788,19 @@ def _measure_poses(out: dict, desc, effects: dict, clocks: Clocks, rng, noise: b
         out["prs"].append(max(sig, 1e-6))
 
 
-def _log_of(out: dict, description: dict, segments: list, seed: int, h: float, with_truth: bool) -> FlightLog:
-    """The flight log (format 2) of the collected streams."""
+def _log_of(
+    out: dict, description: dict, segments: list, seed: int, h: float, with_truth: bool, epoch_s: float = 0.0
+) -> FlightLog:
+    """The flight log (format 2) of the collected streams, every time stamp
+    written ``epoch_s`` later."""
     cat = {
         k: np.concatenate(v)
         for k, v in out.items()
         if k in ("imu_t", "acc", "gyr", "vt", "von", "tt", "tr", "tv", "tq", "tw")
     }
+    for k in ("imu_t", "vt", "tt"):
+        cat[k] = cat[k] + epoch_s
+    out = dict(out, pc=[x + epoch_s for x in out["pc"]], pd=[x + epoch_s for x in out["pd"]])
     pc = np.asarray(out["pc"], float)
     log_desc = dict(description)
     log_desc["segments"] = segments

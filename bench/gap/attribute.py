@@ -134,7 +134,9 @@ def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
     return np.vstack([Jn, Jd]), Jd_full
 
 
-def ln_bayes_factor(two_dll: float, u: np.ndarray, Ju: np.ndarray, nonnegative: bool = False) -> float:
+def ln_bayes_factor(
+    two_dll: float, u: np.ndarray, Ju: np.ndarray | None, nonnegative: bool = False, F: np.ndarray | None = None
+) -> float:
     """ln Bayes factor of a candidate against the nominal model by Laplace's
     approximation at the fit. Parameters in units of the candidate's typical
     size (Candidate.scale), each with a Cauchy prior of unit scale: heavy
@@ -150,10 +152,11 @@ def ln_bayes_factor(two_dll: float, u: np.ndarray, Ju: np.ndarray, nonnegative: 
     A candidate whose parameters are non-negative by definition has a
     half-Cauchy prior (twice the density on half the line, + ln 2 each), and
     a parameter held at zero by that bound keeps only the half of its
-    Gaussian posterior that lies inside (- ln 2 each).
+    Gaussian posterior that lies inside (- ln 2 each). ``F``: Ju^T Ju, when
+    already at hand.
     """
     k = u.size
-    F = Ju.T @ Ju
+    F = Ju.T @ Ju if F is None else F
     _, logdet = np.linalg.slogdet(np.eye(k) + F)
     ln_prior = float(np.sum(-np.log(np.pi) - np.log1p(u**2)))
     if nonnegative:
@@ -218,6 +221,32 @@ def numerical_rank(J: np.ndarray) -> int:
     return int(np.linalg.matrix_rank(J / (np.linalg.norm(J, axis=0) + 1e-300)))
 
 
+def _screen_fit(c: Candidate, J: np.ndarray, e0: np.ndarray) -> tuple:
+    """(theta, sigma, 2 dLL, rank, beyond, R) of the linearised GLR of one
+    candidate, solved on the k x k triangle of J's QR decomposition (the
+    rows are tens of thousands, the parameters few): |e0 + J u|^2 =
+    |Q^T e0 + R u|^2 + what no u reaches, with J's own conditioning."""
+    k = J.shape[1]
+    from scipy.linalg import qr
+
+    (Ra,) = qr(np.column_stack([J, -e0]), mode="r", check_finite=False)  # [R, Q^T (-e0)]: Q never formed
+    R, y = np.triu(Ra[:k, :k]), Ra[:k, k]
+    rank = numerical_rank(R)  # R's columns have J's norms and J's singular values
+    if rank == 0:
+        return None
+    rcond = np.finfo(float).eps * max(J.shape)
+    u = np.linalg.lstsq(R, y, rcond=rcond)[0]
+    sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(R.T @ R)), 0, None))
+    beyond = bound_excess(u, sig, c.bound, c.lower)
+    if np.any(u > c.bound) or np.any(u < c.lower):
+        from scipy.optimize import lsq_linear
+
+        u = lsq_linear(R, y, bounds=(c.lower, c.bound)).x
+    r = R @ u - y
+    two_dll = float(y @ y - r @ r)  # |e0|^2 - |e0 + J u|^2
+    return u, sig, two_dll, rank, beyond, R
+
+
 def screen(ctx: Context, names=None, progress=None) -> list:
     e0, rows_ok = training_residuals(ctx)
     n_obs = e0.size
@@ -225,23 +254,15 @@ def screen(ctx: Context, names=None, progress=None) -> list:
     for name in names or CANDIDATES:
         c = candidate(ctx.d, name)
         J, Jd_full = signature(ctx, name, rows_ok, progress)
-        rank = numerical_rank(J)
-        if rank == 0:
+        fit = _screen_fit(c, J, e0)
+        if fit is None:
             fits.append(Fit(name, c.kind, np.zeros(c.n_params), np.full(c.n_params, np.nan), 0.0, -np.inf, 0))
             continue
-        u, *_ = np.linalg.lstsq(J, -e0, rcond=None)
-        sig = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)), 0, None))
-        beyond = bound_excess(u, sig, c.bound, c.lower)
-        if np.any(u > c.bound) or np.any(u < c.lower):
-            from scipy.optimize import lsq_linear
-
-            u = lsq_linear(J, -e0, bounds=(c.lower, c.bound)).x
-        r1 = e0 + J @ u
-        two_dll = float(e0 @ e0 - r1 @ r1)
+        u, sig, two_dll, rank, beyond, R = fit
         f = Fit(name, c.kind, u, sig, two_dll, two_dll - rank * np.log(n_obs), rank, screen_logp(two_dll, rank))
         f.bound_excess_sigma = beyond
         f.J_u = J * c.scale
-        f.screen_ln_bf = ln_bayes_factor(two_dll, u / c.scale, f.J_u, c.nonnegative)
+        f.screen_ln_bf = ln_bayes_factor(two_dll, u / c.scale, R * c.scale, c.nonnegative)
         f.Jd_full = Jd_full
         fits.append(f)
     # Screening order: the GLR's p-value (the detection statistic), which
@@ -249,6 +270,42 @@ def screen(ctx: Context, names=None, progress=None) -> list:
     # then ranked by their Bayes factors.
     fits.sort(key=lambda f: -f.screen_logp)
     return fits
+
+
+def _chord_fit(resid, J: np.ndarray, u0: np.ndarray, lb, ub, max_iter: int = 30, tol: float = 1e-8):
+    """Bounded least squares of a mildly nonlinear residual by chord steps:
+    each step the minimum-norm solution of the linear problem with the fixed
+    Jacobian ``J`` (its QR triangle: k rows) from the residual where it
+    stands, inside the bounds (exactly where every direction is seen; a
+    loss stays >= 0). Minimum norm where some are not: directions the data
+    do not see (a nozzle turned about its own thrust axis) stay where they
+    start instead of wandering to a bound. Returns an object with ``x`` and
+    ``jac`` (the k x k triangle, whose R^T R is J^T J)."""
+    from types import SimpleNamespace
+
+    from scipy.linalg import qr
+    from scipy.optimize import lsq_linear
+
+    Q, R = qr(J, mode="economic", check_finite=False)
+    rcond = 1e-6
+    u = np.clip(np.asarray(u0, float).copy(), lb, ub)
+    # From the screen's fit, its part the data do not see removed.
+    _, sv, vt = np.linalg.svd(R)
+    seen = vt[sv > sv[0] * rcond]
+    u = np.clip(seen.T @ (seen @ u), lb, ub)
+    full = seen.shape[0] == u.size
+    for _ in range(max_iter):
+        y = -(Q.T @ resid(u))
+        if full:  # every direction seen: the bounded step exactly (a loss is >= 0)
+            step = lsq_linear(R, y, bounds=(lb - u, ub - u)).x
+        else:
+            step = np.linalg.lstsq(R, y, rcond=rcond)[0]
+        new = np.clip(u + step, lb, ub)
+        done = np.linalg.norm(new - u) <= tol * (1.0 + np.linalg.norm(u))
+        u = new
+        if done:
+            break
+    return SimpleNamespace(x=u, jac=R)
 
 
 def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
@@ -292,14 +349,15 @@ def confirm(ctx: Context, fit: Fit, max_nfev: int = 12) -> Fit:
     elif has_dyn:
         # Dynamics only: the exact channel is cheap, so the fit is refined on it
         # from the screen's linearised one (a tilt is a rotation, a mass flow
-        # divides, a sensor error enters the gyroscopic term).
-        sol = least_squares(
+        # divides, a sensor error enters the gyroscopic term), by chord steps
+        # with the Jacobian at the nominal model (a tilt has 3 parameters per
+        # valve: a finite difference per parameter per step cost 10 s).
+        sol = _chord_fit(
             lambda u: dyn_after(u * sc)[ctx.train_dyn].ravel(),
+            ch.jacobian(fit.name)[ctx.train_dyn].reshape(-1, c.n_params) * sc,
             u0,
-            method="trf",
-            bounds=(lb, ub),
-            max_nfev=max_nfev,
-            x_scale=1.0,
+            lb,
+            ub,
         )
         theta, J_u = sol.x * sc, sol.jac
         sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
