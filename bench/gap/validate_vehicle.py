@@ -163,7 +163,7 @@ def _size_one(key, calibration):
     return key
 
 
-def _run_one(key, calibration, simulate=None, source: str = "the 12 kg vehicle's null calibration"):
+def _run_one(key, calibration, simulate=None, source: str = "the 12 kg vehicle's null calibration", null_runs=None):
     # simulate(key, effects): the flight of the key's run (default: this vehicle's plant).
     simulate = simulate or simulate_key
     from bench.gap.candidates import candidates_of
@@ -174,7 +174,7 @@ def _run_one(key, calibration, simulate=None, source: str = "the 12 kg vehicle's
     t0 = time.time()
     log = simulate(key)
     t_sim = time.time() - t0
-    res = diagnose(log, calibration=calibration, calibration_source=source)
+    res = diagnose(log, calibration=calibration, calibration_source=source, calibration_runs=null_runs)
     pub = public(res)
     out = {
         "run": key["run"],
