@@ -92,7 +92,6 @@ def _campaign(args):
 
 
 def main(args):
-    from bench.gap.validate import run_campaign
     from bench.report import write_json
 
     if args.engine == "basilisk" and args.mixtures:
@@ -112,25 +111,7 @@ def main(args):
         for line in validate_mixtures.summary_lines(res):
             print(line)
         return 0
-    if args.vehicle == "random":
-        from bench.gap import validate_random
-
-        res = validate_random.run_campaign(args.runs, args.seed, args.json, engine=args.engine, campaign=campaign)
-        res["manoeuvres"] = f"characterisation (random vehicles, {args.engine} logs)"
-    elif args.engine == "basilisk":
-        from bench.gap import validate_basilisk
-
-        res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
-        res["manoeuvres"] = f"characterisation (12 kg, Basilisk {res['basilisk_version']})"
-    elif args.vehicle == "12kg":
-        from bench.gap import validate_vehicle
-
-        res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
-        res["manoeuvres"] = "characterisation (12 kg)"
-    else:
-        res = run_campaign(
-            args.runs, args.seed, args.json, duration_s=args.duration, manoeuvres=args.manoeuvres, campaign=campaign
-        )
+    res = _single_effects(args, campaign)
     if args.json:
         from pathlib import Path
 
@@ -172,3 +153,29 @@ def main(args):
             f"{nv['said_dynamics_not_examined']}"
         )
     return 0
+
+
+def _single_effects(args, campaign) -> dict:
+    """The single-effect campaign the arguments name."""
+    from bench.gap.validate import run_campaign
+
+    if args.vehicle == "random":
+        from bench.gap import validate_random
+
+        res = validate_random.run_campaign(args.runs, args.seed, args.json, engine=args.engine, campaign=campaign)
+        res["manoeuvres"] = f"characterisation (random vehicles, {args.engine} logs)"
+    elif args.engine == "basilisk":
+        from bench.gap import validate_basilisk
+
+        res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
+        res["manoeuvres"] = f"characterisation (12 kg, Basilisk {res['basilisk_version']})"
+    elif args.vehicle == "12kg":
+        from bench.gap import validate_vehicle
+
+        res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
+        res["manoeuvres"] = "characterisation (12 kg)"
+    else:
+        res = run_campaign(
+            args.runs, args.seed, args.json, duration_s=args.duration, manoeuvres=args.manoeuvres, campaign=campaign
+        )
+    return res

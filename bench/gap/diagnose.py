@@ -710,6 +710,16 @@ def _set_member(ctx, sf, step: dict, sh: dict, dll_h: float, held_shrink, held_d
     }
 
 
+def _members_shrink(members: list, sh: dict) -> bool:
+    """Each member shrinks the held-out deficit beside the others, and the
+    set's shrink interval excludes zero where it is measured: a member that
+    adds log-likelihood but no shrink fits noise or another effect's
+    look-alike (a hinged panel's momentum exchange read as a loss of under
+    1 % with 0 % shrink)."""
+    each = all(m["adds_shrink"] is None or m["adds_shrink"] > 0.0 for m in members)
+    return each and (not sh["measurable"] or not np.isfinite(sh["ci95"][0]) or sh["ci95"][0] > 0.0)
+
+
 def _effect_set(
     ctx,
     fits,
@@ -761,18 +771,10 @@ def _effect_set(
     )
     # A partial answer: every member earns its place on the held-out data and
     # contradicts no channel, and what is left is still a gap.
-    # Each member must also shrink the held-out deficit beside the others,
-    # and the set's shrink interval must exclude zero where it is measured:
-    # a member that adds log-likelihood but no shrink fits noise or another
-    # effect's look-alike (a hinged panel's momentum exchange read as a loss
-    # of under 1 % with 0 % shrink).
-    shrinks = all(m["adds_shrink"] is None or m["adds_shrink"] > 0.0 for m in members) and (
-        not sh["measurable"] or not np.isfinite(sh["ci95"][0]) or sh["ci95"][0] > 0.0
-    )
     partly = bool(
         not explains
         and needed
-        and shrinks
+        and _members_shrink(members, sh)
         and consistent
         and dll_h > HELDOUT_DLL_MIN
         and (remainder_left or not shrink_ok)
