@@ -82,6 +82,7 @@ class DynChannel:
     accel_raw: np.ndarray  # (N, 3) IMU axes
     gyro_raw: np.ndarray  # (N, 3) IMU axes
     c_hb: np.ndarray | None  # (N, 3, 3) body -> Hill along the reference trajectory, or None
+    accel_whiten: np.ndarray | None = None  # (N, 3, 3) L^-1 of each accelerometer row's covariance
     _jac: dict = field(default_factory=dict)
 
     @property
@@ -186,7 +187,8 @@ class DynChannel:
         d_hat = turn @ M
         if "gyro_scale" in p:
             d_hat = d_hat * (1.0 + np.asarray(p["gyro_scale"], float))
-        e_a = ((self.accel_raw - a_hat) / self.sig_a) @ self.c_bi.T
+        r_a = (self.accel_raw - a_hat) @ self.c_bi.T
+        e_a = r_a / self.sig_a if self.accel_whiten is None else np.einsum("nij,nj->ni", self.accel_whiten, r_a)
         d_meas = self.gyro_raw[k] - self.gyro_raw[k - 1]
         e_g = self.whiten_gyro(((d_meas - d_hat) / self.sig_g) @ self.c_bi.T)
         return np.vstack([e_a, e_g])
@@ -323,8 +325,37 @@ def build(d: LogData) -> DynChannel | None:
         gyro_raw=d.imu_gyro_raw if d.imu_gyro_raw is not None else d.gyro @ c_bi,
         c_hb=rotmats(d.ref_q) if d.ref_q is not None else None,
     )
+    ch.accel_whiten = accel_whitener(ch)
     ch.e0 = ch.residual()
     return ch
+
+
+def accel_whitener(ch: DynChannel) -> np.ndarray | None:
+    """(N, 3, 3) L^-1 with L L^T each accelerometer row's covariance: its
+    own noise and the gyro's, which the predicted lever-arm terms
+    alpha x rho + w x (w x rho) carry (the measured rate enters them). A
+    small vehicle slewing at 0.5 rad/s with its IMU 0.2 m from the centre
+    of mass reads the gyro's noise there above the accelerometer's; whitened
+    by the accelerometer's alone, a null log's variance showed at z = 24.
+    Taken at the nominal model, so it is the same for every candidate."""
+    if not np.any(ch.rho != 0.0):
+        return None
+    _, w = ch.imu_body({})
+    J = np.asarray(ch.veh.inertia_kgm2, float)
+    Jinv = np.linalg.inv(J)
+    rho = ch.rho
+    # d(alpha)/dw = -J^-1 ([w]x J - [J w]x); d(alpha x rho)/dw = -[rho]x d(alpha)/dw
+    dalpha = -Jinv[None] @ (_skew_rows(w) @ J[None] - _skew_rows(w @ J.T))
+    S_rho = _skew_rows(np.broadcast_to(rho, w.shape))
+    wr = w @ rho
+    G = (
+        -S_rho @ dalpha
+        + wr[:, None, None] * np.eye(3)
+        + w[:, :, None] * rho[None, None, :]
+        - 2.0 * rho[None, :, None] * w[:, None, :]
+    )
+    cov = ch.sig_a**2 * np.eye(3) + ch.sig_g**2 * G @ np.transpose(G, (0, 2, 1))
+    return np.linalg.inv(np.linalg.cholesky(cov))
 
 
 def _open_time_integral(start: np.ndarray, dur: np.ndarray, t: np.ndarray) -> np.ndarray:
