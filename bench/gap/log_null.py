@@ -680,9 +680,12 @@ def _vehicle_summary(vehicle_seed: int) -> dict:
 
 def far_vehicle(vehicle_seed: int, n_logs: int, runs: int, seed: int, campaign, cache_dir=None) -> dict:
     """One random vehicle: a calibration made for one effect-free log (its
-    ``runs`` null runs), then that log and ``n_logs`` fresh effect-free logs
-    of the same vehicle, plan and clocks (other seeds) against its
-    thresholds. Raises ValueError when the vehicle's log cannot be diagnosed."""
+    ``runs`` null runs), then that log against its thresholds (what a team
+    diagnosing its own log sees) and ``n_logs`` fresh effect-free logs of
+    the same vehicle, plan and clock model against them (other noise and
+    other clock draws: such a log's time stamps differ, so it would get a
+    calibration of its own; against this one the test is stricter). Raises
+    ValueError when the vehicle's log cannot be diagnosed."""
     rng = np.random.default_rng([int(seed), int(vehicle_seed)])
     seeds = [int(s) for s in rng.integers(0, 2**31, n_logs + 1)]
     out = _vehicle_summary(vehicle_seed)
@@ -787,6 +790,8 @@ def _rate(k: int, n: int) -> dict:
     """k of n, with the 95 % Clopper-Pearson interval."""
     from scipy.stats import beta
 
+    if n == 0:
+        return {"false_alarms": 0, "logs": 0, "rate": None, "interval95": None}
     lo = float(beta.ppf(0.025, k, n - k + 1)) if k > 0 else 0.0
     hi = float(beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
     return {"false_alarms": int(k), "logs": int(n), "rate": k / n if n else None, "interval95": [lo, hi]}
@@ -851,7 +856,7 @@ def _print_far(res: dict) -> None:
             + ", ".join(f"{k} {v['false_alarms']}" for k, v in s["fresh_logs_by_statistic"].items())
         )
     if o["logs"]:
-        print(f"the calibrated logs themselves: {o['false_alarms']} of {o['logs']} flagged")
+        print(f"logs against the calibration made for each: {o['false_alarms']} of {o['logs']} flagged")
     for v in res["not_diagnosable"]:
         print(f"  vehicle {v['vehicle_seed']} ({v['imu_rate_hz']:g} Hz IMU): {v['error']}")
 
