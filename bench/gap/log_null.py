@@ -48,11 +48,13 @@ import numpy as np
 FA_EACH = 0.005
 DEFAULT_RUNS = 40
 # 2: the tail fitted to the top of the values; the pose noise at the log's
-# own sigmas; the key without absolute times or the first pose.
+# own sigmas; the key without absolute times or the first pose. 3: the
+# statistics of the exact candidates.
 VERSION = 3  # bump when the bootstrap, the tail or the diagnosis statistics change
 STATISTICS = ("map_max_abs_z", "screen_logp")
 TAIL_FRACTION = 0.6  # the share of the runs, from the top, whose excesses are fitted
-SIGMA_DIGITS = 2  # significant digits of the pose sigmas' median in the key
+TIME_QUANTUM_S = 1e-6  # time stamps in the key, relative to their run's start
+SIGMA_DIGITS = 3  # significant digits of the pose sigmas in the key
 EULER_GAMMA = 0.5772156649015329
 
 
@@ -160,53 +162,32 @@ def _significant(a, digits: int = SIGMA_DIGITS) -> list:
     return [f"{float(x):.{digits}g}" for x in np.ravel(a)]
 
 
-def _sig1(x: float) -> str:
-    """One significant digit: the coarse size of a spread in the key."""
-    return f"{float(x):.1g}"
-
-
-def _timing_shape(tm: dict, dt: float) -> dict:
-    """A run's time stamps as the thresholds depend on them: the IMU's
-    interval, jitter (its spread over the interval, one significant digit)
-    and share of dropped samples (to 5 %), the pose period (to 10 ms); not
-    each stamp, which another flight of the same plan jitters differently,
-    nor the delivery delays (the replay fuses each pose at its capture)."""
-    d_imu = np.diff(np.asarray(tm["imu_t"], float))
-    regular = d_imu[d_imu < 1.5 * dt]
-    d_pose = np.diff(np.asarray(tm["pose_t"], float))
-    return {
-        "imu_interval_us": int(round(dt * 1e6)),
-        "imu_jitter": _sig1(np.std(regular) / dt) if regular.size > 1 else "0",
-        "imu_dropped_5pct": int(round(20.0 * np.mean(d_imu >= 1.5 * dt))) if d_imu.size else 0,
-        "pose_period_10ms": int(round(float(np.median(d_pose)) * 1e2)) if d_pose.size else 0,
-    }
-
-
 def key_contents(log, runs: int, seed: int, prepared=None) -> dict:
     """What a calibration for ``log`` depends on, as the cache keys it: the
     statistics' VERSION, runs, seed, the description (vehicle, sensors,
     noise model; not its segments' absolute times), whether valves were
-    logged, and per run its length and valve commands (to the millisecond,
-    from its first command), its timing shape (``_timing_shape``) and its
-    poses' stated sigmas (their median, to SIGMA_DIGITS significant digits).
-    Not the first pose nor each time stamp: another flight of the same
-    vehicle and plan starts elsewhere by its noise and jitters otherwise,
-    and neither moves the thresholds (docs/GAP.md); that flight finds the
-    calibration made for the first."""
+    logged, and per run its length, valve commands and on-times, IMU time
+    stamps, pose capture times and delivery delays (all relative to the
+    run's start, in TIME_QUANTUM_S) and its poses' stated sigmas (to
+    SIGMA_DIGITS significant digits). Each stamp, not a summary of them:
+    another flight of the same vehicle and plan whose samples jitter and
+    drop otherwise can need other thresholds (docs/GAP.md). Not the first
+    pose: the runs start there, but its noise does not move the thresholds."""
     description, plan, times, d = prepared or plan_of(log)
+    q = TIME_QUANTUM_S
     per_run = []
     for p, tm in zip(plan, times):
+        t0 = float(tm["imu_t"][0] - d.dt_s)
         per_run.append(
             {
-                # The run's start is its first IMU stamp, which jitter moves:
-                # commands from the first (to the millisecond), the rest to 0.1 s.
-                "duration_100ms": int(_quantised(p.duration_s, 0.1)),
-                "first_cmd_100ms": int(_quantised(p.cmd_t_s[0], 0.1)) if p.cmd_t_s.size else None,
-                "cmd_t_ms": _quantised(p.cmd_t_s - (p.cmd_t_s[0] if p.cmd_t_s.size else 0.0), 1e-3).tolist(),
-                "cmd_on_ms": _quantised(p.cmd_on_s, 1e-3).tolist(),
-                **_timing_shape(tm, d.dt_s),
-                "r_sigma_m": _significant([np.median(tm["r_sigma_m"])] if len(tm["r_sigma_m"]) else []),
-                "att_sigma_rad": _significant([np.median(tm["att_sigma_rad"])] if len(tm["att_sigma_rad"]) else []),
+                "duration": int(_quantised(p.duration_s, q)),
+                "cmd_t": _quantised(p.cmd_t_s, q).tolist(),
+                "cmd_on": _quantised(p.cmd_on_s, q).tolist(),
+                "imu_t": _quantised(tm["imu_t"] - t0, q).tolist(),
+                "pose_t": _quantised(tm["pose_t"] - t0, q).tolist(),
+                "pose_delay": _quantised(tm["pose_delay"], q).tolist(),
+                "r_sigma_m": _significant(tm["r_sigma_m"]),
+                "att_sigma_rad": _significant(tm["att_sigma_rad"]),
             }
         )
     return {

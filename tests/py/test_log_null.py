@@ -216,10 +216,13 @@ def test_false_alarm_campaign_mechanics(tmp_path):
     assert again["summary"] == res["summary"]
 
 
-def test_another_flight_of_the_plan_with_its_own_jitter_finds_the_calibration():
+def test_another_flight_of_the_plan_with_its_own_jitter_gets_its_own_calibration():
     """Two flights of one vehicle and plan, each with its own jittered and
-    dropped IMU samples, pose jitter and noise: one key (the timing's shape,
-    not each stamp); a flight at another IMU rate does not share it."""
+    dropped IMU samples: two keys. A null calibration depends on the stamps
+    themselves, not only on their jitter's size: on a random vehicle the
+    same 40 null seeds flown on two such flights' stamps gave screening
+    thresholds of 3.7 and 12.2 (docs/GAP.md). A flight at another IMU rate
+    has another key too."""
     from bench.gap.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate
@@ -232,7 +235,7 @@ def test_another_flight_of_the_plan_with_its_own_jitter_finds_the_calibration():
     a, _ = simulate(desc, plan, {}, seed=21, clocks=clocks, with_truth=False)
     b, _ = simulate(desc, plan, {}, seed=22, clocks=dataclasses.replace(clocks, epoch_s=clocks.epoch_s + 3600.0))
     assert not np.array_equal(np.diff(a["imu"]["t_s"]), np.diff(b["imu"]["t_s"]))  # other jitter and drops
-    assert log_null.fingerprint(a, 40, 7100) == log_null.fingerprint(b, 40, 7100)
+    assert log_null.fingerprint(a, 40, 7100) != log_null.fingerprint(b, 40, 7100)
     faster = dict(desc, imu=dict(desc["imu"], rate_hz=2 * desc["imu"]["rate_hz"]))
     c, _ = simulate(faster, plan, {}, seed=21, clocks=clocks, with_truth=False)
     assert log_null.fingerprint(c, 40, 7100) != log_null.fingerprint(a, 40, 7100)
