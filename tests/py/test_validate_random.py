@@ -37,6 +37,4 @@ def test_a_small_campaign_runs_end_to_end(tmp_path, monkeypatch):
         a["verdict"] in ("no_gap", "explained", "ambiguous", "unexplained", "partly_explained") for a in res["answers"]
     )
     assert res["first_answer_s"]["max"] > 0.0
-    # Each log was thresholded by a calibration made for it (cached).
-    assert list((tmp_path / "cache" / "null_calibration").glob("*.json"))
     assert all(a["gap_detected"] == (a["verdict"] != "no_gap") for a in res["answers"])
