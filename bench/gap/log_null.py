@@ -698,6 +698,8 @@ def far_vehicle(vehicle_seed: int, n_logs: int, runs: int, seed: int, campaign, 
         calibration_s=cal.get("elapsed_s"),
         calibration_from_cache=bool(cal.get("from_cache")),
         own_log=judged({"seed": seeds[0], **own}),
+        null={k: cal[f"null_{k}"] for k in STATISTICS},
+        leave_one_out=leave_one_out({k: cal[f"null_{k}"] for k in STATISTICS}),
         logs=[judged(s) for s in logs if s is not None],
         failed_logs=failed,
     )
@@ -767,6 +769,20 @@ def start_pose_effect(vehicle_seed: int, runs: int, seed: int, campaign) -> dict
     return out
 
 
+def leave_one_out(null: dict) -> tuple:
+    """(flagged, runs): each of a calibration's null runs judged against the
+    thresholds of the others (either statistic over its threshold): the
+    false-alarm rate of a calibration of n - 1 runs for a log exchangeable
+    with its bootstrap, on that log's own null distribution."""
+    vals = [np.asarray(null[k], float) for k in STATISTICS]
+    n = vals[0].size
+    flagged = 0
+    for i in range(n):
+        keep = np.arange(n) != i
+        flagged += any(v[i] > tail_threshold(v[keep])[0] for v in vals)
+    return int(flagged), int(n)
+
+
 def _rate(k: int, n: int) -> dict:
     """k of n, with the 95 % Clopper-Pearson interval."""
     from scipy.stats import beta
@@ -790,6 +806,7 @@ def far_summary(scored: list) -> dict:
         "fresh_logs": _rate(sum(s["false_alarm"] for s in logs), len(logs)),
         "fresh_logs_by_statistic": {k: _rate(sum(s["over"][k] for s in logs), len(logs)) for k in STATISTICS},
         "own_logs": _rate(sum(s["false_alarm"] for s in own), len(own)),
+        "leave_one_out": _rate(*(int(x) for x in np.sum([v["leave_one_out"] for v in scored] or [(0, 0)], axis=0))),
         "threshold_over_null_max": {k: [float(np.median(r)), float(np.max(r))] for k, r in ratio.items()},
         "threshold_before_over_null_max": {k: [float(np.median(r)), float(np.max(r))] for k, r in ratio_before.items()},
     }
@@ -838,6 +855,11 @@ def _print_far(res: dict) -> None:
         )
     if o["logs"]:
         print(f"logs against the calibration made for each: {o['false_alarms']} of {o['logs']} flagged")
+    if s.get("leave_one_out"):
+        loo = s["leave_one_out"]
+        print(
+            f"null runs against the thresholds of the others: {loo['false_alarms']} of {loo['logs']} = {loo['rate']:.1%}"
+        )
     for v in res["not_diagnosable"]:
         print(f"  vehicle {v['vehicle_seed']} ({v['imu_rate_hz']:g} Hz IMU): {v['error']}")
 

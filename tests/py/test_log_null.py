@@ -47,6 +47,15 @@ def test_a_long_lower_tail_does_not_move_the_threshold():
         assert frechet_threshold(low) > MAX_RATIO * low.max()
 
 
+def test_leave_one_out_judges_each_null_run_by_the_others():
+    rng = np.random.default_rng(3)
+    null = {k: rng.gumbel(3.0, 0.5, 40) for k in STATISTICS}
+    flagged, n = log_null.leave_one_out(null)
+    assert n == 40 and 0 <= flagged <= 3
+    null["screen_logp"][7] = 50.0  # far above the others: flagged
+    assert log_null.leave_one_out(null)[0] >= 1
+
+
 def test_the_tail_is_fitted_to_the_top_and_recorded():
     v = np.arange(1.0, 41.0)
     thr, tail = tail_threshold(v)
@@ -204,13 +213,14 @@ def test_false_alarm_campaign_mechanics(tmp_path):
     assert res["summary"]["vehicles"] == len(res["vehicles"]) == 2
     for v in res["vehicles"]:
         assert len(v["logs"]) == 2 and not v["failed_logs"] and not v["calibration_from_cache"]
-        assert v["tail"]["map_max_abs_z"]["n"] == 3
+        assert v["tail"]["map_max_abs_z"]["n"] == 3 and v["leave_one_out"][1] == 3
         for s in [v["own_log"]] + v["logs"]:
             over = {k: s[k] > v["thresholds"][k] for k in STATISTICS}
             assert s["over"] == over and s["false_alarm"] == any(over.values())
     f = res["summary"]["fresh_logs"]
     assert f["logs"] == 4 and f["false_alarms"] == sum(s["false_alarm"] for v in res["vehicles"] for s in v["logs"])
     assert 0.0 <= f["interval95"][0] <= f["interval95"][1] <= 1.0
+    assert res["summary"]["leave_one_out"]["logs"] == 6
     again = run()  # resumed: the calibrations from their cache, the logs' statistics from the store
     assert all(v["calibration_from_cache"] for v in again["vehicles"])
     assert again["summary"] == res["summary"]
