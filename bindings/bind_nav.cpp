@@ -1,8 +1,10 @@
-// Bindings of the navigation filter (fsw/nav_ukf.hpp): NavConfig, NavUkf
-// (9-state, double) and its step record. Arrays are checked here (shape,
+// Bindings of the navigation filter (fsw/nav_ukf.hpp): NavConfig, every
+// variant the flight code builds (NavUkf: 9 states, double; NavUkfFloat;
+// NavUkf15 and NavUkf15Float with the bias states) and their step records. Arrays are checked here (shape,
 // finiteness, unit quaternion) and raise ValueError naming the argument; the
 // flight code's own BadInput paths remain for what only it can judge
 // (timing, history, configuration).
+#include <cmath>
 #include <string>
 
 #include "bind.hpp"
@@ -13,8 +15,6 @@ using namespace bind_detail;
 
 namespace {
 using Cfg = fsw::NavConfig<double>;
-using Ukf = fsw::NavUkf<double, false>;
-using Rec = Ukf::Record;
 
 void bind_config(py::module_& m) {
   py::class_<Cfg>(m, "NavConfig", "Navigation filter configuration (plain struct, all fields read/write, SI units).")
@@ -56,36 +56,91 @@ void bind_config(py::module_& m) {
       });
 }
 
-void bind_record(py::module_& m) {
-  py::class_<Rec>(m, "NavStepRecord", "What one navigation filter step did.")
+// The flight configuration in the filter's scalar (the Python NavConfig is
+// the double one; a float filter takes its fields rounded to float).
+template <typename S>
+fsw::NavConfig<S> config_as(const Cfg& c) {
+  fsw::NavConfig<S> o;
+  o.n_radps = S(c.n_radps);
+  o.dt_imu_s = c.dt_imu_s;
+  o.accel_sigma_mps2 = S(c.accel_sigma_mps2);
+  o.gyro_sigma_rps = S(c.gyro_sigma_rps);
+  o.gap_accel_sigma_mps2 = S(c.gap_accel_sigma_mps2);
+  o.gap_gyro_sigma_rps = S(c.gap_gyro_sigma_rps);
+  o.gyro_bias_walk = S(c.gyro_bias_walk);
+  o.accel_bias_walk = S(c.accel_bias_walk);
+  o.gate_chi2 = S(c.gate_chi2);
+  o.max_delay_s = c.max_delay_s;
+  o.time_tol_s = c.time_tol_s;
+  o.max_dt_s = c.max_dt_s;
+  o.max_gap_s = c.max_gap_s;
+  o.alpha = S(c.alpha);
+  o.beta = S(c.beta);
+  o.kappa = S(c.kappa);
+  o.var_min = S(c.var_min);
+  o.pos_var_max_m2 = S(c.pos_var_max_m2);
+  o.vel_var_max_m2ps2 = S(c.vel_var_max_m2ps2);
+  o.att_var_max_rad2 = S(c.att_var_max_rad2);
+  o.gyro_bias_var_max = S(c.gyro_bias_var_max);
+  o.accel_bias_var_max = S(c.accel_bias_var_max);
+  o.quat_unit_tol = S(c.quat_unit_tol);
+  return o;
+}
+
+// Three finite doubles from a 1-D array, without the generic accessor's
+// per-element checks (the hot path of predict and update_pose).
+template <typename S>
+fsw::Vec3<S> vec3_as(const Arr& a, const char* name) {
+  if (a.ndim() != 1 || a.shape(0) != 3) throw py::value_error(std::string(name) + ": expected shape (3,), got " + shape_str(a));
+  const double* p = a.data();
+  if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])))
+    throw py::value_error(std::string(name) + ": element is not finite");
+  return fsw::Vec3<S>(S(p[0]), S(p[1]), S(p[2]));
+}
+
+template <typename Derived>
+auto cast_to(const Eigen::MatrixBase<Derived>& m) {
+  return m.template cast<double>().eval();
+}
+
+template <typename S>
+void bind_record(py::module_& m, const char* name) {
+  using R = fsw::StepRecord<S, 6>;
+  py::class_<R>(m, name, "What one navigation filter step did.")
       .def_property_readonly(
-          "status", [](const Rec& r) { return std::string(fsw::to_string(r.status)); },
+          "status", [](const R& r) { return fsw::to_string(r.status); },
           "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
       .def_property_readonly(
-          "detail", [](const Rec& r) { return std::string(fsw::to_string(r.detail)); },
+          "detail", [](const R& r) { return fsw::to_string(r.detail); },
           "Finer reason, e.g. 'too_old', 'off_tick', 'time_not_increasing'.")
-      .def_readonly("fused", &Rec::fused)
-      .def_readonly("t_s", &Rec::t_s, "Time of the step (capture time for a pose) [s].")
+      .def_readonly("fused", &R::fused)
+      .def_readonly("t_s", &R::t_s, "Time of the step (capture time for a pose) [s].")
       .def_property_readonly(
-          "innovation", [](const Rec& r) { return to_numpy(r.innovation); },
+          "innovation", [](const R& r) { return to_numpy(cast_to(r.innovation)); },
           "(6,) [r_meas - r_pred (Hill, m), q_meas [-] q_pred (rad, body)]; zeros for predict.")
       .def_property_readonly(
-          "innovation_cov", [](const Rec& r) { return to_numpy(r.innovation_cov); }, "(6, 6)")
-      .def_readonly("nis", &Rec::nis, "Normalised innovation squared y^T S^-1 y.")
-      .def_readonly("log_likelihood", &Rec::log_likelihood, "log p_z (Rogers-Marcovitz, Table 1 step 14).")
-      .def("__repr__", [](const Rec& r) {
-        return std::string("NavStepRecord(status='") + fsw::to_string(r.status) + "', detail='" +
+          "innovation_cov", [](const R& r) { return to_numpy(cast_to(r.innovation_cov)); }, "(6, 6)")
+      .def_property_readonly(
+          "nis", [](const R& r) { return double(r.nis); }, "Normalised innovation squared y^T S^-1 y.")
+      .def_property_readonly(
+          "log_likelihood", [](const R& r) { return double(r.log_likelihood); },
+          "log p_z (Rogers-Marcovitz, Table 1 step 14).")
+      .def("ok", &R::ok)
+      .def("__repr__", [name](const R& r) {
+        return std::string(name) + "(status='" + fsw::to_string(r.status) + "', detail='" +
                fsw::to_string(r.detail) + "', fused=" + (r.fused ? "True" : "False") +
-               ", nis=" + std::to_string(r.nis) + ")";
+               ", nis=" + std::to_string(double(r.nis)) + ")";
       });
 }
 
-void bind_ukf(py::module_& m) {
-  py::class_<Ukf>(m, "NavUkf",
-                  "9-state multiplicative quaternion UKF (double): Hill-frame position, velocity and q_hb; "
-                  "covariance over [dr_hill, dv_hill, dtheta_body]. IMU predict, pose update with delay.")
+// One filter variant: NavUkf<S, kWithBias> under `name`.
+template <typename S, bool kWithBias>
+void bind_ukf(py::module_& m, const char* name, const char* doc) {
+  using U = fsw::NavUkf<S, kWithBias>;
+  constexpr int kN = U::kN;
+  py::class_<U>(m, name, doc)
       .def(py::init([](const Cfg& cfg) {
-             Ukf u(cfg);
+             U u(config_as<S>(cfg));
              if (!u.config_ok())
                throw py::value_error(std::string("cfg.") + u.config_invalid_field() + ": invalid value");
              return u;
@@ -93,54 +148,75 @@ void bind_ukf(py::module_& m) {
            py::arg("cfg"))
       .def(
           "init",
-          [](Ukf& u, double t, const Arr& r, const Arr& v, const Arr& q, const Arr& P0) {
-            Ukf::State x;
-            x.r_hill_m = vec<3>(r, "r_hill_m");
-            x.v_hill_mps = vec<3>(v, "v_hill_mps");
-            x.q_hb = quat(q, "q_hb_wxyz");
-            const Rec rec = u.init(finite(t, "t_s"), x, mat<9, 9>(P0, "P0"));
+          [](U& u, double t, const Arr& r, const Arr& v, const Arr& q, const Arr& P0, py::object gyro_bias,
+             py::object accel_bias) {
+            typename U::State x;
+            x.r_hill_m = vec<3>(r, "r_hill_m").template cast<S>();
+            x.v_hill_mps = vec<3>(v, "v_hill_mps").template cast<S>();
+            x.q_hb = quat(q, "q_hb_wxyz").template cast<S>();
+            if constexpr (kWithBias) {
+              if (!gyro_bias.is_none()) x.gyro_bias_rps = vec<3>(gyro_bias.cast<Arr>(), "gyro_bias_rps").template cast<S>();
+              if (!accel_bias.is_none())
+                x.accel_bias_mps2 = vec<3>(accel_bias.cast<Arr>(), "accel_bias_mps2").template cast<S>();
+            } else if (!gyro_bias.is_none() || !accel_bias.is_none()) {
+              throw py::value_error("gyro_bias_rps, accel_bias_mps2: this filter has no bias states");
+            }
+            const auto rec = u.init(finite(t, "t_s"), x, mat<kN, kN>(P0, "P0").template cast<S>());
             if (!rec.ok())
               throw py::value_error(std::string("P0: ") + fsw::to_string(rec.status) + " (" +
                                     fsw::to_string(rec.detail) + ")");
             return rec;
           },
           py::arg("t_s"), py::arg("r_hill_m"), py::arg("v_hill_mps"), py::arg("q_hb_wxyz"), py::arg("P0"),
-          "Sets the state at t_s [s]; P0 (9, 9) over [dr, dv, dtheta]. ValueError if P0 does not factor.")
+          py::arg("gyro_bias_rps") = py::none(), py::arg("accel_bias_mps2") = py::none(),
+          "Sets the state at t_s [s]; P0 over the error state [dr, dv, dtheta(, dbg, dba)]. ValueError if P0 "
+          "does not factor.")
       .def(
           "predict",
-          [](Ukf& u, double t, const Arr& a, const Arr& w) {
-            return u.predict(finite(t, "t_s"), vec<3>(a, "accel_b_mps2"), vec<3>(w, "omega_bi_b_rps"));
+          [](U& u, double t, const Arr& a, const Arr& w) {
+            return u.predict(finite(t, "t_s"), vec3_as<S>(a, "accel_b_mps2"), vec3_as<S>(w, "omega_bi_b_rps"));
           },
           py::arg("t_s"), py::arg("accel_b_mps2"), py::arg("omega_bi_b_rps"),
           "IMU sample (specific force, body [m/s^2]; omega_BI_B [rad/s]) held over (t_current, t_s]; "
           "moves the filter to t_s.")
       .def(
           "update_pose",
-          [](Ukf& u, double t, const Arr& r, const Arr& q, const Arr& R) {
-            return u.update_pose(finite(t, "t_capture_s"), vec<3>(r, "r_hill_m"), quat(q, "q_hb_wxyz"),
-                                 mat<6, 6>(R, "R"));
+          [](U& u, double t, const Arr& r, const Arr& q, const Arr& R) {
+            return u.update_pose(finite(t, "t_capture_s"), vec3_as<S>(r, "r_hill_m"),
+                                 quat(q, "q_hb_wxyz").template cast<S>(), mat<6, 6>(R, "R").template cast<S>());
           },
           py::arg("t_capture_s"), py::arg("r_hill_m"), py::arg("q_hb_wxyz"), py::arg("R"),
           "Pose captured at t_capture_s (an IMU tick, at most max_delay_s old); R (6, 6) over "
           "[position m^2, attitude rad^2 (body-frame boxminus)].")
-      .def_property_readonly("t_s", &Ukf::t_s)
-      .def_property_readonly("r_hill_m", [](const Ukf& u) { return to_numpy(u.state().r_hill_m); })
-      .def_property_readonly("v_hill_mps", [](const Ukf& u) { return to_numpy(u.state().v_hill_mps); })
+      .def_property_readonly("t_s", &U::t_s)
+      .def_property_readonly("r_hill_m", [](const U& u) { return to_numpy(cast_to(u.state().r_hill_m)); })
+      .def_property_readonly("v_hill_mps", [](const U& u) { return to_numpy(cast_to(u.state().v_hill_mps)); })
       .def_property_readonly(
-          "q_hb", [](const Ukf& u) { return quat_to_numpy(u.state().q_hb); }, "[w, x, y, z]")
+          "q_hb", [](const U& u) { return to_numpy(cast_to(fsw::to_wxyz(u.state().q_hb))); }, "[w, x, y, z]")
       .def_property_readonly(
-          "P", [](const Ukf& u) { return to_numpy(u.P()); }, "(9, 9) over [dr, dv, dtheta].")
-      .def_property_readonly("initialized", &Ukf::initialized)
-      .def_property_readonly("history_count", &Ukf::history_count)
-      .def_property_readonly_static("history_capacity", [](py::object) { return Ukf::kHistoryCapacity; })
+          "P", [](const U& u) { return to_numpy(cast_to(u.P())); }, "Covariance over the error state.")
+      .def_property_readonly("initialized", &U::initialized)
+      .def_property_readonly("history_count", &U::history_count)
+      .def_property_readonly_static("history_capacity", [](py::object) { return U::kHistoryCapacity; })
+      .def_property_readonly_static("error_size", [](py::object) { return kN; })
+      .def_property_readonly_static("scalar", [](py::object) { return sizeof(S) == 4 ? "float" : "double"; })
       .def(
-          "state", [](const Ukf& u) { return to_numpy(u.state().stored()); }, "(10,) [r(3), v(3), q_wxyz(4)].");
+          "state", [](const U& u) { return to_numpy(cast_to(u.state().stored())); },
+          "Stored state [r(3), v(3), q_wxyz(4)(, gyro bias(3), accel bias(3))].");
 }
 
 }  // namespace
 
 void bind_nav(py::module_& m) {
   bind_config(m);
-  bind_record(m);
-  bind_ukf(m);
+  bind_record<double>(m, "NavStepRecord");
+  bind_record<float>(m, "NavStepRecordFloat");
+  bind_ukf<double, false>(m, "NavUkf",
+                          "9-state multiplicative quaternion UKF (double): Hill-frame position, velocity and q_hb; "
+                          "covariance over [dr_hill, dv_hill, dtheta_body]. IMU predict, pose update with delay.");
+  bind_ukf<float, false>(m, "NavUkfFloat", "The 9-state filter of NavUkf built for float (the flight float build).");
+  bind_ukf<double, true>(m, "NavUkf15",
+                         "15-state filter (double): NavUkf's states plus gyro and accelerometer biases; "
+                         "covariance over [dr, dv, dtheta, dbg, dba].");
+  bind_ukf<float, true>(m, "NavUkf15Float", "The 15-state filter of NavUkf15 built for float.");
 }

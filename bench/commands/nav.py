@@ -53,6 +53,19 @@ def register(sub):
         default="synthetic",
         help="1 Hz pose: synthetic (5 %% of range) or rendered images through the flight vision pipeline",
     )
+    p.add_argument(
+        "--pcrb",
+        default=None,
+        metavar="DIR",
+        help="also the posterior Cramer-Rao bound over the same runs, and the errors of the flight UKF (double "
+        "and float), FilterPy's UKF and an EKF against it: nav_pcrb.json and plots in DIR (docs/perf/nav.md)",
+    )
+    p.add_argument(
+        "--pcrb-t-conv",
+        type=number(float, 0.0, 200.0),
+        default=20.0,
+        help="start of the window of the figures of merit (after convergence) [s]",
+    )
     add_campaign_arguments(p)
     p.set_defaults(func=main)
 
@@ -242,7 +255,7 @@ def main(args):
         accel_source=args.accel_source,
         pose_source=args.pose_source,
     )
-    keep = min(args.runs, 5) if args.plots else 0
+    keep = args.runs if args.pcrb else (min(args.runs, 5) if args.plots else 0)
     # Run i depends on the seed and the configuration, not on --runs: a longer campaign reuses a shorter one's runs.
     campaign = campaign_from(args, "nav", {"seed": args.seed, "config": cfg})
     summary, runs = run_campaign(args.runs, args.seed, cfg, keep_runs=keep, campaign=campaign)
@@ -260,7 +273,32 @@ def main(args):
         write_json(args.json, summary, strict=True)
         print(f"wrote {args.json}")
     if args.plots:
-        make_plots(runs, summary, args.plots)
+        make_plots(runs[:5], summary, args.plots)
         print(f"plots in {args.plots}")
+    if args.pcrb:
+        _pcrb(runs, cfg, args)
     sys.stdout.flush()
     return 0
+
+
+def _pcrb(runs, cfg, args) -> None:
+    """The bound and the four filters against it (bench/campaigns/nav_pcrb.py)."""
+    from bench.campaigns.nav_pcrb import BLOCKS, FILTERS, compare, plot
+
+    # FilterPy's UKF and the EKF fuse each pose on time; with a latency only the flight filters compare.
+    filters = FILTERS if args.pose_latency_s == 0 else ("ukf", "ukf_float")
+    out, series = compare(runs, cfg, filters=filters, t_conv_s=args.pcrb_t_conv, seed=args.seed)
+    out["campaign_seed"] = args.seed
+    print(
+        f"\nRMSE / sqrt(PCRB) over {out['window_s'][0]:.0f}-{out['window_s'][1]:.0f} s, {out['runs']} runs "
+        f"(95 % bootstrap interval over the runs); sqrt(PCRB) there: "
+        + ", ".join(f"{b} {out['bound_sqrt_in_window'][b]:.3g}" for b in BLOCKS)
+    )
+    print(f"{'filter':14s} " + " ".join(f"{b:>20s}" for b in BLOCKS) + f" {'NEES':>7s}")
+    for f, r in out["filters"].items():
+        cells = " ".join(f"{r[b]:6.3f} [{r['interval95'][b][0]:.3f}, {r['interval95'][b][1]:.3f}]" for b in BLOCKS)
+        print(f"{f:14s} {cells} {r['nees_mean_window']:7.3f}")
+    folder = report_dir(args.pcrb)
+    write_json(str(folder / "nav_pcrb.json"), out, strict=True)
+    paths = plot(series, out, folder)
+    print(f"wrote {folder / 'nav_pcrb.json'}, " + ", ".join(paths))
