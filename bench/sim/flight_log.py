@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.sim import flight_log_bounds as bounds
+
 FORMAT_NAME = "proxops-flight-log"
 FORMAT_VERSION = 2
 READ_VERSIONS = (1, 2)
@@ -41,6 +43,8 @@ class FieldSpec:
     nonnegative: bool = False
     stamp: bool = False  # a time stamp (any epoch), not a duration
     positive: bool = False  # a standard deviation: > 0
+    max_abs: float = bounds.MAX_VALUE  # largest magnitude of a value (flight_log_bounds)
+    min_value: float | None = None  # smallest value, where one exists (a pose sigma)
 
 
 @dataclass(frozen=True)
@@ -59,9 +63,9 @@ STREAMS = (
         "imu",
         "t_s",
         (
-            FieldSpec("t_s", None, "s", stamp=True),
-            FieldSpec("accel_b_mps2", 3, "m/s^2"),
-            FieldSpec("omega_bi_b_rps", 3, "rad/s"),
+            FieldSpec("t_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
+            FieldSpec("accel_b_mps2", 3, "m/s^2", max_abs=bounds.MAX_ACCEL_MPS2),
+            FieldSpec("omega_bi_b_rps", 3, "rad/s", max_abs=bounds.MAX_RATE_RPS),
         ),
         True,
         "IMU samples; each is the mean over the interval ending at t_s",
@@ -70,12 +74,26 @@ STREAMS = (
         "pose",
         "t_capture_s",
         (
-            FieldSpec("t_capture_s", None, "s", stamp=True),
-            FieldSpec("t_delivered_s", None, "s", stamp=True),
-            FieldSpec("r_hill_m", 3, "m"),
+            FieldSpec("t_capture_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
+            FieldSpec("t_delivered_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
+            FieldSpec("r_hill_m", 3, "m", max_abs=bounds.MAX_POSITION_M),
             FieldSpec("q_hb", 4, "1", quaternion=True),
-            FieldSpec("r_sigma_m", None, "m", positive=True),
-            FieldSpec("att_sigma_rad", None, "rad", positive=True),
+            FieldSpec(
+                "r_sigma_m",
+                None,
+                "m",
+                positive=True,
+                min_value=bounds.POSE_R_SIGMA_M[0],
+                max_abs=bounds.POSE_R_SIGMA_M[1],
+            ),
+            FieldSpec(
+                "att_sigma_rad",
+                None,
+                "rad",
+                positive=True,
+                min_value=bounds.POSE_ATT_SIGMA_RAD[0],
+                max_abs=bounds.POSE_ATT_SIGMA_RAD[1],
+            ),
         ),
         True,
         "LED pose measurements: inspector position in the Hill frame and attitude body->Hill",
@@ -84,9 +102,9 @@ STREAMS = (
         "valves",
         "t_s",
         (
-            FieldSpec("t_s", None, "s", stamp=True),
-            FieldSpec("on_time_s", PER_THRUSTER, "s", optional=True, nonnegative=True),
-            FieldSpec("interval_s", None, "s", optional=True, nonnegative=True),
+            FieldSpec("t_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
+            FieldSpec("on_time_s", PER_THRUSTER, "s", optional=True, nonnegative=True, max_abs=bounds.MAX_ON_TIME_S),
+            FieldSpec("interval_s", None, "s", optional=True, nonnegative=True, max_abs=bounds.MAX_ON_TIME_S),
             FieldSpec("mask", None, "bit i = thruster i open", integer=True, optional=True, nonnegative=True),
         ),
         False,
@@ -97,9 +115,9 @@ STREAMS = (
         "estimate",
         "t_s",
         (
-            FieldSpec("t_s", None, "s", stamp=True),
-            FieldSpec("r_hill_m", 3, "m"),
-            FieldSpec("v_hill_mps", 3, "m/s"),
+            FieldSpec("t_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
+            FieldSpec("r_hill_m", 3, "m", max_abs=bounds.MAX_POSITION_M),
+            FieldSpec("v_hill_mps", 3, "m/s", max_abs=bounds.MAX_VELOCITY_MPS),
             FieldSpec("q_hb", 4, "1", quaternion=True),
             FieldSpec("p_diag", 9, "SI^2 over [dr, dv, dtheta_body]"),
         ),
@@ -110,7 +128,7 @@ STREAMS = (
         "update",
         "t_s",
         (
-            FieldSpec("t_s", None, "s", stamp=True),
+            FieldSpec("t_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
             FieldSpec("status", None, "0 ok, 1 gated, 2 not positive definite, 3 bad input", integer=True),
             FieldSpec("fused", None, "0/1", integer=True),
             FieldSpec("innovation", 6, "[m, m, m, rad, rad, rad]"),
@@ -125,11 +143,11 @@ STREAMS = (
         "truth",
         "t_s",
         (
-            FieldSpec("t_s", None, "s", stamp=True),
-            FieldSpec("r_hill_m", 3, "m"),
-            FieldSpec("v_hill_mps", 3, "m/s"),
+            FieldSpec("t_s", None, "s", stamp=True, max_abs=bounds.MAX_STAMP_S),
+            FieldSpec("r_hill_m", 3, "m", max_abs=bounds.MAX_POSITION_M),
+            FieldSpec("v_hill_mps", 3, "m/s", max_abs=bounds.MAX_VELOCITY_MPS),
             FieldSpec("q_hb", 4, "1", quaternion=True),
-            FieldSpec("omega_bi_b_rps", 3, "rad/s"),
+            FieldSpec("omega_bi_b_rps", 3, "rad/s", max_abs=bounds.MAX_RATE_RPS),
         ),
         False,
         "truth, when the log comes from a simulation or has an external reference",
@@ -195,6 +213,9 @@ def _check_stream(name: str, data: dict, n_thrusters: int | None = 8) -> list:
         if not np.issubdtype(arr.dtype, np.number):
             problems.append(Problem(where, None, f"not numeric (dtype {arr.dtype})"))
             continue
+        if arr.dtype.kind not in "iuf":  # complex: its imaginary part would be dropped unseen
+            problems.append(Problem(where, None, f"not real numbers (dtype {arr.dtype})"))
+            continue
         width = n_thrusters if f.width == PER_THRUSTER else f.width
         if f.width == PER_THRUSTER and width is None:
             width = arr.shape[1] if arr.ndim == 2 else -1
@@ -211,6 +232,12 @@ def _check_stream(name: str, data: dict, n_thrusters: int | None = 8) -> list:
         if not np.all(finite):
             row = int(np.argmin(finite))
             problems.append(Problem(where, row, f"not finite ({arr[row]})"))
+            continue
+        big = np.abs(arr) > f.max_abs
+        if np.any(big):
+            row = int(np.argmax(big if arr.ndim == 1 else np.any(big, axis=1)))
+            worst = float(np.max(np.abs(arr[row])))
+            problems.append(Problem(where, row, f"beyond the bound of {f.max_abs:g} {f.unit} (|value| {worst:.6g})"))
             continue
         if f.quaternion:
             norms = np.linalg.norm(arr, axis=1)
@@ -230,6 +257,9 @@ def _check_stream(name: str, data: dict, n_thrusters: int | None = 8) -> list:
         if f.positive and np.any(arr <= 0):
             row = int(np.argmax(arr <= 0))
             problems.append(Problem(where, row, f"not positive ({arr[row]})"))
+        elif f.min_value is not None and np.any(arr < f.min_value):
+            row = int(np.argmax(arr < f.min_value))
+            problems.append(Problem(where, row, f"below the bound of {f.min_value:g} {f.unit} ({arr[row]})"))
         if f.nonnegative and np.any(arr < 0):
             row = int(np.argmax(arr < 0 if arr.ndim == 1 else np.any(arr < 0, axis=1)))
             problems.append(Problem(where, row, f"negative ({arr[row]})"))
@@ -332,9 +362,29 @@ def validate_log(log: FlightLog) -> list:
     for name in log.streams:
         if name not in STREAM_BY_NAME:
             problems.append(Problem(name, None, f"unknown stream (known: {', '.join(STREAM_BY_NAME)})"))
+    if desc is not None and desc.imu_rate_hz is not None and not problems:
+        problems.extend(_check_rate(log, desc.imu_rate_hz))
     if desc is not None and desc.segments and not problems:
         problems.extend(_check_segments(log, desc))
     return problems
+
+
+def _check_rate(log: FlightLog, rate_hz: float) -> list:
+    """A stated IMU rate whose averaging interval 1 / rate_hz is longer than
+    twice the stamps' median spacing: each sample would mean over its
+    neighbours' intervals too (and a null calibration flies that interval)."""
+    t = np.asarray(log["imu"]["t_s"], np.float64)
+    spacing = float(np.median(np.diff(t)))
+    if 1.0 / rate_hz > 2.0 * spacing:
+        return [
+            Problem(
+                "/description_json",
+                None,
+                f"imu.rate_hz: {rate_hz:g} Hz means each sample over {1.0 / rate_hz:.6g} s, more than twice "
+                f"the IMU stamps' median spacing ({spacing:.6g} s)",
+            )
+        ]
+    return []
 
 
 def _check_segments(log: FlightLog, desc) -> list:
@@ -471,17 +521,99 @@ def _plain(x):
     return x
 
 
+def _json_int(text: str) -> int:
+    if len(text.lstrip("-")) > bounds.MAX_JSON_INT_DIGITS:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits (at most {bounds.MAX_JSON_INT_DIGITS})")
+    return int(text)
+
+
+def _json_depth(val) -> int:
+    """How deeply ``val``'s objects and lists nest (iteratively: no recursion to exhaust)."""
+    deepest, todo = 0, [(val, 1)]
+    while todo:
+        v, depth = todo.pop()
+        if isinstance(v, (dict, list)):
+            deepest = max(deepest, depth)
+            if deepest > bounds.MAX_JSON_DEPTH:
+                return deepest
+            todo.extend((x, depth + 1) for x in (v.values() if isinstance(v, dict) else v))
+    return deepest
+
+
 def _json_attr(h, name: str, path) -> dict:
     raw = h.attrs.get(name, "{}")
-    if isinstance(raw, bytes):
-        raw = raw.decode()
+    if isinstance(raw, np.ndarray) and raw.shape == ():
+        raw = raw[()]
+    if isinstance(raw, (bytes, np.bytes_)):
+        try:
+            raw = bytes(raw).decode()
+        except UnicodeDecodeError:
+            raise FlightLogError(f"{path}: /{name}: not UTF-8 text") from None
+    if not isinstance(raw, str):
+        raise FlightLogError(f"{path}: /{name}: expected JSON text, got {type(raw).__name__}")
+    if len(raw) > bounds.MAX_JSON_BYTES:
+        raise FlightLogError(f"{path}: /{name}: {len(raw)} characters, more than {bounds.MAX_JSON_BYTES}")
     try:
-        val = json.loads(raw)
+        val = json.loads(raw, parse_int=_json_int)
+    except RecursionError:
+        raise FlightLogError(f"{path}: /{name}: nested deeper than {bounds.MAX_JSON_DEPTH} levels") from None
     except (TypeError, ValueError) as exc:
-        raise FlightLogError(f"{path}: /{name}: not valid JSON ({exc})") from None
+        raise FlightLogError(f"{path}: /{name}: not valid JSON ({str(exc)[:120]})") from None
     if not isinstance(val, dict):
         raise FlightLogError(f"{path}: /{name}: expected a JSON object, got {type(val).__name__}")
+    if _json_depth(val) > bounds.MAX_JSON_DEPTH:
+        raise FlightLogError(f"{path}: /{name}: nested deeper than {bounds.MAX_JSON_DEPTH} levels")
     return val
+
+
+def _format_version(raw, path) -> int:
+    """The file's format_version: a whole number (2.7 or "2" is no version of this format)."""
+    if isinstance(raw, np.ndarray) and raw.shape == ():
+        raw = raw[()]
+    ok = isinstance(raw, (int, np.integer)) and not isinstance(raw, (bool, np.bool_))
+    if isinstance(raw, (float, np.floating)) and math.isfinite(raw) and float(raw).is_integer():
+        ok = abs(raw) < 2**31
+    if not ok:
+        raw = raw.item() if isinstance(raw, np.generic) else raw
+        text = repr(raw) if len(repr(raw)) <= 40 else repr(raw)[:37] + "..."
+        raise FlightLogError(
+            f"{path}: /format_version: {text} is not an integer (this reader: {', '.join(map(str, READ_VERSIONS))})"
+        )
+    return int(raw)
+
+
+def _plain_member(h5, group, name: str, where: str, path):
+    """``group[name]`` when it is an object stored in this file under a hard
+    link: a soft link (dangling or cyclic) or an external link is refused,
+    never followed."""
+    link = group.get(name, getlink=True)
+    if not isinstance(link, h5.HardLink):
+        kind = "an external link" if isinstance(link, h5.ExternalLink) else "a soft link"
+        raise FlightLogError(f"{path}: {where}: {kind}, not data stored in the file (links are not followed)")
+    return group[name]
+
+
+def _read_field(h5, ds, where: str, path) -> np.ndarray:
+    """One field, its size checked from the file's metadata before it is read."""
+    if not isinstance(ds, h5.Dataset):
+        raise FlightLogError(f"{path}: {where}: a group inside a stream, expected a dataset")
+    if ds.is_virtual or ds.external:
+        raise FlightLogError(f"{path}: {where}: data stored in another file (not read)")
+    shape = ds.shape
+    if shape is None or len(shape) > 2:
+        raise FlightLogError(f"{path}: {where}: shape {shape}, expected (N,) or (N, K)")
+    rows = shape[0] if shape else 1
+    cols = shape[1] if len(shape) == 2 else 1
+    if rows > bounds.MAX_ROWS or cols > bounds.MAX_COLUMNS:
+        raise FlightLogError(
+            f"{path}: {where}: shape {shape}, more than {bounds.MAX_ROWS} rows or {bounds.MAX_COLUMNS} columns"
+        )
+    if ds.dtype.kind == "O" or rows * cols * ds.dtype.itemsize > bounds.MAX_DATASET_BYTES:
+        raise FlightLogError(f"{path}: {where}: dtype {ds.dtype} of shape {shape}: not a numeric field of this format")
+    try:
+        return np.asarray(ds[()])
+    except (OSError, RuntimeError, ValueError, TypeError) as exc:
+        raise FlightLogError(f"{path}: {where}: unreadable ({str(exc)[:120]})") from None
 
 
 def read_flight_log(path, validate: bool = True, relative_time: bool = False) -> FlightLog:
@@ -503,14 +635,7 @@ def read_flight_log(path, validate: bool = True, relative_time: bool = False) ->
             fmt = fmt.decode()
         if fmt != FORMAT_NAME:
             raise FlightLogError(f"/: attribute 'format' is {fmt!r}, expected {FORMAT_NAME!r}")
-        raw = h.attrs.get("format_version", None)
-        try:
-            version = int(raw)
-        except (TypeError, ValueError):
-            raise FlightLogError(
-                f"{path}: /format_version: {raw!r} is not an integer "
-                f"(this reader: {', '.join(map(str, READ_VERSIONS))})"
-            ) from None
+        version = _format_version(h.attrs.get("format_version", None), path)
         if version not in READ_VERSIONS:
             raise FlightLogError(
                 f"{path}: /format_version: {version} not supported (this reader: {', '.join(map(str, READ_VERSIONS))})"
@@ -519,14 +644,7 @@ def read_flight_log(path, validate: bool = True, relative_time: bool = False) ->
         description = _json_attr(h, "description_json", path) if version >= 2 else None
         if version < 2 and "description_json" in h.attrs:
             raise FlightLogError(f"{path}: /description_json: needs format_version 2")
-        streams = {}
-        for name, g in h.items():
-            if not hasattr(g, "items"):
-                raise FlightLogError(f"{path}: {name}: expected a group of fields, not a single dataset")
-            try:
-                streams[name] = {k: np.asarray(ds[()]) for k, ds in g.items()}
-            except OSError as exc:
-                raise FlightLogError(f"{path}: {name}: unreadable ({exc})") from None
+        streams = _read_streams(h5py, h, path)
     log = FlightLog(streams=streams, config=config, description=description)
     if relative_time:
         log = relative_to_start(log)
@@ -536,6 +654,26 @@ def read_flight_log(path, validate: bool = True, relative_time: bool = False) ->
             origin = f" (times from {log.time_origin_s:.0f} s, the log's first IMU second)" if log.time_origin_s else ""
             raise FlightLogError(f"{path}: " + "; ".join(str(p) for p in problems[:5]) + origin)
     return log
+
+
+def _read_streams(h5, h, path) -> dict:
+    """{stream: {field: array}}: each stream a group of datasets stored in
+    the file, each within the size bounds (flight_log_bounds)."""
+    names = list(h.keys())
+    if len(names) > bounds.MAX_MEMBERS:
+        raise FlightLogError(f"{path}: /: {len(names)} streams, more than {bounds.MAX_MEMBERS}")
+    streams = {}
+    for name in names:
+        g = _plain_member(h5, h, name, name, path)
+        if not isinstance(g, h5.Group):
+            raise FlightLogError(f"{path}: {name}: expected a group of fields, not a single dataset")
+        fields = list(g.keys())
+        if len(fields) > bounds.MAX_MEMBERS:
+            raise FlightLogError(f"{path}: {name}: {len(fields)} fields, more than {bounds.MAX_MEMBERS}")
+        streams[name] = {
+            k: _read_field(h5, _plain_member(h5, g, k, f"{name}/{k}", path), f"{name}/{k}", path) for k in fields
+        }
+    return streams
 
 
 def _run_streams(run, offset: float) -> dict:

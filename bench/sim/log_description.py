@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.sim import vehicle as bench_vehicle
+from bench.sim.flight_log_bounds import MAX_STAMP_S
 
 EARTH_RADIUS_M = 6378137.0
 MU_EARTH = 3.986004418e14
@@ -29,6 +30,18 @@ G0_MPS2 = 9.80665
 # Below the specific impulse of any thruster a small spacecraft flies (cold
 # gas 45 to 75 s): no valve expels propellant faster than thrust / (g0 Isp).
 ISP_MIN_S = 20.0
+# Physical bounds (docs/FLIGHT_LOG.md, "Bounds"): a value outside them is
+# refused, so no description can drive the arithmetic to overflow, underflow
+# or a calibration that never ends.
+MASS_KG = (0.01, 1e5)
+INERTIA_KGM2 = (1e-8, 1e8)  # principal moments
+THRUST_N = 1e3
+MIN_ON_TIME_S = 10.0
+MAX_POSITION_M = 100.0  # any described point from the body origin (as vehicle.envelope_m)
+IMU_RATE_HZ = (0.01, 1e4)
+ACCEL_SIGMA_MPS2 = (1e-7, 100.0)
+GYRO_SIGMA_RPS = (1e-7, 10.0)
+MAX_LATENCY_S = 60.0
 
 
 class DescriptionError(ValueError):
@@ -107,18 +120,42 @@ class Resolved:
         return sorted({s.manoeuvre for s in self.segments})
 
 
-def _vec(x, n: int, where: str) -> np.ndarray:
-    a = np.asarray(x, dtype=float) if not isinstance(x, (str, bytes, dict)) else None
+def _short_repr(x) -> str:
+    text = repr(x)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _array(x):
+    """``x`` as a float array, None when it is not a (nested) list of numbers."""
+    if isinstance(x, (list, tuple)) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) or isinstance(v, (list, tuple)) for v in x
+    ):
+        try:
+            with np.errstate(over="ignore"):
+                return np.asarray(x, dtype=float)
+        except (ValueError, TypeError, OverflowError):
+            return None
+    return None
+
+
+def _vec(x, n: int, where: str, bound: float | None = None) -> np.ndarray:
+    a = _array(x)
     if a is None or a.shape != (n,):
-        raise DescriptionError(f"{where}: expected {n} numbers, got {x!r}")
+        raise DescriptionError(f"{where}: expected {n} numbers, got {_short_repr(x)}")
     if not np.all(np.isfinite(a)):
-        raise DescriptionError(f"{where}: not finite ({x!r})")
+        raise DescriptionError(f"{where}: not finite ({_short_repr(x)})")
+    if bound is not None and np.linalg.norm(a) > bound:
+        raise DescriptionError(f"{where}: {np.linalg.norm(a):.6g} m from the body origin, more than {bound:g} m")
     return a
 
 
 def _num(x, where: str, lo: float | None = None, hi: float | None = None, strict_lo: bool = False) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(float(x)):
-        raise DescriptionError(f"{where}: expected a finite number, got {x!r}")
+    try:
+        ok = not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(float(x))
+    except OverflowError:  # an integer beyond float's range
+        ok = False
+    if not ok:
+        raise DescriptionError(f"{where}: expected a finite number, got {_short_repr(x)}")
     v = float(x)
     if lo is not None and (v <= lo if strict_lo else v < lo):
         raise DescriptionError(f"{where}: {v!r} must be {'>' if strict_lo else '>='} {lo!r}")
@@ -134,21 +171,25 @@ def _obj(d, where: str, known: tuple) -> dict:
         raise DescriptionError(f"{where}: expected an object, got {type(d).__name__}")
     unknown = sorted(set(d) - set(known))
     if unknown:
-        raise DescriptionError(f"{where}.{unknown[0]}: unknown field (known: {', '.join(known)})")
+        raise DescriptionError(f"{where}.{str(unknown[0])[:40]}: unknown field (known: {', '.join(known)})")
     return d
 
 
 def _inertia(x, where: str) -> np.ndarray:
-    a = np.asarray(x, dtype=float) if isinstance(x, (list, tuple)) else None
+    a = _array(x)
     if a is not None and a.shape == (3,):
         a = np.diag(a)
     if a is None or a.shape != (3, 3) or not np.all(np.isfinite(a)):
-        raise DescriptionError(f"{where}: expected 3 principal moments or a 3x3 matrix [kg m^2], got {x!r}")
+        raise DescriptionError(f"{where}: expected 3 principal moments or a 3x3 matrix [kg m^2], got {_short_repr(x)}")
     if not np.allclose(a, a.T, rtol=1e-9, atol=1e-12):
         raise DescriptionError(f"{where}: not symmetric")
     ev = np.linalg.eigvalsh(a)
     if ev[0] <= 0.0:
         raise DescriptionError(f"{where}: not positive definite (eigenvalues {ev.tolist()})")
+    if ev[0] < INERTIA_KGM2[0] or ev[-1] > INERTIA_KGM2[1]:
+        raise DescriptionError(
+            f"{where}: principal moments {ev.tolist()} outside {INERTIA_KGM2[0]:g} to {INERTIA_KGM2[1]:g} kg m^2"
+        )
     s = np.sort(ev)
     if s[0] + s[1] < s[2] * (1.0 - 1e-9):
         raise DescriptionError(
@@ -172,10 +213,10 @@ def _thrusters(x, where: str) -> list:
             raise DescriptionError(f"{w}.direction_b: not a unit vector (norm {np.linalg.norm(d):.6g})")
         out.append(
             Thruster(
-                _vec(t["position_b_m"], 3, f"{w}.position_b_m"),
+                _vec(t["position_b_m"], 3, f"{w}.position_b_m", MAX_POSITION_M),
                 d / np.linalg.norm(d),
-                _num(t["thrust_n"], f"{w}.thrust_n", 0.0, strict_lo=True),
-                _num(t.get("min_on_time_s", 0.0), f"{w}.min_on_time_s", 0.0),
+                _num(t["thrust_n"], f"{w}.thrust_n", 0.0, THRUST_N, strict_lo=True),
+                _num(t.get("min_on_time_s", 0.0), f"{w}.min_on_time_s", 0.0, MIN_ON_TIME_S),
             )
         )
     return out
@@ -193,7 +234,8 @@ def _segments(x, where: str) -> list:
         for key in ("t_start_s", "t_end_s"):
             if key not in s:
                 raise DescriptionError(f"{w}.{key}: missing")
-        a, b = _num(s["t_start_s"], f"{w}.t_start_s"), _num(s["t_end_s"], f"{w}.t_end_s")
+        a = _num(s["t_start_s"], f"{w}.t_start_s", -MAX_STAMP_S, MAX_STAMP_S)
+        b = _num(s["t_end_s"], f"{w}.t_end_s", -MAX_STAMP_S, MAX_STAMP_S)
         if b <= a:
             raise DescriptionError(f"{w}.t_end_s: {b!r} is not after t_start_s {a!r}")
         if out and a < out[-1].t_end_s:
@@ -260,15 +302,19 @@ def resolve(desc: dict | None, config: dict | None = None) -> Resolved:
         ),
         3,
         "pose_sensor.reference_point_b_m",
+        MAX_POSITION_M,
     )
     toff = _num(
         _pick(defaults, pose, "time_offset_s", "pose_sensor.time_offset_s", 0.0, "pose and IMU on one clock"),
         "pose_sensor.time_offset_s",
+        -MAX_STAMP_S,
+        MAX_STAMP_S,
     )
     lat = _num(
         _pick(defaults, pose, "latency_s", "pose_sensor.latency_s", 0.0, "capture times exact"),
         "pose_sensor.latency_s",
         0.0,
+        MAX_LATENCY_S,
     )
     radius = _resolve_orbit(desc.get("orbit"), config, base, defaults)
     if "envelope_m" in veh:
@@ -326,11 +372,11 @@ def _resolve_vehicle(veh: dict, config: dict, base: dict, defaults: list) -> tup
     if "thrust_n" in cveh:
         bv["thrusters"] = [dict(t, thrust_n=cveh["thrust_n"]) for t in bv["thrusters"]]
     found = []
-    mass = _num(_pick(found, veh, "mass_kg", "vehicle.mass_kg", bv["mass_kg"]), "vehicle.mass_kg", 0.0, strict_lo=True)
+    mass = _num(_pick(found, veh, "mass_kg", "vehicle.mass_kg", bv["mass_kg"]), "vehicle.mass_kg", *MASS_KG)
     inertia = _inertia(
         _pick(found, veh, "inertia_kgm2", "vehicle.inertia_kgm2", bv["inertia_kgm2"]), "vehicle.inertia_kgm2"
     )
-    com = _vec(_pick(found, veh, "com_b_m", "vehicle.com_b_m", bv["com_b_m"]), 3, "vehicle.com_b_m")
+    com = _vec(_pick(found, veh, "com_b_m", "vehicle.com_b_m", bv["com_b_m"]), 3, "vehicle.com_b_m", MAX_POSITION_M)
     thr = _thrusters(
         _pick(found, veh, "thrusters", "vehicle.thrusters", bv["thrusters"], "bench inspector's 8 thrusters"),
         "vehicle.thrusters",
@@ -359,7 +405,7 @@ def _resolve_imu(imu, config: dict, base: dict, com: np.ndarray, defaults: list)
     imu = _obj(imu, "imu", _IMU_FIELDS)
     rate = None
     if "rate_hz" in imu:
-        rate = _num(imu["rate_hz"], "imu.rate_hz", 0.0, 1e4, strict_lo=True)
+        rate = _num(imu["rate_hz"], "imu.rate_hz", *IMU_RATE_HZ)
     sample = imu.get("sample", "mean")
     if sample != "mean":
         raise DescriptionError(
@@ -377,6 +423,7 @@ def _resolve_imu(imu, config: dict, base: dict, com: np.ndarray, defaults: list)
         _pick(defaults, imu, "position_b_m", "imu.position_b_m", com.tolist(), "at the centre of mass"),
         3,
         "imu.position_b_m",
+        MAX_POSITION_M,
     )
     cnoise = config.get("noise") if isinstance(config.get("noise"), dict) else {}
     sig_a = _sigma(imu, cnoise, config, "accel", rate, base["imu"]["accel_sigma_mps2"], defaults)
@@ -428,18 +475,24 @@ def _resolve_orbit(orb, config: dict, base: dict, defaults: list) -> float:
 
 def _sigma(imu: dict, cnoise: dict, config: dict, which: str, rate, fallback: float, defaults: list) -> float:
     unit = "mps2" if which == "accel" else "rps"
+    lo, hi = ACCEL_SIGMA_MPS2 if which == "accel" else GYRO_SIGMA_RPS
     key, dens = f"{which}_sigma_{unit}", f"{which}_noise_density_{unit}_rthz"
     if key in imu and dens in imu:
         raise DescriptionError(f"imu: give {key} or {dens}, not both")
     if key in imu:
-        return _num(imu[key], f"imu.{key}", 0.0, strict_lo=True)
+        return _num(imu[key], f"imu.{key}", lo, hi)
     if dens in imu:
         if rate is None:
             raise DescriptionError(f"imu.{dens}: needs imu.rate_hz (the per-sample sigma is density * sqrt(rate))")
-        return _num(imu[dens], f"imu.{dens}", 0.0, strict_lo=True) * math.sqrt(rate)
+        sigma = _num(imu[dens], f"imu.{dens}", 0.0, strict_lo=True) * math.sqrt(rate)
+        if not lo <= sigma <= hi:
+            raise DescriptionError(
+                f"imu.{dens}: a per-sample sigma of {sigma:.6g} at {rate:g} Hz, outside {lo:g} to {hi:g}"
+            )
+        return sigma
     for src, name in ((cnoise, f"config_json.noise.{key}"), (config, f"config_json.{key}")):
         if key in src:
-            return _num(src[key], name, 0.0, strict_lo=True)
+            return _num(src[key], name, lo, hi)
     defaults.append(f"imu.{key} = {fallback:.6g} (bench IMU)")
     return fallback
 

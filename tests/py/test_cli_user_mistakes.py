@@ -196,7 +196,7 @@ def test_simulate_names_the_wrong_effect_and_writes_nothing(tmp_path, capsys, ef
         ("{not json", "not JSON"),
         ("[1, 2]", "expected a JSON object"),
         (json.dumps({"vehicle": {"mass_kg": 12.0, "thruster": []}}), "vehicle.thruster: unknown field"),
-        (json.dumps({"imu": {"rate_hz": -10}}), "imu.rate_hz: -10.0 must be > 0.0"),
+        (json.dumps({"imu": {"rate_hz": -10}}), "imu.rate_hz: -10.0 must be >= 0.01"),
     ],
 )
 def test_simulate_names_the_wrong_description_field(tmp_path, capsys, text, message):

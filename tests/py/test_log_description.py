@@ -39,10 +39,10 @@ def test_second_vehicle_resolves_without_defaults_but_segments():
 @pytest.mark.parametrize(
     "path, value, message",
     [
-        (("vehicle", "mass_kg"), -1.0, "vehicle.mass_kg: -1.0 must be > 0.0"),
+        (("vehicle", "mass_kg"), -1.0, "vehicle.mass_kg: -1.0 must be >= 0.01"),
         (("vehicle", "inertia_kgm2"), [1.0, 1.0, 3.0], "vehicle.inertia_kgm2: breaks the triangle inequality"),
         (("vehicle", "inertia_kgm2"), [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], "vehicle.inertia_kgm2: not symmetric"),
-        (("imu", "rate_hz"), 0.0, "imu.rate_hz: 0.0 must be > 0.0"),
+        (("imu", "rate_hz"), 0.0, "imu.rate_hz: 0.0 must be >= 0.01"),
         (("imu", "sample"), "point", "imu.sample: 'point' not supported"),
         (("imu", "q_body_imu"), [1.0, 0.1, 0.0, 0.0], "imu.q_body_imu: quaternion [w, x, y, z] norm"),
         (("imu", "acel_sigma_mps2"), 0.1, "imu.acel_sigma_mps2: unknown field"),
@@ -51,6 +51,20 @@ def test_second_vehicle_resolves_without_defaults_but_segments():
         (("vehicle", "envelope_m"), 0.0, "vehicle.envelope_m: 0.0 must be > 0.0"),
         (("imu", "gyro_bias_stability_rps"), -1e-4, "imu.gyro_bias_stability_rps: -0.0001 must be >= 0.0"),
         (("imu", "accel_bias_stability_mps2"), "small", "imu.accel_bias_stability_mps2: expected a finite number"),
+        # Beyond the physical bounds, or not numbers at all: named, not an overflow or a bare conversion error.
+        (("vehicle", "mass_kg"), 1e300, "vehicle.mass_kg: 1e+300 must be <= 100000.0"),
+        (("vehicle", "mass_kg"), 10**400, "vehicle.mass_kg: expected a finite number"),
+        (("vehicle", "com_b_m"), ["a", 0, 0], "vehicle.com_b_m: expected 3 numbers, got ['a', 0, 0]"),
+        (("vehicle", "com_b_m"), [[1, 2], 3, 4], "vehicle.com_b_m: expected 3 numbers"),
+        (("vehicle", "com_b_m"), [1e3, 0, 0], "vehicle.com_b_m: 1000 m from the body origin, more than 100 m"),
+        (("vehicle", "inertia_kgm2"), ["a", 0, 0], "vehicle.inertia_kgm2: expected 3 principal moments"),
+        (("vehicle", "inertia_kgm2"), [1e300, 1e300, 1e300], "vehicle.inertia_kgm2: principal moments"),
+        (("imu", "rate_hz"), 1e-300, "imu.rate_hz: 1e-300 must be >= 0.01"),
+        (("imu", "gyro_noise_density_rps_rthz"), 1e300, "imu.gyro_noise_density_rps_rthz: a per-sample sigma"),
+        (("imu", "gyro_noise_density_rps_rthz"), 1e-300, "imu.gyro_noise_density_rps_rthz: a per-sample sigma"),
+        (("imu", "accel_noise_density_mps2_rthz"), 1e3, "imu.accel_noise_density_mps2_rthz: a per-sample sigma"),
+        (("pose_sensor", "time_offset_s"), 1e300, "pose_sensor.time_offset_s: 1e+300 must be <= 10000000000.0"),
+        (("pose_sensor", "latency_s"), 1e6, "pose_sensor.latency_s: 1000000.0 must be <= 60.0"),
     ],
 )
 def test_bad_field_is_named(path, value, message):
