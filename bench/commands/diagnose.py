@@ -12,6 +12,8 @@ from pathlib import Path
 
 from bench.commands.args import number, one_line_errors
 
+MAX_CALIBRATION_BYTES = 64 << 20  # a calibration of 100000 runs is about 4 MiB
+
 
 def register(sub):
     p = sub.add_parser(
@@ -70,12 +72,19 @@ def _load_calibration(path: str) -> dict:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"--calibration {path}: no such file")
+    if p.stat().st_size > MAX_CALIBRATION_BYTES:
+        raise ValueError(f"--calibration {path}: larger than {MAX_CALIBRATION_BYTES >> 20} MiB, not a null calibration")
     try:
         cal = json.loads(p.read_text())
+    except RecursionError:
+        raise ValueError(f"--calibration {path}: not JSON (nested too deeply)") from None
     except ValueError as exc:
-        raise ValueError(f"--calibration {path}: not JSON ({exc})") from None
-    if not isinstance(cal, dict):
-        raise ValueError(f"--calibration {path}: expected a JSON object")
+        raise ValueError(f"--calibration {path}: not JSON ({str(exc)[:120]})") from None
+    from bench.gap.calibration_file import problem
+
+    why = problem(cal)
+    if why:  # {} or a damaged file must not become "no gap"
+        raise ValueError(f"--calibration {path}: {why}")
     return cal
 
 
