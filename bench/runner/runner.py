@@ -106,6 +106,13 @@ class Campaign:
         label = label or stage
         want = [records.sha256({"stage": stage, "input": ident}) for ident in idents]
         stored = self.store.load(stage)
+        bad = list(getattr(self.store, "damaged", []))
+        if bad:
+            self.say(
+                f"{label}: {len(bad)} stored record(s) damaged, not used"
+                + (" (counted missing)" if self.summarise_only else " (run again)")
+                + f": {bad[0]}"
+            )
         out: list = [None] * len(items)
         todo = []
         n_items = sum(it is not None for it in items)
@@ -142,6 +149,8 @@ class Campaign:
                 rec = records.loads(text)
                 rec["input_sha256"] = want[i]
                 rec["seed"] = seeds[i]
+                if rec.get("ok"):  # a damaged or edited result is then seen when read back (store.damaged)
+                    rec["result_sha256"] = records.sha256(rec.get("result"))
                 self.store.write(stage, rec)
                 out[i] = records.roundtrip(rec)
                 bar.update(failed=not rec["ok"])

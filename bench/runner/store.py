@@ -59,17 +59,23 @@ class RunStore:
 
     def load(self, stage: str) -> dict:
         """{run index: record} of the runs stored for ``stage``; an unreadable
-        file counts as not stored."""
+        or damaged file (``damaged``) counts as not stored, and its name is
+        kept in ``self.damaged``."""
         out = {}
+        self.damaged = []
         folder = self.path / stage
         if not folder.is_dir():
             return out
         for f in sorted(folder.glob("run-*.json")):
             try:
                 rec = records.loads(f.read_text())
-                out[int(rec["index"])] = rec
-            except (ValueError, KeyError, OSError):
+            except (ValueError, RecursionError, OSError):
+                rec = None
+            why = damaged(rec, f.name)
+            if why:
+                self.damaged.append(f"{f.name}: {why}")
                 continue
+            out[rec["index"]] = rec
         return out
 
     def write(self, stage: str, record: dict) -> None:
@@ -78,12 +84,48 @@ class RunStore:
         _write_atomically(f, records.dumps(record) + "\n")
 
 
+def damaged(rec, name: str | None = None) -> str | None:
+    """Why the stored record ``rec`` (from the file ``name``) cannot stand
+    for its run, None when it can: a dict whose index is the file's, whose
+    ok is true or false, with its input's hash and, when it finished, its
+    result, matching the result's hash (a record written before results
+    were hashed: a result that is not null or empty). A hand-edited or
+    truncated record is then run again, or counted missing, never read as
+    a finished run without a result."""
+    if not isinstance(rec, dict):
+        return "not a run record"
+    index = rec.get("index")
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        return f"index {index!r} is not a run number"
+    if name is not None and name != f"run-{index:06d}.json":
+        return f"index {index} is not the file's"
+    if not isinstance(rec.get("ok"), bool):
+        return f"ok {rec.get('ok')!r} is not true or false"
+    if not isinstance(rec.get("input_sha256"), str):
+        return "no input hash"
+    if not rec["ok"]:
+        return None
+    if "result" not in rec:
+        return "finished without a result"
+    if "result_sha256" in rec:
+        try:
+            same = rec["result_sha256"] == records.sha256(rec["result"])
+        except (TypeError, ValueError):
+            same = False
+        return None if same else "its result is not the one it was written with (hash differs)"
+    result = rec["result"]
+    if result is None or (isinstance(result, (dict, list)) and not result):
+        return f"finished with an empty result ({records.dumps(result)})"
+    return None
+
+
 class MemoryStore:
     """The same interface, in memory (library calls without a store)."""
 
     def __init__(self, name: str = "campaign", arguments: dict | None = None):
         self.name, self.arguments, self.path = name, arguments or {}, None
         self._stages: dict = {}
+        self.damaged: list = []
 
     def exists(self) -> bool:
         return bool(self._stages)
