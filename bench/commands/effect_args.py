@@ -31,22 +31,47 @@ MAX_THRUST_LOSS = 1.0  # a thruster's loss beyond 1 would reverse its thrust
 PER_THRUSTER = ("thrust_loss", "thruster_misalignment")
 
 
+MAX_EFFECTS_BYTES = 1 << 20  # far beyond any list of effects with a parameter per thruster
+MAX_INT_DIGITS = 18
+
+
+def _int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits")
+    return int(text)
+
+
 def read_effects(text: str) -> dict:
     """The option's JSON object (given inline or as a file holding it)."""
-    src = Path(text)
-    if not text.lstrip().startswith("{") and src.exists():
-        text = src.read_text()
+    if not text.lstrip().startswith("{"):
+        src = Path(text)
+        if src.is_dir():
+            raise ValueError(f"--effects {text}: a folder, expected a JSON object or a file holding one")
+        if src.exists():
+            try:
+                if src.stat().st_size > MAX_EFFECTS_BYTES:
+                    raise ValueError(f"--effects {text}: larger than {MAX_EFFECTS_BYTES >> 20} MiB")
+                text = src.read_text()
+            except (OSError, UnicodeDecodeError) as exc:
+                raise ValueError(f"--effects {text}: unreadable ({type(exc).__name__})") from None
+    if len(text) > MAX_EFFECTS_BYTES:
+        raise ValueError(f"--effects: longer than {MAX_EFFECTS_BYTES >> 20} MiB")
     try:
-        eff = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--effects: not JSON ({exc})") from None
+        eff = json.loads(text, parse_int=_int)
+    except RecursionError:
+        raise ValueError("--effects: not JSON (nested too deeply)") from None
+    except ValueError as exc:
+        raise ValueError(f"--effects: not JSON ({str(exc)[:120]})") from None
     if not isinstance(eff, dict):
         raise ValueError("--effects: expected a JSON object, name -> parameters")
     return eff
 
 
 def _short(value) -> str:
-    text = json.dumps(value) if not isinstance(value, float) else repr(value)
+    try:
+        text = json.dumps(value) if not isinstance(value, float) else repr(value)
+    except (ValueError, RecursionError):
+        text = type(value).__name__
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -60,7 +85,10 @@ def _numbers(value, where: str, rows_of: int | None = None) -> np.ndarray:
         flat = [x for v in flat for x in v]
     if not flat or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in flat):
         raise ValueError(f"{where}: expected a number or a list of numbers, got {_short(value)}")
-    p = np.array(flat, dtype=float)
+    try:
+        p = np.array(flat, dtype=float)
+    except OverflowError:  # an integer beyond float's range
+        p = np.array([np.inf])
     if not np.all(np.isfinite(p)):
         raise ValueError(f"{where}: not finite ({_short(value)})")
     return p
@@ -95,7 +123,7 @@ def check_effects(effects: dict, desc, known: tuple) -> dict:
     from bench.sim.effects import EFFECTS, max_size_for
 
     for name, value in effects.items():
-        where = f"--effects: {name}"
+        where = f"--effects: {str(name)[:40]}"
         if name not in known:
             raise ValueError(f"{where}: not an effect this engine simulates (it simulates: {', '.join(known)})")
         spec = EFFECTS[name]
@@ -108,7 +136,8 @@ def check_effects(effects: dict, desc, known: tuple) -> dict:
             raise ValueError(f"{where}: {p[np.argmax(np.abs(p))]:g} beyond the physical bound: |loss| <= 1")
         if name == "differential_drag" and p.size == 2 and p[0] + p[1] < 0.0:
             raise ValueError(f"{where}: dB + B_host = {p[0] + p[1]:g}, the inspector's own, must be >= 0")
-        size, bound = _size(name, p, spec), max_size_for(name, desc)
+        with np.errstate(over="ignore", invalid="ignore"):  # a size of 1e300 squared: refused below, not warned
+            size, bound = _size(name, p, spec), max_size_for(name, desc)
         if not math.isfinite(size) or size > bound:
             raise ValueError(f"{where}: size {size:.3g} {spec.unit} beyond its physical bound {bound:.3g} {spec.unit}")
     return effects

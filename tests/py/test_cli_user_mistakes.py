@@ -179,7 +179,22 @@ SIMULATE = [
     ('{"thruster_misalignment": [0.01, 0.0, 0.0]}', "--effects: thruster_misalignment: expected 36 values"),
     ('{"thrust_loss": 0.1', "--effects: not JSON"),
     ("[0.1]", "--effects: expected a JSON object"),
+    ('{"thrust_loss": [1e300]}', "--effects: thrust_loss: 1e+300 beyond the physical bound"),
+    ('{"thrust_loss": 5}', "--effects: thrust_loss: 5 beyond the physical bound"),
+    ('{"gyro_bias": [1e300, 0, 0]}', "--effects: gyro_bias: size inf rad/s beyond its physical bound"),
+    ('{"thrust_loss": ' + "9" * 400 + "}", "--effects: not JSON (an integer of 400 digits)"),
+    ('{"thrust_loss": ' + "[" * 100000 + "]" * 100000 + "}", "--effects: not JSON (nested too deeply)"),
 ]
+
+
+def test_simulate_names_an_effects_path_that_is_no_json_file(tmp_path, capsys):
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"a":' * 100000 + "1" + "}" * 100000)
+    for arg, message in ((str(tmp_path), "a folder, expected a JSON object"), (str(deep), "nested too deeply")):
+        out = tmp_path / "sim.h5"
+        assert cli.main(["simulate", "--effects", arg, "--out", str(out)]) == 2
+        assert message in _one_line(capsys, "simulate")
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["deep.json"]
 
 
 @pytest.mark.parametrize("effects, message", SIMULATE)
