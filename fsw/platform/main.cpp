@@ -19,7 +19,9 @@
 
 namespace {
 
-volatile sig_atomic_t g_stop = 0;
+// Set by the signal handler, read by the loop: a signal handler can only
+// reach a global (POSIX), hence the one mutable global of the executable.
+volatile sig_atomic_t g_stop = 0;  // NOLINT(cppcoreguidelines-avoid-non-const-global-variables)
 void on_signal(int) { g_stop = 1; }
 
 double now_s() {
@@ -29,7 +31,7 @@ double now_s() {
 }
 
 int usage(const char* argv0) {
-  std::fprintf(stderr, "usage: %s --device PATH [--baud N] [--quiet]\n", argv0);
+  (void)std::fprintf(stderr, "usage: %s --device PATH [--baud N] [--quiet]\n", argv0);
   return 2;
 }
 
@@ -43,7 +45,11 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--device") && i + 1 < argc) {
       device = argv[++i];
     } else if (!std::strcmp(argv[i], "--baud") && i + 1 < argc) {
-      baud = std::atoi(argv[++i]);
+      // A rate that is not a whole number is refused (std::atoi would read 0).
+      char* end = nullptr;
+      const long v = std::strtol(argv[++i], &end, 10);
+      if (end == argv[i] || *end != '\0' || v <= 0 || v > 4000000) return usage(argv[0]);
+      baud = static_cast<int>(v);
     } else if (!std::strcmp(argv[i], "--quiet")) {
       quiet = true;
     } else {
@@ -55,13 +61,13 @@ int main(int argc, char** argv) {
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGPIPE, SIG_IGN);
+  (void)sigaction(SIGINT, &sa, nullptr);
+  (void)sigaction(SIGTERM, &sa, nullptr);
+  (void)signal(SIGPIPE, SIG_IGN);
 
   fsw::platform::SerialPort port;
   if (!port.open(device, baud)) {
-    std::fprintf(stderr, "fsw_node: cannot open %s at %d baud: %s\n", device, baud, port.error());
+    (void)std::fprintf(stderr, "fsw_node: cannot open %s at %d baud: %s\n", device, baud, port.error());
     return 1;
   }
   // The application is large (history, buffers): one allocation at start-up,
@@ -69,7 +75,7 @@ int main(int argc, char** argv) {
   auto app = std::make_unique<fsw::FlightApp<double>>();
   std::array<std::uint8_t, 4096> rx{};
   std::array<std::uint8_t, 4096> tx{};
-  if (!quiet) std::fprintf(stderr, "fsw_node: running on %s at %d baud\n", device, baud);
+  if (!quiet) (void)std::fprintf(stderr, "fsw_node: running on %s at %d baud\n", device, baud);
 
   // Telemetry goes out as fast as the port takes it and never holds up the
   // loop for long: bytes the port does not take now wait (in tx, then in
@@ -98,8 +104,8 @@ int main(int argc, char** argv) {
       const long w = port.write_some(tx.data() + tx_off, tx_len - tx_off);
       if (w <= 0) {
         if (w < 0 && !write_error_reported && !quiet) {
-          std::fprintf(stderr, "fsw_node: write error (%s); telemetry is held, then dropped and counted\n",
-                       port.error());
+          (void)std::fprintf(stderr, "fsw_node: write error (%s); telemetry is held, then dropped and counted\n",
+                             port.error());
           write_error_reported = true;
         }
         return;  // the port is full (or failing): try again next turn
@@ -130,14 +136,14 @@ int main(int argc, char** argv) {
   const auto& l = app->link();
   const auto& m = app->modal().counters();
   if (!quiet) {
-    std::fprintf(stderr,
-                 "fsw_node: stopped; frames %u, packets accepted %u, rejected %u, imu steps %u, "
-                 "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u, "
-                 "frequency acquisitions %u), resets refused %u, telemetry packets %u (dropped %u, "
-                 "non-finite values clamped %u)\n",
-                 l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates, c.pose_fused,
-                 c.poses_deferred, c.learner_samples, m.images, m.images_fused, m.acquisitions, c.resets_refused,
-                 c.tx_packets, c.tx_dropped, c.tm_values_clamped);
+    (void)std::fprintf(stderr,
+                       "fsw_node: stopped; frames %u, packets accepted %u, rejected %u, imu steps %u, "
+                       "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u, "
+                       "frequency acquisitions %u), resets refused %u, telemetry packets %u (dropped %u, "
+                       "non-finite values clamped %u)\n",
+                       l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates,
+                       c.pose_fused, c.poses_deferred, c.learner_samples, m.images, m.images_fused, m.acquisitions,
+                       c.resets_refused, c.tx_packets, c.tx_dropped, c.tm_values_clamped);
   }
   return 0;
 }

@@ -13,6 +13,8 @@ class SerialPort {
   ~SerialPort();
   SerialPort(const SerialPort&) = delete;
   SerialPort& operator=(const SerialPort&) = delete;
+  SerialPort(SerialPort&&) = delete;
+  SerialPort& operator=(SerialPort&&) = delete;
 
   // Opens path in raw mode (8N1, no flow control, no echo, no line
   // discipline) at baud. Returns false and sets error() on failure.
