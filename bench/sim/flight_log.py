@@ -228,41 +228,7 @@ def _check_stream(name: str, data: dict, n_thrusters: int | None = 8) -> list:
             problems.append(Problem(where, None, f"wrong shape {arr.shape}, expected {expected}"))
             continue
         lengths[f.name] = arr.shape[0]
-        finite = np.isfinite(arr) if f.width is None else np.all(np.isfinite(arr), axis=1)
-        if not np.all(finite):
-            row = int(np.argmin(finite))
-            problems.append(Problem(where, row, f"not finite ({arr[row]})"))
-            continue
-        big = np.abs(arr) > f.max_abs
-        if np.any(big):
-            row = int(np.argmax(big if arr.ndim == 1 else np.any(big, axis=1)))
-            worst = float(np.max(np.abs(arr[row])))
-            problems.append(Problem(where, row, f"beyond the bound of {f.max_abs:g} {f.unit} (|value| {worst:.6g})"))
-            continue
-        if f.quaternion:
-            norms = np.linalg.norm(arr, axis=1)
-            bad = np.abs(norms - 1.0) > QUAT_NORM_TOL
-            if np.any(bad):
-                row = int(np.argmax(bad))
-                problems.append(
-                    Problem(
-                        where,
-                        row,
-                        f"quaternion [w, x, y, z] norm {norms[row]:.9g}, expected 1 within {QUAT_NORM_TOL:g}",
-                    )
-                )
-        if f.integer and np.any(arr != np.round(arr)):
-            row = int(np.argmax(arr != np.round(arr)))
-            problems.append(Problem(where, row, f"expected an integer, got {arr[row]}"))
-        if f.positive and np.any(arr <= 0):
-            row = int(np.argmax(arr <= 0))
-            problems.append(Problem(where, row, f"not positive ({arr[row]})"))
-        elif f.min_value is not None and np.any(arr < f.min_value):
-            row = int(np.argmax(arr < f.min_value))
-            problems.append(Problem(where, row, f"below the bound of {f.min_value:g} {f.unit} ({arr[row]})"))
-        if f.nonnegative and np.any(arr < 0):
-            row = int(np.argmax(arr < 0 if arr.ndim == 1 else np.any(arr < 0, axis=1)))
-            problems.append(Problem(where, row, f"negative ({arr[row]})"))
+        problems.extend(_check_values(where, f, arr))
     if name == "valves":
         problems.extend(_check_valve_form(data, n_thrusters))
     if len(set(lengths.values())) > 1:
@@ -284,6 +250,48 @@ def _check_stream(name: str, data: dict, n_thrusters: int | None = 8) -> list:
                         f"time not increasing ({float(t[row - 1])!r} then {float(t[row])!r})",
                     )
                 )
+    return problems
+
+
+def _check_values(where: str, f: FieldSpec, arr: np.ndarray) -> list:
+    """The field's values: finite, within its bounds, and what its kind
+    requires (unit quaternions, integers, positive or non-negative)."""
+    problems = []
+    finite = np.isfinite(arr) if f.width is None else np.all(np.isfinite(arr), axis=1)
+    if not np.all(finite):
+        row = int(np.argmin(finite))
+        problems.append(Problem(where, row, f"not finite ({arr[row]})"))
+        return problems
+    big = np.abs(arr) > f.max_abs
+    if np.any(big):
+        row = int(np.argmax(big if arr.ndim == 1 else np.any(big, axis=1)))
+        worst = float(np.max(np.abs(arr[row])))
+        problems.append(Problem(where, row, f"beyond the bound of {f.max_abs:g} {f.unit} (|value| {worst:.6g})"))
+        return problems
+    if f.quaternion:
+        norms = np.linalg.norm(arr, axis=1)
+        bad = np.abs(norms - 1.0) > QUAT_NORM_TOL
+        if np.any(bad):
+            row = int(np.argmax(bad))
+            problems.append(
+                Problem(
+                    where,
+                    row,
+                    f"quaternion [w, x, y, z] norm {norms[row]:.9g}, expected 1 within {QUAT_NORM_TOL:g}",
+                )
+            )
+    if f.integer and np.any(arr != np.round(arr)):
+        row = int(np.argmax(arr != np.round(arr)))
+        problems.append(Problem(where, row, f"expected an integer, got {arr[row]}"))
+    if f.positive and np.any(arr <= 0):
+        row = int(np.argmax(arr <= 0))
+        problems.append(Problem(where, row, f"not positive ({arr[row]})"))
+    elif f.min_value is not None and np.any(arr < f.min_value):
+        row = int(np.argmax(arr < f.min_value))
+        problems.append(Problem(where, row, f"below the bound of {f.min_value:g} {f.unit} ({arr[row]})"))
+    if f.nonnegative and np.any(arr < 0):
+        row = int(np.argmax(arr < 0 if arr.ndim == 1 else np.any(arr < 0, axis=1)))
+        problems.append(Problem(where, row, f"negative ({arr[row]})"))
     return problems
 
 
