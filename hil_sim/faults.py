@@ -62,6 +62,7 @@ class FaultCounts:
     frames_reordered: int = 0
     stalls: int = 0
     frames_touched: int = 0  # frames whose bytes were altered (flip, drop or burst)
+    frames_intact: int = 0  # frames passed on as they were sent (the far side can answer these)
 
 
 class FaultInjector:
@@ -99,6 +100,7 @@ class FaultInjector:
                 buf = buf[keep]
                 touched = True
         self.counts.frames_touched += int(touched)
+        self.counts.frames_intact += int(not touched)
         return buf.tobytes()
 
     def apply(self, chunk: bytes) -> bytes:

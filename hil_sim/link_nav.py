@@ -84,6 +84,9 @@ class LinkNav:
         self.housekeeping = None  # last tm_housekeeping as a dict (packets.decode_housekeeping)
         self.learner_outputs: list = []  # (t_s, tm_learner values): the flight learner's prediction per firing
         self.deferred_pose_results: list = []  # (status, fused) of poses fused after a later predict
+        # Poses not sent: their covariance came from an estimate the link never
+        # brought back (NaN), so there was no sigma to send.
+        self.poses_not_sent = 0
         self._current_apid = None
         self._tx = b""  # framed packets held for the next write
 
@@ -126,6 +129,9 @@ class LinkNav:
 
     def update_pose(self, t_capture_s, r_hill_m, q_hb, R):
         R = np.asarray(R, float)
+        if not np.all(np.isfinite(R)):
+            self.poses_not_sent += 1
+            return LinkRecord()
         r_sigma = _isotropic_sigma(R[0:3, 0:3], "R[0:3, 0:3]")
         a_sigma = _isotropic_sigma(R[3:6, 3:6], "R[3:6, 3:6]")
         payload = pk.pack_payload(_POSE, *np.asarray(r_hill_m, float), *np.asarray(q_hb, float), r_sigma, a_sigma)

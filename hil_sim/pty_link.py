@@ -115,6 +115,7 @@ class PtyLink:
         self._queued = {"up": b"", "down": b""}
         self.silence_s = silence_s
         self._silent_wait_s = 0.0  # time spent waiting in pump() since the flight side last sent a byte
+        self._intact_when_heard = 0  # intact frames passed up when the flight side last sent a byte
 
     def _wait_ready(self, timeout_s: float):
         # fsw_node flushes its port when it opens it: nothing may be sent
@@ -154,7 +155,10 @@ class PtyLink:
         moved = len(data)
         if data:
             stall = faults.stall_now()
-            if stall:
+            if stall and time.monotonic() >= self._stalled_until[key]:
+                # A stall delays what is queued by stall_s; a chunk arriving
+                # during it does not extend it (at stall_rate 1 the link would
+                # otherwise never deliver again).
                 self._stalled_until[key] = time.monotonic() + stall
             self._queued[key] += faults.apply(data)
         if self._queued[key] and time.monotonic() >= self._stalled_until[key]:
@@ -190,12 +194,20 @@ class PtyLink:
             heard = self._move(self._ma, self._mb, self.down, "down")
             self.bytes_down += heard
             moved += heard
-        self._silent_wait_s = 0.0 if heard else self._silent_wait_s + waited
+        if heard or self.up.cfg.clean:
+            self._silent_wait_s = 0.0 if heard else self._silent_wait_s + waited
+        elif self.up.counts.frames_intact > self._intact_when_heard:
+            # Silence counts only once a frame reached the flight side intact:
+            # a link that destroys every frame leaves fsw_node nothing to answer.
+            self._silent_wait_s += waited
+        if heard:
+            self._intact_when_heard = self.up.counts.frames_intact
         return moved
 
     def check_flight_side(self):
         """Raises FlightSideLost when fsw_node has exited, or when the bench
-        has waited silence_s in all without a byte from it."""
+        has waited silence_s in all without a byte from it (with link faults:
+        waited since an intact frame reached it)."""
         code = self.proc.poll()
         if code is not None:
             how = f"killed by signal {-code}" if code < 0 else f"exit code {code}"

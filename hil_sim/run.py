@@ -107,6 +107,7 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
         "step_latency_p50_ms": float(np.percentile(lat, 50)) if steps else float("nan"),
         "step_latency_p99_ms": float(np.percentile(lat, 99)) if steps else float("nan"),
         "step_timeouts": nav.timeouts,
+        "poses_not_sent": nav.poses_not_sent,
         "bad_crc_delivered": nav.delivered_not_sent,
         "packets_sent": nav.packets_sent,
         "bytes_up": link.bytes_up,

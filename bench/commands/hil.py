@@ -123,6 +123,7 @@ def hil_summary(res: dict, args) -> dict:
         "step_latency_p99_ms": res["step_latency_p99_ms"],
         "step_latency_max_ms": float(np.max(res["step_latency_ms"])) if res["steps"] else None,
         "step_timeouts": res["step_timeouts"],
+        "poses_not_sent": res.get("poses_not_sent", 0),
         "realtime_overruns": res["realtime_overruns"],
         "packets_sent": res["packets_sent"],
         "packets_rejected_by_reason": res["flight_rejected_by_reason"],
@@ -149,7 +150,29 @@ def hil_summary(res: dict, args) -> dict:
         "nis_mean": float(np.mean(nis)) if nis.size else None,
         "fsw_node_exit_code": res["fsw_node_exit_code"],
         "fsw_node_summary": res["fsw_node_summary"],
+        "degraded": _degraded(res, errs, nis),
     }
+
+
+def _degraded(res: dict, errs: dict, nis) -> str | None:
+    """Why the link made this run's figures degraded (None: it did not):
+    steps the flight side's answer never reached, poses that could not be
+    sent, runs without a navigation error (no estimate came back)."""
+    why = []
+    if res["step_timeouts"]:
+        why.append(f"{res['step_timeouts']} of {res['steps']} steps unanswered")
+    if res.get("poses_not_sent"):
+        why.append(f"{res['poses_not_sent']} poses not sent (no estimate back to size their covariance)")
+    if len(errs["max_pos_err_m"]) < len(res["runs"]):
+        why.append(f"{len(res['runs']) - len(errs['max_pos_err_m'])} docking run(s) without a navigation estimate")
+    if not nis.size:
+        why.append("no answer of a fused pose update came back")
+    return "; ".join(why) or None
+
+
+def _fmt(value, spec: str, missing: str = "n/a") -> str:
+    """A figure the link may have left without a value (None or NaN)."""
+    return missing if value is None or not np.isfinite(value) else format(value, spec)
 
 
 def _device(args):
@@ -181,9 +204,11 @@ def print_summary(s: dict):
         f"timeouts {s['step_timeouts']}"
     )
     print(
-        f"  navigation: worst per-axis error {s['worst_pos_err_m']:.4f} m, {s['worst_vel_err_mps']:.4f} m/s; "
-        f"mean NIS {s['nis_mean']:.2f} (6 dof)"
+        f"  navigation: worst per-axis error {_fmt(s['worst_pos_err_m'], '.4f')} m, "
+        f"{_fmt(s['worst_vel_err_mps'], '.4f')} m/s; mean NIS {_fmt(s['nis_mean'], '.2f')} (6 dof)"
     )
+    if s.get("degraded"):
+        print(f"  degraded by the link: {s['degraded']}")
     rej = {k: v for k, v in s["packets_rejected_by_reason"].items() if v}
     trej = {k: v for k, v in s["telemetry_rejected_by_reason"].items() if v}
     print(
@@ -218,14 +243,19 @@ def plate_main(args, faults) -> int:
     rel = np.array(s["final_frequency_rel_error"])
     print(
         f"  modes excited >= 0.2: {len(s['strong_modes'])}, within 1 % of their frequency at the end: "
-        f"{s['strong_modes_within_1pct']}; worst {100 * np.max(np.abs(rel[s['strong_modes']])):.2f} %"
+        f"{s['strong_modes_within_1pct']}; worst {_fmt(100 * np.max(np.abs(rel[s['strong_modes']])), '.2f')} %"
         if s["strong_modes"]
         else "  no mode excited >= 0.2"
     )
     print(
-        f"  answer latency p50 {s['answer_latency_p50_ms']:.2f} ms, p99 {s['answer_latency_p99_ms']:.2f} ms; "
-        f"wall {s['wall_s']:.1f} s"
+        f"  answer latency p50 {_fmt(s['answer_latency_p50_ms'], '.2f')} ms, "
+        f"p99 {_fmt(s['answer_latency_p99_ms'], '.2f')} ms; wall {s['wall_s']:.1f} s"
     )
+    if s["images_answered"] < s["images_sent"] or s["images_with_points_lost"]:
+        print(
+            f"  degraded by the link: {s['images_sent'] - s['images_answered']} of {s['images_sent']} images "
+            f"unanswered, {s['images_with_points_lost']} with points lost"
+        )
     print(f"  fsw_node: {_node_line(s)}")
     if args.json:
         _write_summary(args, s)
