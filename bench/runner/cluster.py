@@ -17,6 +17,9 @@ import warnings
 
 _LOCAL: dict = {}  # workers -> (cluster, client)
 _DEFAULTS = {"scheduler": None, "workers": None}
+# How long a scheduler's address may take to accept a connection: nothing
+# listening is refused at once, an unreachable host within this.
+REACH_TIMEOUT_S = 2.0
 
 
 def default_workers() -> int:
@@ -26,8 +29,33 @@ def default_workers() -> int:
 def configure(scheduler: str | None = None, workers: int | None = None) -> None:
     """The cluster campaigns in this process use unless told otherwise (the
     command line sets it once, so nested campaigns such as a log's own null
-    calibration follow it)."""
+    calibration follow it). A scheduler address is checked here, before any
+    run starts: one that accepts no connection is refused (ValueError)."""
+    if scheduler is not None:
+        check_reachable(scheduler)
     _DEFAULTS.update(scheduler=scheduler, workers=workers)
+
+
+def check_reachable(scheduler: str, timeout_s: float = REACH_TIMEOUT_S) -> None:
+    """Refuse (ValueError, naming --scheduler) an address that is not
+    tcp://HOST:PORT or tls://HOST:PORT, or where nothing accepts a TCP
+    connection within ``timeout_s`` (Dask's own client retries for its whole
+    timeout before it says so)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    try:
+        parts = urlsplit(scheduler)
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host = port = None
+    if parts.scheme not in ("tcp", "tls") or not host or port is None:
+        raise ValueError(f"--scheduler {scheduler}: expected an address such as tcp://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=timeout_s).close()
+    except OSError as exc:
+        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__)
+        raise ValueError(f"--scheduler {scheduler}: cannot connect ({reason})") from None
 
 
 def inside_worker() -> bool:
@@ -58,8 +86,10 @@ def client(scheduler: str | None = None, workers: int | None = None):
         if key not in _LOCAL:
             try:
                 _LOCAL[key] = (None, Client(scheduler, timeout="20s"))
-            except (OSError, TimeoutError) as exc:
-                raise ValueError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+            except Exception as exc:  # noqa: BLE001 - whatever answers there, it is no Dask scheduler we can use
+                raise ValueError(
+                    f"--scheduler {scheduler}: cannot connect, or not a Dask scheduler ({type(exc).__name__})"
+                ) from None
         return _LOCAL[key][1]
     n = int(workers or _DEFAULTS["workers"] or default_workers())
     key = ("local", n)
