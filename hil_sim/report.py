@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.report import matplotlib_agg
-from bench.sim.flight_log import runs_to_flight_log, write_flight_log
+from bench.sim.flight_log import FlightLogError, runs_to_flight_log, write_flight_log
 from bench.sim.scenario_docking import DockingRun, errors_from_first_update
 
 
@@ -57,7 +57,30 @@ def plot_latency(lat_ms: np.ndarray, path: Path):
     plt.close(fig)
 
 
-def write_hil_report(res: dict, summary: dict, out: Path):
+def _received_only(log) -> dict:
+    """Leaves out the rows of the pose, estimate and update streams that hold
+    a value the link never brought back (NaN: an estimate lost, a pose not
+    sent); returns {stream: rows left out}."""
+    left_out = {}
+    for name in ("pose", "estimate", "update"):
+        data = log.streams.get(name)
+        if not data:
+            continue
+        n = len(next(iter(data.values())))
+        keep = np.ones(n, bool)
+        for v in data.values():
+            a = np.asarray(v)
+            if np.issubdtype(a.dtype, np.floating):
+                keep &= np.all(np.isfinite(a.reshape(n, -1)), axis=1)
+        if not keep.all():
+            log.streams[name] = {k: np.asarray(v)[keep] for k, v in data.items()}
+            left_out[name] = int(n - keep.sum())
+    return left_out
+
+
+def write_hil_report(res: dict, summary: dict, out: Path) -> str | None:
+    """Writes the flight log and plots into ``out``; returns why the flight
+    log was not written (a link that lost too much for a valid log), or None."""
     cfg = {
         "scenario": summary["scenario"],
         "seed": summary["seed"],
@@ -66,7 +89,16 @@ def write_hil_report(res: dict, summary: dict, out: Path):
         "dt_imu_s": 0.1,
         "source": "proxops hil",
     }
-    write_flight_log(out / "flight_log.h5", runs_to_flight_log(res["runs"], cfg))
+    log = runs_to_flight_log(res["runs"], cfg)
+    left_out = _received_only(log)
+    if left_out:
+        log.config["rows_left_out_lost_on_link"] = left_out
+    why = None
+    try:
+        write_flight_log(out / "flight_log.h5", log)
+    except FlightLogError as exc:
+        why = f"flight log not written: what the link brought back is no valid log ({str(exc)[:160]})"
     plot_run(res["runs"][0], out / "nav_errors.png", "Docking over the HIL link: navigation errors")
     if res["steps"]:
         plot_latency(res["step_latency_ms"], out / "step_latency.png")
+    return why

@@ -334,8 +334,10 @@ def _main(args):
 
         with staged_report_dir(args.report) as tmp:
             write_json(tmp / "hil.json", s, strict=True)
-            write_hil_report(res, s, tmp)
-        print(f"  report: {args.report}/ (hil.json, flight_log.h5, plots)")
+            not_written = write_hil_report(res, s, tmp)
+        print(f"  report: {args.report}/ (hil.json, " + ("" if not_written else "flight_log.h5, ") + "plots)")
+        if not_written:
+            print(f"  {not_written}")
     if args.json:
         _write_summary(args, s)
     return 0

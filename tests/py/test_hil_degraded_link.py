@@ -25,14 +25,18 @@ FAULTS = [
 
 @pytest.mark.parametrize("faults", FAULTS, ids=[" ".join(f) for f in FAULTS])
 def test_a_degraded_docking_run_reports_its_figures(tmp_path, capsys, faults):
-    out = tmp_path / "hil.json"
-    rc = cli.main(["hil", "--duration", "3", *faults, "--json", str(out)])
+    out, report = tmp_path / "hil.json", tmp_path / "report"
+    rc = cli.main(["hil", "--duration", "3", *faults, "--json", str(out), "--report", str(report)])
     captured = capsys.readouterr()
     assert rc == 0, captured.err[-2000:]
     s = json.loads(out.read_text())
     assert s["steps"] > 0 and s["fsw_node_exit_code"] == 0
     assert s["degraded"] and "unanswered" in s["degraded"], s["degraded"]
     assert "degraded by the link: " in captured.out
+    # The report holds what came back; a flight log only when that is a valid log, and it says which.
+    names = {p.name for p in report.iterdir()}
+    assert {"hil.json", "nav_errors.png"} <= names
+    assert ("flight_log.h5" in names) != ("flight log not written" in captured.out)
 
 
 def test_a_degraded_plate_run_reports_its_figures(tmp_path, capsys):
