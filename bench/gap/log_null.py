@@ -341,7 +341,13 @@ def calibrate_for_log(
             f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
             f"seed {failed[0]['seed']}: {failed[0]['error']})"
         )
-    thr, tails, vals = thresholds_of(results(recs))
+    rows = results(recs)
+    unfit = [k for k in STATISTICS if not np.all(np.isfinite([float(r[k]) for r in rows]))]
+    if unfit:  # the diagnosis does not fit even the log's own flights: name what to check
+        from bench.gap.validity import not_judgeable
+
+        raise ValueError(not_judgeable(prepared[3].desc, unfit, runs))
+    thr, tails, vals = thresholds_of(rows)
     z, b = vals["map_max_abs_z"], vals["screen_logp"]
     cal = {
         "thresholds": thr,

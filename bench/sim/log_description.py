@@ -42,6 +42,14 @@ IMU_RATE_HZ = (0.01, 1e4)
 ACCEL_SIGMA_MPS2 = (1e-7, 100.0)
 GYRO_SIGMA_RPS = (1e-7, 10.0)
 MAX_LATENCY_S = 60.0
+# What the thrusters can do to the vehicle: all of them together accelerate
+# it by at most MAX_ACCEL_MPS2, one of them turns it by at most
+# MAX_ANGULAR_ACCEL_RPS2 about its weakest axis. Far beyond a small
+# spacecraft's cold gas (the bench inspector: 0.05 m/s^2 and 0.18 rad/s^2;
+# random vehicles up to 0.34 and 0.9); beyond them the simulated flights of
+# the calibration made for the log leave the range of finite numbers.
+MAX_ACCEL_MPS2 = 10.0
+MAX_ANGULAR_ACCEL_RPS2 = 10.0
 
 
 class DescriptionError(ValueError):
@@ -382,7 +390,29 @@ def _resolve_vehicle(veh: dict, config: dict, base: dict, defaults: list) -> tup
         "vehicle.thrusters",
     )
     defaults.extend(x for x in found if x.split(" ")[0].split(".")[-1] not in cveh)
+    _check_authority(mass, inertia, com, thr)
     return mass, inertia, com, thr
+
+
+def _check_authority(mass: float, inertia: np.ndarray, com: np.ndarray, thr: list) -> None:
+    """Refuse thrusters too strong for the vehicle described (MAX_ACCEL_MPS2,
+    MAX_ANGULAR_ACCEL_RPS2): a mistaken unit or a missing factor, not a
+    spacecraft whose flight can be simulated."""
+    accel = sum(t.thrust_n for t in thr) / mass
+    if accel > MAX_ACCEL_MPS2:
+        raise DescriptionError(
+            f"vehicle.mass_kg: {mass:.6g} kg with {sum(t.thrust_n for t in thr):.6g} N of thrust accelerates at "
+            f"{accel:.3g} m/s^2, more than {MAX_ACCEL_MPS2:g}"
+        )
+    weakest = float(np.linalg.eigvalsh(inertia)[0])
+    for i, t in enumerate(thr):
+        torque = float(np.linalg.norm(np.cross(t.position_b_m - com, t.direction_b))) * t.thrust_n
+        if torque / weakest > MAX_ANGULAR_ACCEL_RPS2:
+            raise DescriptionError(
+                f"vehicle.thrusters[{i}]: its torque of {torque:.3g} N m turns the vehicle at "
+                f"{torque / weakest:.3g} rad/s^2 about its weakest axis ({weakest:.3g} kg m^2), more than "
+                f"{MAX_ANGULAR_ACCEL_RPS2:g}"
+            )
 
 
 _IMU_FIELDS = (

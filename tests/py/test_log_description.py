@@ -65,6 +65,9 @@ def test_second_vehicle_resolves_without_defaults_but_segments():
         (("imu", "accel_noise_density_mps2_rthz"), 1e3, "imu.accel_noise_density_mps2_rthz: a per-sample sigma"),
         (("pose_sensor", "time_offset_s"), 1e300, "pose_sensor.time_offset_s: 1e+300 must be <= 10000000000.0"),
         (("pose_sensor", "latency_s"), 1e6, "pose_sensor.latency_s: 1000000.0 must be <= 60.0"),
+        # Thrusters too strong for the vehicle: its simulated flights leave the range of finite numbers.
+        (("vehicle", "mass_kg"), 0.01, "vehicle.mass_kg: 0.01 kg with 1.2 N of thrust accelerates at 120 m/s^2"),
+        (("vehicle", "inertia_kgm2"), [1e-8, 1e-8, 1e-8], "vehicle.thrusters[0]: its torque of 0.00908 N m turns"),
     ],
 )
 def test_bad_field_is_named(path, value, message):
