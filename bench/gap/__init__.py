@@ -16,6 +16,8 @@ null calibrations
   log_null    a calibration made for a log (parametric bootstrap of its own flight)
   plans       manoeuvre plans the simulated flights fly
   simlogs     simulated logs of the docking scenario (runs go through bench/runner)
+  calibration_file  what a --calibration file must hold before its thresholds are trusted
+  validity    the envelope the diagnosis is validated on; a log outside it, named
 the model
   detection   the two detection statistics under the nominal model
   select      several effects at once: forward selection and joint refit

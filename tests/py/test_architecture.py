@@ -31,7 +31,10 @@ GAP_LAYERS = (
         },
     ),
     ("the answer: verdicts, words, report", {"diagnose", "answers", "report"}),
-    ("null calibrations and the flights they simulate", {"null", "log_null", "plans", "simlogs"}),
+    (
+        "null calibrations and the flights they simulate",
+        {"null", "log_null", "plans", "simlogs", "calibration_file", "validity"},
+    ),
     (
         "the model: replay, dynamics channel, candidates, screening, selection, detection",
         {"detection", "select", "attribute", "localise", "quantify", "dyn", "candidates", "replay"},
