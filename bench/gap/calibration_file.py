@@ -58,13 +58,14 @@ def problem(cal) -> str | None:
 
     if not isinstance(cal, dict):
         return "expected a JSON object (a null calibration)"
-    if not cal:
-        return "thresholds: missing: an empty object is not a null calibration"
     thr = cal.get("thresholds")
-    if not isinstance(thr, dict):
-        return "thresholds: missing or not an object"
+    thr = thr if isinstance(thr, dict) else {}
     for k in log_null.STATISTICS:
         t = thr.get(k)
+        if t is None:
+            return (
+                f"thresholds.{k} missing: " + ("an empty object" if not cal else "this") + " is not a null calibration"
+            )
         if not _is_number(t) or not math.isfinite(t) or t <= 0.0:
             return f"thresholds.{k}: {t!r} is not a finite positive number"
     runs = cal.get("runs")

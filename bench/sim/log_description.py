@@ -39,8 +39,10 @@ THRUST_N = 1e3
 MIN_ON_TIME_S = 10.0
 MAX_POSITION_M = 100.0  # any described point from the body origin (as vehicle.envelope_m)
 IMU_RATE_HZ = (0.01, 1e4)
-ACCEL_SIGMA_MPS2 = (1e-7, 100.0)
-GYRO_SIGMA_RPS = (1e-7, 10.0)
+# Noise floors far below any IMU (a noise-free simulation states 1e-15):
+# they keep sigma^2 and the whitened residuals within float64.
+ACCEL_SIGMA_MPS2 = (1e-20, 100.0)
+GYRO_SIGMA_RPS = (1e-20, 10.0)
 MAX_LATENCY_S = 60.0
 # What the thrusters can do to the vehicle: all of them together accelerate
 # it by at most MAX_ACCEL_MPS2, one of them turns it by at most

@@ -46,9 +46,10 @@ def _thr(**changes) -> dict:
 
 
 BAD = [
-    ("empty", {}, "thresholds: missing"),
+    ("empty", {}, "thresholds.map_max_abs_z missing: an empty object"),
     ("not an object", [1, 2], "expected a JSON object"),
-    ("no thresholds", _with(thresholds=None), "thresholds: missing or not an object"),
+    ("no thresholds", _with(thresholds=None), "thresholds.map_max_abs_z missing"),
+    ("thresholds not an object", _with(thresholds=[1, 2]), "thresholds.map_max_abs_z missing"),
     ("NaN threshold", _with(thresholds=_thr(map_max_abs_z=float("nan"))), "thresholds.map_max_abs_z: nan"),
     ("negative threshold", _with(thresholds=_thr(screen_logp=-1.0)), "thresholds.screen_logp: -1.0"),
     ("string threshold", _with(thresholds=_thr(screen_logp="4")), "thresholds.screen_logp: '4'"),
