@@ -119,12 +119,14 @@ def signature_distance(a, b, cands: dict | None = None) -> float:
 
 def _gap_cells(ctx: Context):
     """The deficit cells where the nominal model's gap lies on the training
-    rows (quantify.gap_cells), and every dynamics row's cell."""
+    rows (quantify.gap_cells), every dynamics row's cell and its segment
+    (quantify.dyn_segments)."""
     ch = ctx.ch
-    lab = quantify.dyn_cell_labels(ch) if ch is not None else None
-    q = np.sum(ch.e0[ctx.train_dyn] ** 2, axis=1) if ch is not None else None
-    cells = quantify.gap_cells(ctx.nominal.nis[ctx.train_nav], q, None if lab is None else lab[ctx.train_dyn])
-    return cells, lab
+    if ch is None:
+        return quantify.gap_cells(ctx.nominal.nis[ctx.train_nav]), None, None
+    lab, seg = quantify.dyn_cell_labels(ch), quantify.dyn_segments(ch)
+    tr = ctx.train_dyn
+    return quantify.gap_cells(ctx.nominal.nis[ctx.train_nav], ch.e0[tr], lab[tr], seg[tr]), lab, seg
 
 
 def heldout_runs_shrink(ctx: Context, name: str) -> dict:
@@ -146,21 +148,21 @@ def heldout_runs_shrink(ctx: Context, name: str) -> dict:
     if not np.isfinite(f.screen_bic):
         return {"runs": n_runs, "fraction": None, "reason": "no signature on the training runs"}
     confirm(c2, f)
-    q0 = q1 = t_d = None
+    e0 = e1 = t_d = None
     if ch is not None:
         t_d = ch.t[hd]
-        q0 = np.sum(ch.e0[hd] ** 2, axis=1)
-        q1 = np.sum((f.after_dyn if f.after_dyn is not None else ch.e0)[hd] ** 2, axis=1)
-    cells, lab = _gap_cells(c2)
+        e0, e1 = ch.e0[hd], (f.after_dyn if f.after_dyn is not None else ch.e0)[hd]
+    cells, lab, seg = _gap_cells(c2)
     sh = quantify.shrink_combined(
         d.pose_tc[held],
         nominal.nis[held],
         f.after_nav.nis[held],
         t_d,
-        q0,
-        q1,
+        e0,
+        e1,
         cells=cells,
         lab_dyn=None if lab is None else lab[hd],
+        seg_dyn=None if seg is None else seg[hd],
     )
     return {
         "runs": n_runs,
@@ -179,25 +181,25 @@ class HeldOut:
 
     def __init__(self, ctx: Context):
         self.ctx = ctx
-        self.cells, self.lab_dyn = _gap_cells(ctx)
+        self.cells, self.lab_dyn, self.seg_dyn = _gap_cells(ctx)
 
     def shrink(self, after_nav: Pass, after_dyn) -> dict:
         ctx, ch, hd = self.ctx, self.ctx.ch, self.ctx.held_dyn
-        q0 = q1 = td = None
+        e0 = e1 = td = None
         if ch is not None:
             td = ch.t[hd]
-            q0 = np.sum(ch.e0[hd] ** 2, axis=1)
-            q1 = np.sum((after_dyn if after_dyn is not None else ch.e0)[hd] ** 2, axis=1)
+            e0, e1 = ch.e0[hd], (after_dyn if after_dyn is not None else ch.e0)[hd]
         held = ctx.held_nav
         return quantify.shrink_combined(
             ctx.d.pose_tc[held],
             ctx.nominal.nis[held],
             after_nav.nis[held],
             td,
-            q0,
-            q1,
+            e0,
+            e1,
             cells=self.cells,
             lab_dyn=None if self.lab_dyn is None else self.lab_dyn[hd],
+            seg_dyn=None if self.seg_dyn is None else self.seg_dyn[hd],
         )
 
     def train_channels(self, after_nav: Pass, after_dyn) -> dict:

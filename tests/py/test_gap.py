@@ -254,28 +254,72 @@ def test_deficit_cells_keep_only_where_the_training_gap_lies():
     from bench.gap import quantify
 
     rng = np.random.default_rng(4)
-    n_nav, n_acc = 60, 600
+    n_nav, n_acc, seg_len = 60, 600, 10
     nis_train = rng.chisquare(6, n_nav)  # null
     lab = np.r_[
         np.full(n_acc, quantify.CELL_ACCEL_COAST),
         np.full(n_acc, quantify.CELL_ACCEL_FIRE),
         np.full(n_acc, quantify.CELL_GYRO),
     ]
-    q = rng.chisquare(3, lab.size)
-    q[lab == quantify.CELL_ACCEL_FIRE] += 0.5  # a gap of 150 in the firing rows
-    assert quantify.gap_cells(nis_train, q, lab) == [quantify.CELL_ACCEL_FIRE]
+    seg = np.arange(lab.size) // seg_len
+    gap = np.where(lab == quantify.CELL_ACCEL_FIRE, 0.3, 0.0)[:, None] * np.ones(3)  # a slow gap while firing
+    e = rng.standard_normal((lab.size, 3)) + gap
+    assert quantify.gap_cells(nis_train, e, lab, seg) == [quantify.CELL_ACCEL_FIRE]
     # Held out: the same gap; a fix that removes it shrinks the cell's deficit by
     # about all of it, and the null rows elsewhere add no noise to that.
-    q_held = rng.chisquare(3, lab.size) + np.where(lab == quantify.CELL_ACCEL_FIRE, 0.5, 0.0)
-    q_fixed = q_held - np.where(lab == quantify.CELL_ACCEL_FIRE, 0.5, 0.0)
+    e_held = rng.standard_normal((lab.size, 3)) + gap
+    e_fixed = e_held - gap
     t = np.arange(lab.size) * 0.1
     nis_h = rng.chisquare(6, n_nav)
     sh = quantify.shrink_combined(
-        t[:n_nav], nis_h, nis_h, t, q_held, q_fixed, cells=[quantify.CELL_ACCEL_FIRE], lab_dyn=lab
+        t[:n_nav], nis_h, nis_h, t, e_held, e_fixed, cells=[quantify.CELL_ACCEL_FIRE], lab_dyn=lab, seg_dyn=seg
     )
-    assert sh["deficit_null_sd"] == pytest.approx(np.sqrt(0.5 * 3 * n_acc))
-    assert sh["measurable"] and sh["fraction"] == pytest.approx(1.0, abs=0.4)
+    n_seg = n_acc // seg_len
+    assert sh["deficit_null_sd"] == pytest.approx(np.sqrt(0.5 * 3 * n_seg))
+    assert sh["measurable"] and sh["fraction"] == pytest.approx(1.0, abs=0.3)
     assert sh["cells"] == ["accelerometer, firing"]
+    # Row by row the same gap has the same deficit (81) but a null spread of
+    # 30 instead of 9.5: the segments' means keep the gap and drop the noise.
+    rows = quantify.shrink_combined(
+        t[:n_nav], nis_h, nis_h, t, e_held, e_fixed, cells=[quantify.CELL_ACCEL_FIRE], lab_dyn=lab
+    )
+    assert rows["deficit_null_sd"] == pytest.approx(np.sqrt(0.5 * 3 * n_acc))
+    z_seg = sh["deficit_before"] / sh["deficit_null_sd"]
+    assert z_seg > 2.0 * rows["deficit_before"] / rows["deficit_null_sd"]
+
+
+def test_segments_cut_at_valve_changes_runs_and_windows():
+    from types import SimpleNamespace
+
+    from bench.gap import quantify
+
+    dt, n = 0.05, 100  # 5 s at 20 Hz
+    t_acc = np.arange(n) * dt
+    t_acc[60:] += 1.0  # a second run after a break
+    open_ = np.zeros((n, 2))
+    open_[10:14, 0] = 1.0
+    open_[14:16, 1] = 0.5
+    k = np.r_[np.arange(1, 60), np.arange(61, n)]
+    ch = SimpleNamespace(
+        open_=open_,
+        W=np.zeros((k.size, 2)),
+        rows=n + k.size,
+        t=np.r_[t_acc, t_acc[k]],
+        kind=np.r_[np.zeros(n, int), np.ones(k.size, int)],
+        dt=dt,
+        seg_bounds=[(0, 59), (59, k.size)],
+    )
+    seg = quantify.dyn_segments(ch)
+    acc, gyro = seg[:n], seg[n:]
+    assert len(np.unique(acc[10:14])) == 1 and acc[9] != acc[10] and acc[14] != acc[13] and acc[16] != acc[15]
+    assert acc[59] != acc[60]  # a new run
+    assert np.all(np.diff(t_acc[acc == acc[30]]) < quantify.SEGMENT_S)
+    assert set(acc) & set(gyro) == set()
+    assert gyro[57] != gyro[59]  # the runs' whitening bounds
+    # The rows of every segment lie inside one SEGMENT_S window.
+    for s_ in np.unique(seg):
+        ts = ch.t[seg == s_]
+        assert ts.max() - ts.min() < quantify.SEGMENT_S
 
 
 def test_signature_distance_is_zero_inside_the_other_span_and_full_outside():
