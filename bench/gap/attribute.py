@@ -112,26 +112,83 @@ def training_residuals(ctx: Context, nav: Pass | None = None):
     return np.concatenate([e_nav[rows_ok].ravel(), e_dyn]), rows_ok
 
 
-def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None):
-    """Candidate ``name``'s Jacobian on the training rows of both channels
-    (finite differences through the filter, closed form on the dynamics
-    channel), and the dynamics Jacobian on every row (None without one)."""
+def nav_signature(ctx: Context, name: str, progress=None) -> np.ndarray:
+    """Candidate ``name``'s Jacobian of the whitened pose innovations on every
+    pose update, (M, 6, k): a replay per parameter at its typical size
+    (finite differences through the filter); zero where either pass did not
+    fuse the update."""
     d = ctx.d
     c = candidate(d, name)
-    e_nav = ctx.nominal.white[ctx.train_nav][rows_ok].ravel()
+    base = np.nan_to_num(ctx.nominal.white, nan=0.0)
+    J = np.zeros(base.shape + (c.n_params,))
+    for i in range(c.n_params):
+        th = np.zeros(c.n_params)
+        th[i] = c.scale
+        w = run_pass(d, c.corrections(th, d)).white
+        J[:, :, i] = np.where(np.isfinite(ctx.nominal.white), np.nan_to_num(w, nan=0.0) - base, 0.0) / c.scale
+        if progress:
+            progress()
+    return J
+
+
+def signature(ctx: Context, name: str, rows_ok: np.ndarray, progress=None, given: dict | None = None):
+    """Candidate ``name``'s Jacobian on the training rows of both channels
+    (through the filter, nav_signature; closed form on the dynamics
+    channel), the dynamics one on every row (None without one) and the
+    navigation one on every pose update (None for a dynamics-only
+    candidate). ``given``: {"nav": ..., "dyn": ...} full Jacobians to use
+    instead, each where it has this log's shape."""
+    c = candidate(ctx.d, name)
+    given = given or {}
+    n_nav = int(rows_ok.sum()) * 6
     n_dyn = int(ctx.train_dyn.sum()) * 3 if ctx.ch is not None else 0
-    Jn = np.zeros((e_nav.size, c.n_params))
+    Jn_full = None
+    Jn = np.zeros((n_nav, c.n_params))
     if c.nav:
-        for i in range(c.n_params):
-            th = np.zeros(c.n_params)
-            th[i] = c.scale
-            w = run_pass(d, c.corrections(th, d)).white[ctx.train_nav][rows_ok].ravel()
-            Jn[:, i] = (np.nan_to_num(w, nan=0.0) - e_nav) / c.scale
-            if progress:
-                progress()
-    Jd_full = _dyn_jac(ctx, name)
+        g = given.get("nav")
+        Jn_full = g if g is not None and g.shape == ctx.nominal.white.shape + (c.n_params,) else None
+        Jn_full = Jn_full if Jn_full is not None else nav_signature(ctx, name, progress)
+        Jn = Jn_full[ctx.train_nav][rows_ok].reshape(n_nav, c.n_params)
+    g = given.get("dyn")
+    if g is not None and ctx.ch is not None and g.shape == (ctx.ch.rows, 3, c.n_params):
+        Jd_full = g
+    else:
+        Jd_full = _dyn_jac(ctx, name)
     Jd = Jd_full[ctx.train_dyn].reshape(-1, c.n_params) if Jd_full is not None else np.zeros((n_dyn, c.n_params))
-    return np.vstack([Jn, Jd]), Jd_full
+    return np.vstack([Jn, Jd]), Jd_full, Jn_full
+
+
+def signatures(ctx: Context) -> dict:
+    """Every candidate's full Jacobians, {name: {"nav", "dyn"}}: what a
+    calibration's null runs share with their log (screen's ``given``); each
+    only where it reads no measurement (NAV_READINGS_FREE,
+    dyn.READINGS_FREE)."""
+    from bench.gap.dyn import READINGS_FREE
+
+    rows_ok = np.all(np.isfinite(ctx.nominal.white[ctx.train_nav]), axis=1)
+    out = {}
+    for name in candidates_of(ctx.d):
+        _, jd, jn = signature(ctx, name, rows_ok)
+        out[name] = {
+            "nav": jn if name in NAV_READINGS_FREE else None,
+            "dyn": jd if name in READINGS_FREE else None,
+        }
+    return out
+
+
+# Candidates whose navigation Jacobian reads no measurement beyond the
+# trajectory (a constant bias, the camera's offset, the orbit's terms): the
+# same for every noise draw of one flight. A gyro scale or misalignment
+# scales or turns the measured rate, a latency or a clock moves the poses
+# along it: their Jacobians carry each draw's noise (dyn.READINGS_FREE).
+NAV_READINGS_FREE = (
+    "accel_bias",
+    "gyro_bias",
+    "camera_lever_arm",
+    "host_eccentricity",
+    "differential_j2",
+    "differential_drag",
+)
 
 
 def ln_bayes_factor(
@@ -247,13 +304,19 @@ def _screen_fit(c: Candidate, J: np.ndarray, e0: np.ndarray) -> tuple:
     return u, sig, two_dll, rank, beyond, R
 
 
-def screen(ctx: Context, names=None, progress=None) -> list:
+def screen(ctx: Context, names=None, progress=None, given: dict | None = None) -> list:
+    """The linearised GLR fit of every candidate (or of ``names``) on the
+    training rows, best first. ``given``: full Jacobians by candidate
+    (signatures()) used instead of computing them, where they have the
+    log's shape: the null runs of a calibration share their log's (the same
+    flight, plan and time stamps, only the noise differs; the statistics
+    move by a few hundredths)."""
     e0, rows_ok = training_residuals(ctx)
     n_obs = e0.size
     fits = []
     for name in names or CANDIDATES:
         c = candidate(ctx.d, name)
-        J, Jd_full = signature(ctx, name, rows_ok, progress)
+        J, Jd_full, Jn_full = signature(ctx, name, rows_ok, progress, (given or {}).get(name))
         fit = _screen_fit(c, J, e0)
         if fit is None:
             fits.append(Fit(name, c.kind, np.zeros(c.n_params), np.full(c.n_params, np.nan), 0.0, -np.inf, 0))
@@ -264,6 +327,7 @@ def screen(ctx: Context, names=None, progress=None) -> list:
         f.J_u = J * c.scale
         f.screen_ln_bf = ln_bayes_factor(two_dll, u / c.scale, R * c.scale, c.nonnegative)
         f.Jd_full = Jd_full
+        f.Jn_full = Jn_full
         fits.append(f)
     # Screening order: the GLR's p-value (the detection statistic), which
     # compares candidates of different sizes fairly; the confirmed ones are

@@ -72,18 +72,28 @@ class Detection:
     screen_logp_max: float
 
 
-def detect(d: LogData, progress=None) -> Detection:
+def detect(d: LogData, progress=None, given: dict | None = None) -> Detection:
     """Both detection statistics of a prepared log. ``progress(n)`` is called
-    after the nominal pass and after each screening replay."""
+    after the nominal pass and after each screening replay. ``given``: the
+    candidates' Jacobians to screen with (attribute.screen)."""
     ctx = context(d)
     if progress is not None:
         progress()
     cells = map_cells(d, ctx.nominal) + localise.dyn_cells(d, ctx.ch)
-    fits = screen(ctx, progress=progress)
+    fits = screen(ctx, progress=progress, given=given)
     return Detection(ctx, cells, localise.map_statistic(cells), fits, max(f.screen_logp for f in fits))
 
 
-def null_statistics(log) -> dict:
-    """The two statistics of one log, as a null calibration records them."""
-    det = detect(prepare(log))
+def null_statistics(log, given: dict | None = None) -> dict:
+    """The two statistics of one log, as a null calibration records them;
+    ``given``: the candidates' Jacobians of the log the null runs stand for
+    (log_signatures)."""
+    det = detect(prepare(log), given=given)
     return {"map_max_abs_z": det.map_max_abs_z, "screen_logp": det.screen_logp_max}
+
+
+def log_signatures(d: LogData) -> dict:
+    """Every candidate's Jacobians on a prepared log (attribute.signatures)."""
+    from bench.gap.attribute import signatures
+
+    return signatures(context(d))

@@ -50,6 +50,14 @@ DYN_CANDIDATES = (
     "mass_depletion",
     "differential_drag",
 )
+# Candidates whose Jacobian in this channel does not read the IMU's
+# measurements (valve forces and torques, the mass, a constant bias, the
+# drag): the same for every noise draw of one flight, so a calibration's
+# null runs can share their log's. The others (a gyro scale or misalignment
+# scales or turns the measured rate, a clock stretches it, a centre-of-mass
+# offset moves the lever arm the measured rate acts through) carry each
+# draw's noise, and that correlation is part of their null statistic.
+READINGS_FREE = ("accel_bias", "thrust_loss", "thruster_misalignment", "mass_depletion", "differential_drag")
 
 
 def _skew_rows(v: np.ndarray) -> np.ndarray:
@@ -386,7 +394,34 @@ def _pulses(valves: dict, n_thrusters: int) -> tuple:
     return vt, on
 
 
+_RUN_SECONDS: dict = {}  # the last valve stream's answer: a calibration's null runs share their flight's
+
+
+def _digest(*parts) -> str:
+    import hashlib
+
+    h = hashlib.sha1()
+    for p in parts:
+        if isinstance(p, dict):
+            for k in sorted(p):
+                h.update(str(k).encode())
+                h.update(np.ascontiguousarray(np.asarray(p[k])).tobytes())
+        else:
+            h.update(np.ascontiguousarray(np.asarray(p)).tobytes())
+    return h.hexdigest()
+
+
 def open_weighted_run_seconds(valves: dict, t: np.ndarray, dt: float, n_thrusters: int, seg: np.ndarray):
+    """As _open_weighted_run_seconds, the last answer kept: the same valve
+    commands and time stamps (every null run of one flight) give the same."""
+    key = _digest(valves, t, np.float64(dt), np.int64(n_thrusters), seg)
+    if key not in _RUN_SECONDS:
+        _RUN_SECONDS.clear()
+        _RUN_SECONDS[key] = _open_weighted_run_seconds(valves, t, dt, n_thrusters, seg)
+    return _RUN_SECONDS[key].copy()
+
+
+def _open_weighted_run_seconds(valves: dict, t: np.ndarray, dt: float, n_thrusters: int, seg: np.ndarray):
     """(N, K): the valve-seconds every valve has used since its run began
     (the propellant gone), averaged over valve i's open time within each
     IMU interval (t_k - dt, t_k]: the mass each valve's thrust acted on,

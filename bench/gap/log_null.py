@@ -50,7 +50,7 @@ DEFAULT_RUNS = 40
 # 2: the tail fitted to the top of the values; the pose noise at the log's
 # own sigmas; the key without absolute times or the first pose. 3: the
 # statistics of the exact candidates.
-VERSION = 3  # bump when the bootstrap, the tail or the diagnosis statistics change
+VERSION = 4  # bump when the bootstrap, the tail or the diagnosis statistics change
 STATISTICS = ("map_max_abs_z", "screen_logp")
 TAIL_FRACTION = 0.6  # the share of the runs, from the top, whose excesses are fitted
 TIME_QUANTUM_S = 1e-6  # time stamps in the key, relative to their run's start
@@ -233,11 +233,32 @@ def stated_biases(description: dict, seed: int) -> dict:
     return out
 
 
+_SIGNATURES: dict = {}  # per worker process: the last flight's shared Jacobians
+
+
+def shared_signatures(log, prepared, seed: int) -> dict:
+    """The candidates' Jacobians (attribute.signatures) on the null log of
+    ``seed``, which every null run of this flight screens with: the flight,
+    plan and time stamps are the same in each, only the noise differs, and
+    the Jacobians a run would compute for itself move its statistics by a
+    few hundredths (docs/GAP.md). Computed once per worker process."""
+    hit = _SIGNATURES.get("flight")
+    if hit is None or hit[0] is not log or hit[1] != seed:
+        from bench.gap.detection import log_signatures
+        from bench.gap.replay import prepare
+
+        _SIGNATURES["flight"] = hit = (log, seed, log_signatures(prepare(null_log_like(log, seed, prepared))))
+    return hit[2]
+
+
 def _one(seed, flight):
-    log, prepared = flight
+    """One null run's statistics. ``flight``: (log, prepared) or (log,
+    prepared, the seed of the null log whose Jacobians every run shares)."""
+    log, prepared, *shared = flight
     from bench.gap.detection import null_statistics
 
-    return {"seed": int(seed), **null_statistics(null_log_like(log, seed, prepared))}
+    given = shared_signatures(log, prepared, shared[0]) if shared and shared[0] is not None else None
+    return {"seed": int(seed), **null_statistics(null_log_like(log, seed, prepared), given)}
 
 
 def default_cache_dir() -> Path:
@@ -332,7 +353,7 @@ def calibrate_for_log(
         _one,
         seeds,
         idents=[{"seed": s} for s in seeds],
-        shared=(log, prepared),
+        shared=(log, prepared, seeds[0]),
         label="null calibration for the log",
     )
     failed = [r for r in recs if not r["ok"]]
