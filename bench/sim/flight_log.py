@@ -601,8 +601,9 @@ def _plain_member(h5, group, name: str, where: str, path):
     return group[name]
 
 
-def _read_field(h5, ds, where: str, path) -> np.ndarray:
-    """One field, its size checked from the file's metadata before it is read."""
+def _checked_field(h5, ds, where: str, path, budget: list):
+    """``ds`` once its kind and size, from the file's metadata, are within
+    the bounds; ``budget``: [bytes the whole log may still take]."""
     if not isinstance(ds, h5.Dataset):
         raise FlightLogError(f"{path}: {where}: a group inside a stream, expected a dataset")
     if ds.is_virtual or ds.external:
@@ -616,8 +617,16 @@ def _read_field(h5, ds, where: str, path) -> np.ndarray:
         raise FlightLogError(
             f"{path}: {where}: shape {shape}, more than {bounds.MAX_ROWS} rows or {bounds.MAX_COLUMNS} columns"
         )
-    if ds.dtype.kind == "O" or rows * cols * ds.dtype.itemsize > bounds.MAX_DATASET_BYTES:
+    size = rows * cols * ds.dtype.itemsize
+    if ds.dtype.kind == "O" or size > bounds.MAX_DATASET_BYTES:
         raise FlightLogError(f"{path}: {where}: dtype {ds.dtype} of shape {shape}: not a numeric field of this format")
+    if size > budget[0]:
+        raise FlightLogError(f"{path}: {where}: the log's fields exceed {bounds.MAX_LOG_BYTES >> 30} GiB together")
+    budget[0] -= size
+    return ds
+
+
+def _read_field(ds, where: str, path) -> np.ndarray:
     try:
         return np.asarray(ds[()])
     except (OSError, RuntimeError, ValueError, TypeError) as exc:
@@ -670,7 +679,7 @@ def _read_streams(h5, h, path) -> dict:
     names = list(h.keys())
     if len(names) > bounds.MAX_MEMBERS:
         raise FlightLogError(f"{path}: /: {len(names)} streams, more than {bounds.MAX_MEMBERS}")
-    streams = {}
+    found, budget = {}, [bounds.MAX_LOG_BYTES]
     for name in names:
         g = _plain_member(h5, h, name, name, path)
         if not isinstance(g, h5.Group):
@@ -678,10 +687,14 @@ def _read_streams(h5, h, path) -> dict:
         fields = list(g.keys())
         if len(fields) > bounds.MAX_MEMBERS:
             raise FlightLogError(f"{path}: {name}: {len(fields)} fields, more than {bounds.MAX_MEMBERS}")
-        streams[name] = {
-            k: _read_field(h5, _plain_member(h5, g, k, f"{name}/{k}", path), f"{name}/{k}", path) for k in fields
+        found[name] = {
+            k: _checked_field(h5, _plain_member(h5, g, k, f"{name}/{k}", path), f"{name}/{k}", path, budget)
+            for k in fields
         }
-    return streams
+    # Read only once every field's size is known to fit.
+    return {
+        name: {k: _read_field(ds, f"{name}/{k}", path) for k, ds in fields.items()} for name, fields in found.items()
+    }
 
 
 def _run_streams(run, offset: float) -> dict:

@@ -15,6 +15,7 @@ import math
 MAX_ROWS = 10_000_000  # samples per stream: 10 Hz for 11 days, 1 kHz for 2.7 hours
 MAX_COLUMNS = 64  # values per sample (the valves' on-times: one per thruster, at most 32)
 MAX_DATASET_BYTES = 1 << 30  # one field, as stored
+MAX_LOG_BYTES = 2 << 30  # all fields together, as stored
 MAX_MEMBERS = 32  # streams in a file, fields in a stream
 MAX_JSON_BYTES = 1 << 20  # description_json, config_json
 MAX_JSON_DEPTH = 32  # nesting of their objects and lists

@@ -92,6 +92,11 @@ def _huge_shape(h, where):
     h.create_dataset(where, shape=(2**40, 3), dtype="f8", chunks=(1024, 3))
 
 
+def _three_gigabytes(h):
+    for i in range(3):  # 1 GiB each as declared; nothing stored
+        h["imu"].create_dataset(f"big{i}", shape=(2_000_000, 64), dtype="f8", chunks=(10_000, 64))
+
+
 def _external(h, where):
     other = Path(h.filename).with_name("other.h5")
     with h5py.File(other, "w") as o:
@@ -164,6 +169,7 @@ NAMED = [
         _replace("imu/accel_b_mps2", _huge_shape),
         "imu/accel_b_mps2: shape (1099511627776",
     ),
+    ("fields of 3 GiB together", None, _three_gigabytes, "imu/big2: the log's fields exceed 2 GiB together"),
     ("a dangling link", None, _replace("imu/t_s", _soft("/nowhere")), "imu/t_s: a soft link"),
     ("a cyclic link", None, _replace("valves", _soft("/valves")), "valves: a soft link"),
     ("a link back to its stream", None, lambda h: h.__setitem__("imu/loop", h5py.SoftLink("/imu")), "imu/loop: a soft"),
