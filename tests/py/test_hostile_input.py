@@ -32,7 +32,11 @@ from bench.sim.log_description import bench_description
 
 WHOLE_RUN = {"t_start_s": 0.0, "t_end_s": 120.05, "manoeuvre": "docking", "starts_at_rest": True}
 SETTINGS = settings(
-    max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,  # nothing written into the checkout
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 
 
