@@ -12,9 +12,14 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 import random
 import tempfile
 from pathlib import Path
+
+# Hypothesis keeps caches (its text strategies' character tables) in a folder;
+# in the tests' own cache folder (conftest.py), not in the checkout.
+os.environ.setdefault("HYPOTHESIS_STORAGE_DIRECTORY", os.path.join(os.environ["PROXOPS_CACHE"], "hypothesis"))
 
 import h5py
 import numpy as np
