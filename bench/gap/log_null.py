@@ -358,9 +358,13 @@ def calibrate_for_log(
     )
     failed = [r for r in recs if not r["ok"]]
     if failed:
+        from bench.gap.validity import outside_envelope
+
+        fields = outside_envelope(prepared[3].desc)  # what to check in the description, when anything
         raise ValueError(
-            f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
-            f"seed {failed[0]['seed']}: {failed[0]['error']})"
+            (f"/description_json: {'; '.join(fields)}: " if fields else "")
+            + f"{len(failed)} of {runs} null runs for the log failed (first: run {failed[0]['index']}, "
+            f"seed {failed[0]['seed']}: {str(failed[0]['error'])[:200]})"
         )
     rows = results(recs)
     unfit = [k for k in STATISTICS if not np.all(np.isfinite([float(r[k]) for r in rows]))]

@@ -46,3 +46,19 @@ def test_a_calibration_whose_null_flights_are_not_finite_names_the_fields(tmp_pa
         log_null.calibrate_for_log(log, runs=3, seed=1, cache_dir=tmp_path, progress=False)
     assert str(e.value).startswith("/description_json: imu.gyro_sigma_rps 1e-06 (validated: >= 0.00063)")
     assert "screen_logp not finite on 3 simulated flights" in str(e.value)
+
+
+def _raises(seed, flight):
+    raise OverflowError("int too large to convert to float")
+
+
+def test_failed_null_flights_name_the_fields_outside_the_envelope(tmp_path, monkeypatch):
+    monkeypatch.setattr(cluster, "inside_worker", lambda: True)
+    monkeypatch.setattr(log_null, "_one", _raises)
+    log = read_flight_log(bundled.LOG)
+    log.description = copy.deepcopy(dict(bench_description(), segments=[WHOLE_RUN]))
+    log.description["vehicle"]["mass_kg"] = 0.1  # 0.16 N of thrust: 1.6 m/s^2
+    with pytest.raises(ValueError) as e:
+        log_null.calibrate_for_log(log, runs=3, seed=1, cache_dir=tmp_path, progress=False)
+    assert str(e.value).startswith("/description_json: vehicle.mass_kg: thrust over mass 1.6 m/s^2")
+    assert "3 of 3 null runs for the log failed" in str(e.value) and "OverflowError" in str(e.value)
