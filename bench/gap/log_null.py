@@ -119,6 +119,7 @@ def plan_of(log):
     and each pose's stated sigmas (r_sigma_m, att_sigma_rad)."""
     from bench.gap.replay import prepare
     from bench.sim.vehicle_sim import PlanSegment
+    from bench.so3 import rotmats
 
     d = prepare(log)
     desc = d.desc
@@ -140,7 +141,9 @@ def plan_of(log):
             cmd_t, cmd_on = vt[m] - t0, von[m]
         else:
             cmd_t, cmd_on = np.zeros(0), np.zeros((0, desc.n_thrusters))
-        plan.append(PlanSegment("other", t1 - t0, d.pose_r[j].copy(), d.pose_q[j].copy(), cmd_t, cmd_on))
+        # The replay's poses are of the IMU's point; the plant flies the centre of mass.
+        r0 = d.pose_r[j] - (rotmats(d.pose_q[j][None])[0] @ d.imu_from_com_b if d.imu_from_com_b is not None else 0.0)
+        plan.append(PlanSegment("other", t1 - t0, r0, d.pose_q[j].copy(), cmd_t, cmd_on))
         times.append(
             {
                 "imu_t": it.copy(),

@@ -130,7 +130,12 @@ def vehicle_calibration(made: Path, log: Path, out: Path) -> Path:
     cal = json.loads(made.read_text())
     desc = dict(read_flight_log(log).description or {})
     desc.pop("segments", None)
-    keep = {k: cal[k] for k in ("thresholds", "runs", "seed", "method", "false_alarm_target_each")}
+    keep = {
+        k: cal[k]
+        for k in ("thresholds", "tail", "null_map_max_abs_z", "null_screen_logp", "runs", "seed", "method")
+        if k in cal
+    }
+    keep["false_alarm_target_each"] = cal["false_alarm_target_each"]
     out.write_text(json.dumps(dict(keep, description=desc, manoeuvres="characterisation"), indent=1) + "\n")
     return out
 
