@@ -148,7 +148,7 @@ def _probe(
     ctx1, w, e_dyn = residuals_of(log1, ctx0)
     s = np.concatenate([w[rows_ok].ravel(), e_dyn]) - e0
     if with_candidate:
-        J, _ = signature(ctx0, name, rows_ok)
+        J = signature(ctx0, name, rows_ok)[0]
         k = max(numerical_rank(J), 1)
         U, sv, _ = np.linalg.svd(J, full_matrices=False)
         U = U[:, sv > sv[0] * 1e-9] if sv.size and sv[0] > 0 else U[:, :0]

@@ -271,6 +271,7 @@ def dyn_cell_labels(ch) -> np.ndarray:
 
 
 SEGMENT_S = 1.0  # longest stretch of dynamics rows averaged into one deficit term
+OPEN_MIN = 1e-6  # an open fraction below this is a stamp's rounding, not a valve open
 
 
 def dyn_segments(ch) -> np.ndarray:
@@ -288,12 +289,14 @@ def dyn_segments(ch) -> np.ndarray:
     weights = np.left_shift(1, np.arange(k_valves, dtype=np.int64) % 62)
     # Gyro rows are not cut at valve changes: whitening the differenced gyro
     # integrates it back, so a torque error stays in the rows after it.
-    state = np.concatenate([(ch.open_ > 0) @ weights, np.zeros(ch.rows - n, np.int64)])
+    state = np.concatenate([(ch.open_ > OPEN_MIN) @ weights, np.zeros(ch.rows - n, np.int64)])
     run = np.empty(ch.rows, np.int64)
     run[:n] = np.concatenate([[0], np.cumsum(np.diff(ch.t[:n]) > 1.5 * ch.dt)])
     for j, (a, b) in enumerate(ch.seg_bounds):
         run[n + a : n + b] = j
-    window = np.floor((ch.t - ch.t.min()) / SEGMENT_S).astype(np.int64)
+    # Window edges half a sample off the ticks: a stamp's rounding (a log on a
+    # Unix epoch) never moves a row across one.
+    window = np.floor((ch.t - ch.t.min() + 0.5 * ch.dt) / SEGMENT_S).astype(np.int64)
     new = np.ones(ch.rows, bool)
     new[1:] = (
         (np.diff(ch.kind) != 0) | (np.diff(state) != 0) | (np.diff(run) != 0) | (np.diff(window) != 0)
