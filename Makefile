@@ -33,12 +33,38 @@ FW_INDIRECT := --indirect "(anonymous namespace)::SemihostingOutput::write" --in
 AARCH64_BUILD := build/aarch64
 AARCH64_APT_PKGS := g++-aarch64-linux-gnu qemu-user
 
-.PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest test-aarch64
+# Assurance (docs/ASSURANCE.md): with TEST_SANITIZE=address,undefined the
+# ctest suite is built with AddressSanitizer + UndefinedBehaviorSanitizer
+# (its checked core and test programs) and test-asan runs the link tests
+# against the sanitized fsw_node_checked; clang-tidy and cppcheck on fsw/;
+# line and branch coverage (make coverage).
+ASSURANCE_APT_PKGS := clang-tidy cppcheck ccache
+TEST_SANITIZE ?=
+TIDY_BUILD := build/tidy
+COV_BUILD  := build/cov
+# ccache, when installed (paths relative to here, so another clone of the
+# repository shares the cache).
+CCACHE     := $(shell command -v ccache 2>/dev/null)
+CCACHE_LAUNCHER := $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=$(CCACHE))
+export CCACHE_BASEDIR := $(CURDIR)
+# Every sanitizer report fatal and written to a file, which the run then
+# looks for (fsw_node's standard error is the bench's to read).
+SAN_REPORTS := $(abspath $(CPP_BUILD))/sanitizer-reports
+SAN_ENV := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1:log_path=$(SAN_REPORTS)/asan \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:log_path=$(SAN_REPORTS)/ubsan
+SAN_CHECK := if [ -n "$$(ls -A $(SAN_REPORTS) 2>/dev/null)" ]; then echo "sanitizer reports:"; cat $(SAN_REPORTS)/*; exit 1; fi
+# The Python tests that run fsw_node over the link, run again against the
+# sanitized fsw_node_checked (and, for coverage, against build/cov's fsw_node).
+LINK_PY_TESTS := tests/py/test_fsw_node_link.py tests/py/test_fsw_node_args.py tests/py/test_hil_loop.py \
+  tests/py/test_hil_modal.py tests/py/test_hil_device.py
+
+.PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest test-aarch64 \
+  test-asan check-static coverage
 
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
 
-test: test-cpp test-py
+test: test-cpp test-py test-asan
 
 setup: $(STAMPS)/install $(STAMPS)/cpp-configure
 
@@ -67,6 +93,14 @@ $(STAMPS)/apt-aarch64:
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(AARCH64_APT_PKGS); }
 	@touch $@
 
+$(STAMPS)/apt-assurance:
+	@mkdir -p $(STAMPS)
+	@dpkg -s $(ASSURANCE_APT_PKGS) >/dev/null 2>&1 || { \
+	  echo "installing Debian packages: $(ASSURANCE_APT_PKGS)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $(ASSURANCE_APT_PKGS); }
+	@touch $@
+
 $(STAMPS)/venv: $(STAMPS)/apt
 	@test -x $(VPY) || $(PYTHON) -m venv $(VENV)
 	$(VPY) -m pip install -q --disable-pip-version-check "scikit-build-core>=0.10" "pybind11>=2.12" cmake ninja setuptools wheel
@@ -93,15 +127,18 @@ BENCHMARKS ?= $(if $(CI),OFF,ON)
 CORE_ASSERTS ?= $(if $(CI),ON,OFF)
 
 # Warnings are errors here (PROXOPS_WERROR), as in CI.
-$(STAMPS)/cpp-configure: $(STAMPS)/venv $(CMAKE_SRC) Makefile
+$(STAMPS)/cpp-configure: $(STAMPS)/venv $(STAMPS)/apt-assurance $(CMAKE_SRC) Makefile
 	$(VENV)/bin/cmake -S . -B $(CPP_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
 	  -DPROXOPS_BUILD_TESTS=ON -DPROXOPS_BUILD_BENCHMARKS=$(BENCHMARKS) -DPROXOPS_BUILD_PYTHON=OFF \
-	  -DPROXOPS_WERROR=ON -DPROXOPS_CORE_ASSERTS=$(CORE_ASSERTS) >/dev/null
+	  -DPROXOPS_WERROR=ON -DPROXOPS_CORE_ASSERTS=$(CORE_ASSERTS) -DPROXOPS_TEST_SANITIZE=$(TEST_SANITIZE) \
+	  $(CCACHE_LAUNCHER) >/dev/null
 	@touch $@
 
 test-cpp: $(STAMPS)/cpp-configure
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
-	cd $(CPP_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2
+	@rm -rf $(SAN_REPORTS) && mkdir -p $(SAN_REPORTS)
+	cd $(CPP_BUILD) && $(SAN_ENV) $(abspath $(VENV))/bin/ctest --output-on-failure -j2 || { $(SAN_CHECK); exit 1; }
+	@$(SAN_CHECK)
 
 # pytest on this many processes (pytest-xdist); each test is independent.
 PYTEST_WORKERS ?= 2
@@ -109,6 +146,42 @@ PYTEST_WORKERS ?= 2
 test-py: $(STAMPS)/install $(STAMPS)/cpp-configure $(FW_ELF)
 	$(VENV)/bin/cmake --build $(CPP_BUILD)
 	PROXOPS_CPP_BUILD=$(abspath $(CPP_BUILD)) PROXOPS_FIRMWARE_BUILD=$(abspath $(FW_BUILD)) $(VPY) -m pytest -q -n $(PYTEST_WORKERS)
+
+# The link tests against the sanitized flight executable (built by test-cpp).
+test-asan: test-cpp $(STAMPS)/install
+	@if [ -n "$(TEST_SANITIZE)" ]; then \
+	  mkdir -p $(SAN_REPORTS) && \
+	  $(SAN_ENV) PROXOPS_FSW_NODE=$(abspath $(CPP_BUILD))/fsw_node_checked \
+	    $(VPY) -m pytest -q -n $(PYTEST_WORKERS) $(LINK_PY_TESTS) && { $(SAN_CHECK); } && \
+	  echo "test-asan: no sanitizer report"; \
+	else echo "test-asan: TEST_SANITIZE is empty, nothing to run"; fi
+
+# clang-tidy (fsw/.clang-tidy) and cppcheck (tests/static/) on fsw/: any
+# finding not suppressed in place fails. clang-tidy reads the compile
+# commands of a configure-only tree.
+check-static: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/venv
+	$(VENV)/bin/cmake -S . -B $(TIDY_BUILD) -G Ninja -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) \
+	  -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -DPROXOPS_BUILD_TESTS=OFF -DPROXOPS_BUILD_PYTHON=OFF -DPROXOPS_INSTALL=OFF >/dev/null
+	$(VPY) tests/static/check_static.py --build $(TIDY_BUILD) --jobs 2
+
+# Line and branch coverage of fsw/ (CMakePresets.json "coverage", -O0 with
+# gcov counters): the ctest suite, then the link tests against its fsw_node;
+# gcovr reports the core, vision and platform apart and fails when the core
+# is under its floors (tests/static/coverage.py).
+$(STAMPS)/cov-configure: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/venv $(CMAKE_SRC) CMakePresets.json Makefile
+	$(VENV)/bin/cmake --preset coverage -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) $(CCACHE_LAUNCHER) >/dev/null
+	@touch $@
+
+$(STAMPS)/gcovr: $(STAMPS)/venv
+	$(VPY) -m pip install -q --disable-pip-version-check "gcovr>=7"
+	@touch $@
+
+coverage: $(STAMPS)/cov-configure $(STAMPS)/install $(STAMPS)/gcovr
+	$(VENV)/bin/cmake --build --preset coverage
+	find $(COV_BUILD) -name '*.gcda' -delete
+	cd $(COV_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2
+	PROXOPS_FSW_NODE=$(abspath $(COV_BUILD))/fsw_node $(VPY) -m pytest -q -n $(PYTEST_WORKERS) $(LINK_PY_TESTS)
+	$(VPY) tests/static/coverage.py --build $(COV_BUILD) --gcovr $(VENV)/bin/gcovr --json $(COV_BUILD)/coverage.json
 
 # The Cortex-M7 self-test firmware (CMakePresets.json "firmware"; -j2: the
 # machine is shared).

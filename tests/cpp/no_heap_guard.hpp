@@ -30,6 +30,18 @@ inline void note() {
 }
 }  // namespace no_heap_detail
 
+#if defined(__SANITIZE_ADDRESS__)
+// Under AddressSanitizer (the "asan" build) the sanitizer owns the
+// allocator: interposing malloc here would hand it blocks it did not make.
+// Its allocation hook counts instead, for every allocation in the process.
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*)(const volatile void*, std::size_t),
+                                                         void (*)(const volatile void*));
+namespace no_heap_detail {
+inline void on_malloc(const volatile void*, std::size_t) { note(); }
+inline void on_free(const volatile void*) {}
+inline const int g_hooks_installed = __sanitizer_install_malloc_and_free_hooks(on_malloc, on_free);
+}  // namespace no_heap_detail
+#else
 // glibc's allocator under its own names.
 extern "C" void* __libc_malloc(std::size_t n);
 extern "C" void* __libc_calloc(std::size_t count, std::size_t n);
@@ -64,6 +76,7 @@ extern "C" int posix_memalign(void** out, std::size_t alignment, std::size_t n) 
   *out = p;
   return 0;
 }
+#endif  // __SANITIZE_ADDRESS__
 
 // While alive: every allocation in the process is counted, and Eigen code
 // compiled in the test's own translation unit aborts on allocation
@@ -71,6 +84,9 @@ extern "C" int posix_memalign(void** out, std::size_t alignment, std::size_t n) 
 class NoHeapGuard {
  public:
   explicit NoHeapGuard(bool eigen_forbid = true) : eigen_forbid_(eigen_forbid) {
+#if defined(__SANITIZE_ADDRESS__)
+    (void)no_heap_detail::g_hooks_installed;  // odr-used: the hooks are installed at start-up
+#endif
     start_ = no_heap_detail::g_count.load();
     no_heap_detail::g_armed.store(true);
     if (eigen_forbid_) Eigen::internal::set_is_malloc_allowed(false);
