@@ -56,7 +56,7 @@ double ring_residual(const RingPixel& px, const Eigen::Vector3d& p) {
 bool collect_ring(const CentroidImage& im, const Window& w, std::vector<RingPixel>& ring) {
   if (w.cu - w.outer < 0 || w.cv - w.outer < 0 || w.cu + w.outer >= im.gray.cols || w.cv + w.outer >= im.gray.rows)
     return false;
-  ring.reserve(static_cast<size_t>(8 * (w.outer + 1) * kRing));
+  ring.reserve(8 * static_cast<size_t>(w.outer + 1) * kRing);
   for (int r = w.cv - w.outer; r <= w.cv + w.outer; ++r) {
     const int* lab = im.labels.ptr<int>(r);
     const uint8_t* g = im.gray.ptr<uint8_t>(r);
@@ -132,8 +132,8 @@ struct OwnPixels {
 // Where the iteration stands: the centroid, its window and background, and
 // the last iteration's sum of weights.
 struct State {
-  double mu, mv;
-  Window w;
+  double mu = 0.0, mv = 0.0;
+  Window w{};
   Plane plane;
   double sw = 0.0;
 };

@@ -175,7 +175,7 @@ std::vector<Blob> LedPoseEstimator::detect(const cv::Mat& gray, bool faint_pass)
     Blob blob;
     if (!detail::measure_blob(im, l, first_faint, cfg_, blob)) continue;
     out.push_back(blob);
-    faint.push_back(l >= first_faint);
+    faint.push_back(static_cast<char>(l >= first_faint));
   }
   detail::add_crowding_sigma(out, faint, cfg_.centroid_weight_min_px, cfg_.centroid_weight_max_px);
   std::sort(out.begin(), out.end(), [](const Blob& x, const Blob& y) { return x.flux > y.flux; });

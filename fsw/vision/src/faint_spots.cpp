@@ -21,9 +21,9 @@ namespace fsw_vision {
 namespace detail {
 namespace {
 
-// A local maximum of the smoothed image: pixel, faint component, new label.
+// A local maximum of the smoothed image: pixel and new label.
 struct Peak {
-  int r, c, comp, label;
+  int r, c, label;
 };
 
 // The faint pass's maxima and, per faint component, its maxima's indices.
@@ -68,7 +68,7 @@ Peaks local_maxima(const cv::Mat& smooth, const cv::Mat& dil, const cv::Mat& fla
       }
       if (near) continue;
       peaks.of_comp[static_cast<size_t>(comp)].push_back(static_cast<int>(peaks.all.size()));
-      peaks.all.push_back(Peak{r, c, comp, first_label + static_cast<int>(peaks.all.size())});
+      peaks.all.push_back(Peak{r, c, first_label + static_cast<int>(peaks.all.size())});
     }
   }
   return peaks;

@@ -66,7 +66,7 @@ bool LedPoseEstimator::jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Qu
   for (int k = 0; k < 6; ++k) {
     Eigen::Vector3d rp = r_hill_m, rm = r_hill_m;
     Eigen::Quaterniond qp = q_hb, qm = q_hb;
-    double h;
+    double h = 0.0;
     if (k < 3) {
       h = kStepM;
       rp(k) += h;
@@ -80,8 +80,8 @@ bool LedPoseEstimator::jacobian(const Eigen::Vector3d& r_hill_m, const Eigen::Qu
     }
     if (!project(rp, qp, q_h_host, plus) || !project(rm, qm, q_h_host, minus)) return false;
     for (int i = 0; i < kNumLeds; ++i) {
-      J(2 * i, k) = (plus[i].x - minus[i].x) / (2.0 * h);
-      J(2 * i + 1, k) = (plus[i].y - minus[i].y) / (2.0 * h);
+      J(2L * i, k) = (plus[i].x - minus[i].x) / (2.0 * h);
+      J(2L * i + 1, k) = (plus[i].y - minus[i].y) / (2.0 * h);
     }
   }
   return J.allFinite();

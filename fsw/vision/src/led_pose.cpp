@@ -74,7 +74,7 @@ LedPoseMeasurement LedPoseEstimator::estimate(const cv::Mat& gray, double t_capt
     }
   }
   if (m.status == PoseStatus::AmbiguousIdentity && blobs.size() == kNumLeds - 1 && cfg_.merged_id_min_dchi2 > 0.0) {
-    const LedPoseMeasurement split = pose_with_merged_identifier(gray, blobs, t_capture_s, q_h_host);
+    LedPoseMeasurement split = pose_with_merged_identifier(gray, blobs, t_capture_s, q_h_host);
     if (split.identifier_split) return split;  // Ok, or why not once the identifier is found
   }
   return m;

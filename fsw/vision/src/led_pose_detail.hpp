@@ -66,7 +66,7 @@ struct Solution {
 
 // One labelling of the points as the five LEDs (idx: point per LED).
 struct Hypothesis {
-  std::array<int, kNumLeds> idx;
+  std::array<int, kNumLeds> idx{};
   double score = 0.0;  // identifier's distance from its homography prediction [px]
   double rms = std::numeric_limits<double>::infinity();
   bool behind = false;              // a solution was behind the camera / back-facing

@@ -16,6 +16,7 @@ constexpr double kMinWidthPx = 0.3;
 constexpr double kMaxWidthPx = 20.0;
 
 struct Pixel {
+  // cppcheck-suppress unusedStructMember ; read in the fit's template, which cppcheck does not follow
   double x, y, z, w;  // column, row, counts, weight 1 / variance
 };
 
@@ -23,6 +24,7 @@ int n_params(SpotModel m) { return m == SpotModel::One ? 5 : 6; }
 
 // One spot's value and its derivatives by (u, v, width, flux).
 struct SpotTerm {
+  // cppcheck-suppress unusedStructMember ; read in model_at, a template cppcheck does not follow
   double value, du, dv, ds, dflux;
 };
 SpotTerm spot_term(double x, double y, double u, double v, double s, double flux) {

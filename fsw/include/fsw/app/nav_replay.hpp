@@ -167,8 +167,8 @@ NavReplaySummary NavReplay<S>::run(const NavReplayLog<S>& log, const NavReplayOu
       if (rec.status == StepStatus::Ok) {
         out.fused[j] = true;
         for (int i = 0; i < 6; ++i) out.innovation[6 * j + i] = rec.innovation(i);
-        for (int a = 0; a < 6; ++a)
-          for (int b = 0; b < 6; ++b) out.innovation_cov[36 * j + 6 * a + b] = rec.innovation_cov(a, b);
+        for (int row = 0; row < 6; ++row)
+          for (int col = 0; col < 6; ++col) out.innovation_cov[36 * j + 6L * row + col] = rec.innovation_cov(row, col);
         out.nis[j] = rec.nis;
         out.log_likelihood[j] = rec.log_likelihood;
         ++summary.poses_fused;

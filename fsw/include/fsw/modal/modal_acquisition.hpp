@@ -117,6 +117,7 @@ class ModalAcquisition {
   static constexpr int kGrid = G;
   static constexpr int kPacked = M * (M + 1) / 2;
 
+  // cppcheck-suppress uninitMemberVar ; reset() sets every member
   explicit ModalAcquisition(const Config& cfg = Config()) { reset(cfg); }
 
   // Empties the history and takes a new configuration.
@@ -325,6 +326,7 @@ void ModalAcquisition<S, M, H, G>::update_normal(int i) {
 template <typename S, int M, int H, int G>
 bool ModalAcquisition<S, M, H, G>::solve_amplitudes() {
   auto F = fact_.m();
+  // cppcheck-suppress redundantInitialization ; F is a view: this copies into the factor storage
   F = normal_.m();  // factorised in place: the normal matrix is kept for the next update
   rhs_ = rhs_keep_;
   Eigen::LLT<Eigen::Ref<Eigen::Matrix<S, 2 * M, 2 * M>>> llt(F);

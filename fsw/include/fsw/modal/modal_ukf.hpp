@@ -303,6 +303,7 @@ class ModalUkfBank {
   // Predict over dt then update with the image (the first Ok image initialises).
   StepStatus step(S dt, const Decomp& meas, Record& rec) { return modal_detail::step(*this, dt, meas, rec); }
 
+  // cppcheck-suppress constParameter ; a is the output (Eigen's element access writes; cppcheck does not read Eigen)
   void amplitudes(VecM& a) const {
     for (int i = 0; i < M; ++i) a(i) = f_[i].state()(0);
   }
@@ -411,6 +412,7 @@ class ModalUkfJoint {
   // As ModalUkfBank::step.
   StepStatus step(S dt, const Decomp& meas, Record& rec) { return modal_detail::step(*this, dt, meas, rec); }
 
+  // cppcheck-suppress constParameter ; a is the output (Eigen's element access writes; cppcheck does not read Eigen)
   void amplitudes(VecM& a) const {
     for (int i = 0; i < M; ++i) a(i) = x_.m()(4 * i);
   }
@@ -477,6 +479,7 @@ auto ModalUkfJoint<S, M>::predict(S dt) -> StepStatus {
   auto X = X_.m();
   auto x = x_.m();
   auto P = P_.m();
+  // cppcheck-suppress redundantAssignment ; Lc is a view: this copies into L_
   Lc = P;
   {
     Eigen::LLT<Eigen::Ref<MatN>> llt(Lc);  // in place, lower triangle
@@ -556,6 +559,7 @@ auto ModalUkfJoint<S, M>::update(const Decomp& meas, Record& rec) -> StepStatus 
   rec.nis = nu_.dot(y_);
   if (cfg_.gate_nis > S(0) && rec.nis > cfg_.gate_nis) return fail(rec, StepStatus::Gated, StepDetail::None);
   auto Kt = kt_.m();
+  // cppcheck-suppress redundantAssignment ; Kt is a view: this copies into kt_
   Kt = PxA.transpose();
   llt_s_.solveInPlace(Kt);  // S^-1 P_Ax
   x.noalias() += PxA * y_;
@@ -573,6 +577,7 @@ auto ModalUkfJoint<S, M>::update(const Decomp& meas, Record& rec) -> StepStatus 
 }
 
 template <typename S, int M>
+// cppcheck-suppress constParameter ; Pa is the output (cppcheck does not read Eigen)
 void ModalUkfJoint<S, M>::amplitude_cov(MatM& Pa) const {
   for (int i = 0; i < M; ++i)
     for (int j = 0; j < M; ++j) Pa(i, j) = P_.m()(4 * i, 4 * j);

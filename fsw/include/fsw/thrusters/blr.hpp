@@ -365,6 +365,7 @@ auto BayesLinReg<S, D, K, W>::information() const -> MatA {
 }
 
 template <typename S, int D, int K, int W>
+// cppcheck-suppress constParameter ; inv_diag is an output (cppcheck does not read Eigen)
 inline bool BayesLinReg<S, D, K, W>::cholesky(const MatA& xx, S lambda, MatA& l, VecX& inv_diag) {
   l = xx;
   l.diagonal().array() += lambda;

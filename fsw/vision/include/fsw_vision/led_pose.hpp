@@ -155,11 +155,11 @@ struct LedPoseConfig {
 };
 
 struct Blob {
-  double u_px;  // column, pixel centres at integers
-  double v_px;  // row
-  double flux;  // background-subtracted sum [counts]
-  int area_px;
-  double sigma_px;            // centroid standard deviation from the calibrated error model
+  double u_px = 0;  // column, pixel centres at integers
+  double v_px = 0;  // row
+  double flux = 0;  // background-subtracted sum [counts]
+  int area_px = 0;
+  double sigma_px = 0;        // centroid standard deviation from the calibrated error model
   int n_saturated = 0;        // pixels at 255 in the centroid window
   double sigma_noise_px = 0;  // pixel-noise part of sigma_px, before the calibration's scale and terms
   double width_px = 0;        // spot width (rms radius per axis) from the component's moments
