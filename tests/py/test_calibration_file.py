@@ -100,6 +100,16 @@ def test_a_calibration_made_for_a_log_needs_this_version_and_a_fingerprint():
         assert message in problem(dict(_for_log(), **change)), change
 
 
+def test_a_calibration_made_for_a_log_kept_as_its_vehicles_holds():
+    # A team keeps the calibration made for its first log for the vehicle's
+    # next logs (--calibration): no fingerprint, the method says its tail.
+    cal = {k: v for k, v in _for_log().items() if k not in ("for_log", "fingerprint", "version")}
+    cal["method"] = "parametric bootstrap of the log's own flight; per statistic, the predictive exponential tail"
+    assert problem(cal) is None
+    raised = dict(cal, thresholds=dict(cal["thresholds"], screen_logp=cal["thresholds"]["screen_logp"] + 1.0))
+    assert "its null values give" in problem(raised)
+
+
 @pytest.mark.parametrize("text", ["{}", json.dumps(_with(thresholds=_thr(map_max_abs_z=1e9)))], ids=["empty", "raised"])
 def test_diagnose_refuses_the_file_in_one_line_and_writes_nothing(tmp_path, capsys, text):
     cal = tmp_path / "cal.json"
