@@ -59,12 +59,12 @@ LINK_PY_TESTS := tests/py/test_fsw_node_link.py tests/py/test_fsw_node_args.py t
   tests/py/test_hil_modal.py tests/py/test_hil_device.py
 
 .PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest test-aarch64 \
-  test-asan check-static coverage
+  test-asan check-static check-cppcheck coverage
 
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
 
-test: test-cpp test-py test-asan
+test: test-cpp test-py test-asan check-cppcheck
 
 setup: $(STAMPS)/install $(STAMPS)/cpp-configure
 
@@ -155,6 +155,11 @@ test-asan: test-cpp $(STAMPS)/install
 	    $(VPY) -m pytest -q -n $(PYTEST_WORKERS) $(LINK_PY_TESTS) && { $(SAN_CHECK); } && \
 	  echo "test-asan: no sanitizer report"; \
 	else echo "test-asan: TEST_SANITIZE is empty, nothing to run"; fi
+
+# cppcheck alone (seconds; in make test until clang-tidy's first full run
+# is clean, docs/ASSURANCE.md).
+check-cppcheck: $(STAMPS)/apt-assurance $(STAMPS)/venv
+	$(VPY) tests/static/check_static.py --build $(TIDY_BUILD) --tool cppcheck
 
 # clang-tidy (fsw/.clang-tidy) and cppcheck (tests/static/) on fsw/: any
 # finding not suppressed in place fails. clang-tidy reads the compile

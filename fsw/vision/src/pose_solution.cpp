@@ -234,7 +234,7 @@ LedPoseMeasurement LedPoseEstimator::estimate_from_points(const std::vector<cv::
   m.range_m = (m.R_cp * pattern_centre() + m.t_cp_m).norm();
   nav_from_camera(m.R_cp, m.t_cp_m, q_h_host, m.r_hill_m, m.q_hb);
   PoseWeights weights{q_h_host, {}};
-  for (int l = 0; l < kNumLeds; ++l) weights.inv_sig(2 * l) = weights.inv_sig(2 * l + 1) = 1.0 / sig[best.idx[l]];
+  for (int l = 0; l < kNumLeds; ++l) weights.inv_sig(2L * l) = weights.inv_sig(2L * l + 1) = 1.0 / sig[best.idx[l]];
   Mat6 R, info;
   if (!pose_covariance(m.r_hill_m, m.q_hb, weights, R, info)) return with_status(m, PoseStatus::DegenerateGeometry);
   if (!fold_mirror_solution(best, weights, info, m, R)) return with_status(m, PoseStatus::DegenerateGeometry);
