@@ -298,9 +298,7 @@ def dyn_segments(ch) -> np.ndarray:
     # Unix epoch) never moves a row across one.
     window = np.floor((ch.t - ch.t.min() + 0.5 * ch.dt) / SEGMENT_S).astype(np.int64)
     new = np.ones(ch.rows, bool)
-    new[1:] = (
-        (np.diff(ch.kind) != 0) | (np.diff(state) != 0) | (np.diff(run) != 0) | (np.diff(window) != 0)
-    )
+    new[1:] = (np.diff(ch.kind) != 0) | (np.diff(state) != 0) | (np.diff(run) != 0) | (np.diff(window) != 0)
     return np.cumsum(new) - 1
 
 
