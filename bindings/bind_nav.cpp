@@ -5,10 +5,12 @@
 // flight code's own BadInput paths remain for what only it can judge
 // (timing, history, configuration).
 #include <cmath>
+#include <memory>
 #include <string>
 
 #include "bind.hpp"
 #include "fsw/nav/nav_ukf.hpp"
+#include "nav_config.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
@@ -56,46 +58,39 @@ void bind_config(py::module_& m) {
       });
 }
 
-// The flight configuration in the filter's scalar (the Python NavConfig is
-// the double one; a float filter takes its fields rounded to float).
-template <typename S>
-fsw::NavConfig<S> config_as(const Cfg& c) {
-  fsw::NavConfig<S> o;
-  o.n_radps = S(c.n_radps);
-  o.dt_imu_s = c.dt_imu_s;
-  o.accel_sigma_mps2 = S(c.accel_sigma_mps2);
-  o.gyro_sigma_rps = S(c.gyro_sigma_rps);
-  o.gap_accel_sigma_mps2 = S(c.gap_accel_sigma_mps2);
-  o.gap_gyro_sigma_rps = S(c.gap_gyro_sigma_rps);
-  o.gyro_bias_walk = S(c.gyro_bias_walk);
-  o.accel_bias_walk = S(c.accel_bias_walk);
-  o.gate_chi2 = S(c.gate_chi2);
-  o.max_delay_s = c.max_delay_s;
-  o.time_tol_s = c.time_tol_s;
-  o.max_dt_s = c.max_dt_s;
-  o.max_gap_s = c.max_gap_s;
-  o.alpha = S(c.alpha);
-  o.beta = S(c.beta);
-  o.kappa = S(c.kappa);
-  o.var_min = S(c.var_min);
-  o.pos_var_max_m2 = S(c.pos_var_max_m2);
-  o.vel_var_max_m2ps2 = S(c.vel_var_max_m2ps2);
-  o.att_var_max_rad2 = S(c.att_var_max_rad2);
-  o.gyro_bias_var_max = S(c.gyro_bias_var_max);
-  o.accel_bias_var_max = S(c.accel_bias_var_max);
-  o.quat_unit_tol = S(c.quat_unit_tol);
-  return o;
-}
-
 // Three finite doubles from a 1-D array, without the generic accessor's
 // per-element checks (the hot path of predict and update_pose).
 template <typename S>
 fsw::Vec3<S> vec3_as(const Arr& a, const char* name) {
-  if (a.ndim() != 1 || a.shape(0) != 3) throw py::value_error(std::string(name) + ": expected shape (3,), got " + shape_str(a));
+  if (a.ndim() != 1 || a.shape(0) != 3)
+    throw py::value_error(std::string(name) + ": expected shape (3,), got " + shape_str(a));
   const double* p = a.data();
   if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])))
     throw py::value_error(std::string(name) + ": element is not finite");
   return fsw::Vec3<S>(S(p[0]), S(p[1]), S(p[2]));
+}
+
+// A C-contiguous (R, C) array of finite doubles, read through its pointer
+// (the generic accessor's per-element index checks cost microseconds on a 6 x 6).
+template <typename S, int R, int C>
+Eigen::Matrix<S, R, C> mat_as(const Arr& a, const char* name) {
+  if (a.ndim() != 2 || a.shape(0) != R || a.shape(1) != C) {
+    throw py::value_error(std::string(name) + ": expected shape (" + std::to_string(R) + ", " + std::to_string(C) +
+                          "), got " + shape_str(a));
+  }
+  const Eigen::Map<const Eigen::Matrix<double, R, C, (C == 1 ? Eigen::ColMajor : Eigen::RowMajor)>> m(a.data());
+  if (!m.allFinite()) return mat<R, C>(a, name).template cast<S>();  // names the element that is not finite
+  return m.template cast<S>();
+}
+
+// A unit quaternion [w, x, y, z], read through the array's pointer.
+template <typename S>
+fsw::Quat<S> quat_as(const Arr& a, const char* name) {
+  if (a.ndim() != 1 || a.shape(0) != 4) return quat(a, name).template cast<S>();  // its message
+  const double* p = a.data();
+  const double norm = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3]);
+  if (!std::isfinite(norm) || std::abs(norm - 1.0) > kUnitTol) return quat(a, name).template cast<S>();
+  return fsw::from_wxyz(fsw::Vec4<S>(S(p[0]), S(p[1]), S(p[2]), S(p[3])));
 }
 
 template <typename Derived>
@@ -108,8 +103,7 @@ void bind_record(py::module_& m, const char* name) {
   using R = fsw::StepRecord<S, 6>;
   py::class_<R>(m, name, "What one navigation filter step did.")
       .def_property_readonly(
-          "status", [](const R& r) { return fsw::to_string(r.status); },
-          "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
+          "status", [](const R& r) { return fsw::to_string(r.status); }, "'ok' | 'gated' | 'not_pos_def' | 'bad_input'")
       .def_property_readonly(
           "detail", [](const R& r) { return fsw::to_string(r.detail); },
           "Finer reason, e.g. 'too_old', 'off_tick', 'time_not_increasing'.")
@@ -127,35 +121,83 @@ void bind_record(py::module_& m, const char* name) {
           "log p_z (Rogers-Marcovitz, Table 1 step 14).")
       .def("ok", &R::ok)
       .def("__repr__", [name](const R& r) {
-        return std::string(name) + "(status='" + fsw::to_string(r.status) + "', detail='" +
-               fsw::to_string(r.detail) + "', fused=" + (r.fused ? "True" : "False") +
-               ", nis=" + std::to_string(double(r.nis)) + ")";
+        return std::string(name) + "(status='" + fsw::to_string(r.status) + "', detail='" + fsw::to_string(r.detail) +
+               "', fused=" + (r.fused ? "True" : "False") + ", nis=" + std::to_string(double(r.nis)) + ")";
       });
 }
+
+// A filter with the flight application's pose slot (fsw/app/flight_app.hpp,
+// on_pose): a pose captured after the filter's time (its IMU sample not yet
+// given), up to max_dt_s ahead, waits in one slot (a newer one replaces it)
+// and is fused after the predict that reaches its tick.
+template <typename U>
+struct Filter {
+  U u;
+  bool pending = false;
+  double pending_t_s = 0.0;
+  fsw::Vec3<typename U::MeasVec::Scalar> pending_r;
+  fsw::Quat<typename U::MeasVec::Scalar> pending_q;
+  typename U::MeasCov pending_R;
+  bool has_deferred = false;
+  typename U::Record deferred;  // the record of the waiting pose's fusion, after the predict that made it
+
+  explicit Filter(const fsw::NavConfig<typename U::MeasVec::Scalar>& cfg) : u(cfg) {}
+
+  typename U::Record predict(double t, const fsw::Vec3<typename U::MeasVec::Scalar>& a,
+                             const fsw::Vec3<typename U::MeasVec::Scalar>& w) {
+    const typename U::Record rec = u.predict(t, a, w);
+    has_deferred = false;
+    if (pending && u.initialized() && u.t_s() >= pending_t_s - u.config().time_tol_s) {
+      pending = false;
+      deferred = u.update_pose(pending_t_s, pending_r, pending_q, pending_R);
+      has_deferred = true;
+    }
+    return rec;
+  }
+
+  typename U::Record update_pose(double t, const fsw::Vec3<typename U::MeasVec::Scalar>& r,
+                                 const fsw::Quat<typename U::MeasVec::Scalar>& q, const typename U::MeasCov& R) {
+    const typename U::Record rec = u.update_pose(t, r, q, R);
+    if (rec.status == fsw::StepStatus::BadInput && rec.detail == fsw::StepDetail::FromFuture && u.initialized() &&
+        t - u.t_s() <= u.config().max_dt_s) {
+      pending = true;
+      pending_t_s = t;
+      pending_r = r;
+      pending_q = q;
+      pending_R = R;
+    }
+    return rec;
+  }
+};
 
 // One filter variant: NavUkf<S, kWithBias> under `name`.
 template <typename S, bool kWithBias>
 void bind_ukf(py::module_& m, const char* name, const char* doc) {
   using U = fsw::NavUkf<S, kWithBias>;
+  using F = Filter<U>;
   constexpr int kN = U::kN;
-  py::class_<U>(m, name, doc)
+  py::class_<F>(m, name, doc)
       .def(py::init([](const Cfg& cfg) {
-             U u(config_as<S>(cfg));
-             if (!u.config_ok())
-               throw py::value_error(std::string("cfg.") + u.config_invalid_field() + ": invalid value");
-             return u;
+             auto f = std::make_unique<F>(nav_config_as<S>(cfg));
+             if (!f->u.config_ok())
+               throw py::value_error(std::string("cfg.") + f->u.config_invalid_field() + ": invalid value");
+             return f;
            }),
            py::arg("cfg"))
       .def(
           "init",
-          [](U& u, double t, const Arr& r, const Arr& v, const Arr& q, const Arr& P0, py::object gyro_bias,
+          [](F& f, double t, const Arr& r, const Arr& v, const Arr& q, const Arr& P0, py::object gyro_bias,
              py::object accel_bias) {
+            U& u = f.u;
+            f.pending = false;
+            f.has_deferred = false;
             typename U::State x;
             x.r_hill_m = vec<3>(r, "r_hill_m").template cast<S>();
             x.v_hill_mps = vec<3>(v, "v_hill_mps").template cast<S>();
             x.q_hb = quat(q, "q_hb_wxyz").template cast<S>();
             if constexpr (kWithBias) {
-              if (!gyro_bias.is_none()) x.gyro_bias_rps = vec<3>(gyro_bias.cast<Arr>(), "gyro_bias_rps").template cast<S>();
+              if (!gyro_bias.is_none())
+                x.gyro_bias_rps = vec<3>(gyro_bias.cast<Arr>(), "gyro_bias_rps").template cast<S>();
               if (!accel_bias.is_none())
                 x.accel_bias_mps2 = vec<3>(accel_bias.cast<Arr>(), "accel_bias_mps2").template cast<S>();
             } else if (!gyro_bias.is_none() || !accel_bias.is_none()) {
@@ -173,35 +215,43 @@ void bind_ukf(py::module_& m, const char* name, const char* doc) {
           "does not factor.")
       .def(
           "predict",
-          [](U& u, double t, const Arr& a, const Arr& w) {
-            return u.predict(finite(t, "t_s"), vec3_as<S>(a, "accel_b_mps2"), vec3_as<S>(w, "omega_bi_b_rps"));
+          [](F& f, double t, const Arr& a, const Arr& w) {
+            return f.predict(finite(t, "t_s"), vec3_as<S>(a, "accel_b_mps2"), vec3_as<S>(w, "omega_bi_b_rps"));
           },
           py::arg("t_s"), py::arg("accel_b_mps2"), py::arg("omega_bi_b_rps"),
           "IMU sample (specific force, body [m/s^2]; omega_BI_B [rad/s]) held over (t_current, t_s]; "
-          "moves the filter to t_s.")
+          "moves the filter to t_s. A pose waiting for this tick is then fused (deferred_record).")
       .def(
           "update_pose",
-          [](U& u, double t, const Arr& r, const Arr& q, const Arr& R) {
-            return u.update_pose(finite(t, "t_capture_s"), vec3_as<S>(r, "r_hill_m"),
-                                 quat(q, "q_hb_wxyz").template cast<S>(), mat<6, 6>(R, "R").template cast<S>());
+          [](F& f, double t, const Arr& r, const Arr& q, const Arr& R) {
+            return f.update_pose(finite(t, "t_capture_s"), vec3_as<S>(r, "r_hill_m"), quat_as<S>(q, "q_hb_wxyz"),
+                                 mat_as<S, 6, 6>(R, "R"));
           },
           py::arg("t_capture_s"), py::arg("r_hill_m"), py::arg("q_hb_wxyz"), py::arg("R"),
           "Pose captured at t_capture_s (an IMU tick, at most max_delay_s old); R (6, 6) over "
-          "[position m^2, attitude rad^2 (body-frame boxminus)].")
-      .def_property_readonly("t_s", &U::t_s)
-      .def_property_readonly("r_hill_m", [](const U& u) { return to_numpy(cast_to(u.state().r_hill_m)); })
-      .def_property_readonly("v_hill_mps", [](const U& u) { return to_numpy(cast_to(u.state().v_hill_mps)); })
+          "[position m^2, attitude rad^2 (body-frame boxminus)]. A pose captured after the filter's time "
+          "(up to max_dt_s) answers 'from_future' and waits, as in the flight application, for the predict "
+          "that reaches its tick (pose_pending; its record: deferred_record).")
       .def_property_readonly(
-          "q_hb", [](const U& u) { return to_numpy(cast_to(fsw::to_wxyz(u.state().q_hb))); }, "[w, x, y, z]")
+          "pose_pending", [](const F& f) { return f.pending; }, "A pose waits for the predict that reaches its tick.")
       .def_property_readonly(
-          "P", [](const U& u) { return to_numpy(cast_to(u.P())); }, "Covariance over the error state.")
-      .def_property_readonly("initialized", &U::initialized)
-      .def_property_readonly("history_count", &U::history_count)
+          "deferred_record",
+          [](const F& f) -> py::object { return f.has_deferred ? py::cast(f.deferred) : py::none(); },
+          "The record of the waiting pose's fusion made by the last predict, else None.")
+      .def_property_readonly("t_s", [](const F& f) { return f.u.t_s(); })
+      .def_property_readonly("r_hill_m", [](const F& f) { return to_numpy(cast_to(f.u.state().r_hill_m)); })
+      .def_property_readonly("v_hill_mps", [](const F& f) { return to_numpy(cast_to(f.u.state().v_hill_mps)); })
+      .def_property_readonly(
+          "q_hb", [](const F& f) { return to_numpy(cast_to(fsw::to_wxyz(f.u.state().q_hb))); }, "[w, x, y, z]")
+      .def_property_readonly(
+          "P", [](const F& f) { return to_numpy(cast_to(f.u.P())); }, "Covariance over the error state.")
+      .def_property_readonly("initialized", [](const F& f) { return f.u.initialized(); })
+      .def_property_readonly("history_count", [](const F& f) { return f.u.history_count(); })
       .def_property_readonly_static("history_capacity", [](py::object) { return U::kHistoryCapacity; })
       .def_property_readonly_static("error_size", [](py::object) { return kN; })
       .def_property_readonly_static("scalar", [](py::object) { return sizeof(S) == 4 ? "float" : "double"; })
       .def(
-          "state", [](const U& u) { return to_numpy(cast_to(u.state().stored())); },
+          "state", [](const F& f) { return to_numpy(cast_to(f.u.state().stored())); },
           "Stored state [r(3), v(3), q_wxyz(4)(, gyro bias(3), accel bias(3))].");
 }
 

@@ -4,6 +4,7 @@
 // raise ValueError naming the argument; the replay runs without the GIL.
 #include <pybind11/numpy.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -11,13 +12,13 @@
 
 #include "bind.hpp"
 #include "fsw/app/nav_replay.hpp"
+#include "nav_config.hpp"
 #include "validate.hpp"
 
 using namespace bind_detail;
 
 namespace {
 using Cfg = fsw::NavConfig<double>;
-using Replay = fsw::NavReplay<double>;
 using Flags = py::array_t<bool, py::array::c_style | py::array::forcecast>;
 
 // The array's rows: shape (rows,) + tail, every value finite.
@@ -39,9 +40,56 @@ py::ssize_t checked_rows(const Arr& a, const std::vector<py::ssize_t>& tail, con
   return a.shape(0);
 }
 
+// The replay in scalar S over the checked arrays; results into the double outputs.
+template <typename S>
+fsw::NavReplaySummary run_in(const Cfg& cfg, const fsw::NavReplayLog<double>& in,
+                             const fsw::NavReplayOutput<double>& o) {
+  auto rep = std::make_unique<fsw::NavReplay<S>>(nav_config_as<S>(cfg));
+  if (!rep->config_ok()) throw py::value_error(std::string("cfg.") + rep->config_invalid_field() + ": invalid value");
+  const long n = in.n_imu, m = in.n_pose;
+  auto conv = [](const double* p, long count) { return std::vector<S>(p, p + count); };
+  const std::vector<S> accel = conv(in.accel_b_mps2, 3 * n), gyro = conv(in.omega_bi_b_rps, 3 * n);
+  const std::vector<S> r = conv(in.pose_r_hill_m, 3 * m), q = conv(in.pose_q_hb_wxyz, 4 * m);
+  const std::vector<S> R = conv(in.pose_R, 36 * m), v0 = conv(in.pose_v0_sigma_mps, m);
+  std::vector<S> innov(6 * m, S(0)), innov_cov(36 * m, S(0)), nis(m, S(0)), ll(m, S(0));
+  std::vector<S> states(o.states != nullptr ? 10 * n : 0, S(0));
+  fsw::NavReplayLog<S> log;
+  log.imu_t_s = in.imu_t_s;
+  log.accel_b_mps2 = accel.data();
+  log.omega_bi_b_rps = gyro.data();
+  log.n_imu = n;
+  log.pose_t_capture_s = in.pose_t_capture_s;
+  log.pose_t_fuse_s = in.pose_t_fuse_s;
+  log.pose_r_hill_m = r.data();
+  log.pose_q_hb_wxyz = q.data();
+  log.pose_R = R.data();
+  log.pose_run_start = in.pose_run_start;
+  log.pose_v0_sigma_mps = v0.data();
+  log.n_pose = m;
+  log.t_init_s = in.t_init_s;
+  fsw::NavReplayOutput<S> out;
+  out.innovation = innov.data();
+  out.innovation_cov = innov_cov.data();
+  out.nis = nis.data();
+  out.log_likelihood = ll.data();
+  out.fused = o.fused;
+  out.states = o.states != nullptr ? states.data() : nullptr;
+  fsw::NavReplaySummary summary;
+  {
+    py::gil_scoped_release release;
+    summary = rep->run(log, out);
+  }
+  std::copy(innov.begin(), innov.end(), o.innovation);
+  std::copy(innov_cov.begin(), innov_cov.end(), o.innovation_cov);
+  std::copy(nis.begin(), nis.end(), o.nis);
+  std::copy(ll.begin(), ll.end(), o.log_likelihood);
+  if (o.states != nullptr) std::copy(states.begin(), states.end(), o.states);
+  return summary;
+}
+
 py::dict replay(const Cfg& cfg, const Arr& imu_t, const Arr& accel, const Arr& gyro, const Arr& pose_tc,
                 const Arr& pose_tf, const Arr& pose_r, const Arr& pose_q, const Arr& pose_R, const Flags& run_start,
-                const Arr& v0_sigma, double t_init, bool record_states) {
+                const Arr& v0_sigma, double t_init, bool record_states, const std::string& scalar) {
   const py::ssize_t n = checked_rows(imu_t, {}, "imu_t_s");
   checked_rows(accel, {3}, "accel_b_mps2", n);
   checked_rows(gyro, {3}, "omega_bi_b_rps", n);
@@ -64,8 +112,8 @@ py::dict replay(const Cfg& cfg, const Arr& imu_t, const Arr& accel, const Arr& g
     }
   }
   finite(t_init, "t_init_s");
-  auto rep = std::make_unique<Replay>(cfg);
-  if (!rep->config_ok()) throw py::value_error(std::string("cfg.") + rep->config_invalid_field() + ": invalid value");
+  if (scalar != "double" && scalar != "float")
+    throw py::value_error("scalar: 'double' or 'float', got '" + scalar + "'");
 
   py::array_t<double> innovation({m, py::ssize_t(6)});
   py::array_t<double> innovation_cov({m, py::ssize_t(6), py::ssize_t(6)});
@@ -103,11 +151,8 @@ py::dict replay(const Cfg& cfg, const Arr& imu_t, const Arr& accel, const Arr& g
   log.pose_v0_sigma_mps = v0_sigma.data();
   log.n_pose = long(m);
   log.t_init_s = t_init;
-  fsw::NavReplaySummary summary;
-  {
-    py::gil_scoped_release release;
-    summary = rep->run(log, out);
-  }
+  const fsw::NavReplaySummary summary =
+      scalar == "float" ? run_in<float>(cfg, log, out) : run_in<double>(cfg, log, out);
   if (!summary.ok()) {
     throw py::value_error("P0 of pose " + std::to_string(summary.failed_pose) + ": " + fsw::to_string(summary.status) +
                           " (" + fsw::to_string(summary.detail) + ")");
@@ -129,8 +174,9 @@ void bind_nav_replay(py::module_& m) {
   m.def("nav_replay", &replay, py::arg("cfg"), py::arg("imu_t_s"), py::arg("accel_b_mps2"), py::arg("omega_bi_b_rps"),
         py::arg("pose_t_capture_s"), py::arg("pose_t_fuse_s"), py::arg("pose_r_hill_m"), py::arg("pose_q_hb_wxyz"),
         py::arg("pose_R"), py::arg("pose_run_start"), py::arg("pose_v0_sigma_mps"), py::arg("t_init_s"),
-        py::arg("record_states") = false,
-        "A log replayed through a fresh 9-state NavUkf(cfg) (double), as the flight application steps it: pose 0 "
+        py::arg("record_states") = false, py::arg("scalar") = "double",
+        "A log replayed through a fresh 9-state NavUkf(cfg) (scalar 'double', or 'float': the float build), as the "
+        "flight application steps it: pose 0 "
         "initialises it at t_init_s, every later IMU sample is a predict, a pose flagged in pose_run_start resets "
         "it at the first tick at or after its capture, the others are fused once the tick reaches their "
         "pose_t_fuse_s. Returns a dict: innovation (M, 6), innovation_cov (M, 6, 6), nis (M,), log_likelihood "

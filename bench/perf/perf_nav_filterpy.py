@@ -1,5 +1,6 @@
 """Side-by-side timing, in one process, of the flight navigation UKF through
-the bindings and FilterPy's UnscentedKalmanFilter on the same 9-state problem.
+the bindings (double, and the float build) and FilterPy's
+UnscentedKalmanFilter on the same 9-state problem.
 
 Both filters: state [r_hill (3), v_hill (3), attitude (3)], CW closed-form
 step with the exact constant-acceleration term (Phi, Gamma from the
@@ -85,7 +86,19 @@ def make_filterpy(n, Q, R, x0, P0):
     return ukf
 
 
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip() + f", {os.cpu_count()} CPUs"
+    except OSError:
+        pass
+    return platform.processor()
+
+
 def run(predicts: int, seed: int) -> dict:
+    load_before = os.getloadavg()[0]
     cfg = fb.NavConfig()
     cfg.n_radps = fb.orbit_rate(fb.EARTH_RADIUS + 500e3)
     cfg.dt_imu_s = DT
@@ -105,6 +118,9 @@ def run(predicts: int, seed: int) -> dict:
 
     ours = fb.NavUkf(cfg)
     ours.init(0.0, r0, v0, q0, P0)
+    ours_f = fb.NavUkfFloat(cfg) if hasattr(fb, "NavUkfFloat") else None  # the float build, same calls
+    if ours_f is not None:
+        ours_f.init(0.0, r0, v0, q0, P0)
     theirs = make_filterpy(n, Q, R, np.concatenate([r0, v0, phi0]), P0)
 
     rng = np.random.default_rng(seed)
@@ -112,8 +128,8 @@ def run(predicts: int, seed: int) -> dict:
     omega = np.array([0.01, -0.02, 0.015]) + 0.005 * rng.standard_normal((predicts, 3))
     meas_noise = rng.standard_normal((predicts // 10 + 1, 6))
 
-    t_pred = {"ours": [], "filterpy": []}
-    t_upd = {"ours": [], "filterpy": []}
+    t_pred = {"ours": [], "filterpy": [], "ours_float": []}
+    t_upd = {"ours": [], "filterpy": [], "ours_float": []}
     clock = time.perf_counter_ns
     max_pos_diff = 0.0
     for k in range(predicts):
@@ -126,6 +142,10 @@ def run(predicts: int, seed: int) -> dict:
         t2 = clock()
         t_pred["ours"].append(t1 - t0)
         t_pred["filterpy"].append(t2 - t1)
+        if ours_f is not None:
+            t0 = clock()
+            ours_f.predict(t, a, w)
+            t_pred["ours_float"].append(clock() - t0)
         if (k + 1) % 10 == 0:
             e = meas_noise[(k + 1) // 10]
             r_meas = ours.r_hill_m + POS_SIGMA * e[:3]
@@ -138,6 +158,10 @@ def run(predicts: int, seed: int) -> dict:
             t2 = clock()
             t_upd["ours"].append(t1 - t0)
             t_upd["filterpy"].append(t2 - t1)
+            if ours_f is not None:
+                t0 = clock()
+                ours_f.update_pose(t, r_meas, q_meas, R)
+                t_upd["ours_float"].append(clock() - t0)
             max_pos_diff = max(max_pos_diff, float(np.abs(theirs.x[:3] - ours.r_hill_m).max()))
 
     def med_us(v):
@@ -146,10 +170,12 @@ def run(predicts: int, seed: int) -> dict:
     res = {
         "predicts": predicts,
         "updates": len(t_upd["ours"]),
-        "predict_median_us": {"ours": med_us(t_pred["ours"]), "filterpy": med_us(t_pred["filterpy"])},
-        "update_median_us": {"ours": med_us(t_upd["ours"]), "filterpy": med_us(t_upd["filterpy"])},
+        "predict_median_us": {k: med_us(v) for k, v in t_pred.items() if v},
+        "update_median_us": {k: med_us(v) for k, v in t_upd.items() if v},
         "max_pos_estimate_diff_m": max_pos_diff,
         "python": platform.python_version(),
+        "machine": _cpu_model(),
+        "load_average_1min_before": load_before,
     }
     res["predict_ratio"] = res["predict_median_us"]["filterpy"] / res["predict_median_us"]["ours"]
     res["update_ratio"] = res["update_median_us"]["filterpy"] / res["update_median_us"]["ours"]
@@ -163,10 +189,11 @@ def main(argv=None) -> int:
     p.add_argument("--json", default=None, help="write the figures here")
     args = p.parse_args(argv)
     res = run(args.predicts, args.seed)
-    print(f"{'step':<8} {'ours [us]':>12} {'FilterPy [us]':>14} {'ratio':>8}")
+    print(f"{'step':<8} {'ours [us]':>12} {'ours float [us]':>16} {'FilterPy [us]':>14} {'ratio':>8}")
     for step in ("predict", "update"):
         m = res[f"{step}_median_us"]
-        print(f"{step:<8} {m['ours']:>12.2f} {m['filterpy']:>14.1f} {res[f'{step}_ratio']:>7.0f}x")
+        fl = f"{m['ours_float']:>16.2f}" if "ours_float" in m else f"{'-':>16}"
+        print(f"{step:<8} {m['ours']:>12.2f} {fl} {m['filterpy']:>14.1f} {res[f'{step}_ratio']:>7.0f}x")
     print(
         f"({res['predicts']} predicts, {res['updates']} updates, medians per call; "
         f"largest position estimate difference {res['max_pos_estimate_diff_m']:.2e} m)"

@@ -152,3 +152,96 @@ def test_invalid_config_raises_value_error_naming_the_field():
     cfg.dt_imu_s = -0.1
     with pytest.raises(ValueError, match="dt_imu_s"):
         fb.NavUkf(cfg)
+
+
+def _cfg():
+    cfg = fb.NavConfig()
+    cfg.accel_sigma_mps2 = 0.25 * 0.020 / 3.0
+    cfg.gyro_sigma_rps = 0.005
+    return cfg
+
+
+@pytest.mark.parametrize(
+    "cls, n, scalar",
+    [("NavUkf", 9, "double"), ("NavUkfFloat", 9, "float"), ("NavUkf15", 15, "double"), ("NavUkf15Float", 15, "float")],
+)
+def test_every_variant_is_bound_and_follows_the_double_filter(cls, n, scalar):
+    """The float and bias variants step the same way: with the biases known
+    (variance at the floor, no random walk), after 20 s with poses the
+    position agrees with the 9-state double filter to well inside its sigma."""
+    c = getattr(fb, cls)
+    assert c.error_size == n and c.scalar == scalar
+    P0n = np.eye(n) * 1e-12
+    P0n[:9, :9] = P0
+    cfg = _cfg()
+    cfg.gyro_bias_walk = cfg.accel_bias_walk = 0.0
+    f, ref = c(cfg), make_filter()
+    f.init(0.0, np.array([0.75, 0.0, 0.0]), np.zeros(3), Q_ID, P0n)
+    for k in range(1, 201):
+        a, w = imu(k)
+        assert f.predict(0.1 * k, a, w).status == "ok"
+        ref.predict(0.1 * k, a, w)
+        if k % 10 == 0:
+            r = np.array([0.75, 0.01 * np.sin(k), 0.0])
+            assert f.update_pose(0.1 * k, r, Q_ID, R_POSE).fused
+            ref.update_pose(0.1 * k, r, Q_ID, R_POSE)
+    assert f.P.shape == (n, n) and f.state().shape == (n + 1,)
+    sigma = np.sqrt(np.diag(ref.P)[:3])
+    assert np.all(np.abs(f.r_hill_m - ref.r_hill_m) < 0.1 * sigma)
+
+
+def test_bias_arguments_only_where_there_are_bias_states():
+    f = fb.NavUkf15(_cfg())
+    f.init(0.0, np.array([0.75, 0, 0]), np.zeros(3), Q_ID, np.eye(15) * 1e-4, gyro_bias_rps=np.array([1e-3, 0, 0]))
+    assert f.state()[10] == pytest.approx(1e-3)
+    with pytest.raises(ValueError, match="no bias states"):
+        make_filter().init(0.0, np.zeros(3), np.zeros(3), Q_ID, P0, gyro_bias_rps=np.zeros(3))
+
+
+def test_pose_ahead_of_the_filter_waits_for_its_tick_as_in_the_flight_app():
+    """A pose captured at the next tick, given before that tick's IMU sample:
+    'from_future' now, fused by the predict that reaches the tick, with the
+    same result as the pose given after that predict."""
+    early, late = make_filter(), make_filter()
+    for f in (early, late):
+        f.predict(0.1, *imu(1))
+    r = np.array([0.76, 0.01, 0.0])
+    rec = early.update_pose(0.2, r, Q_ID, R_POSE)
+    assert (rec.status, rec.detail) == ("bad_input", "from_future") and early.pose_pending
+    assert early.deferred_record is None
+    early.predict(0.2, *imu(2))
+    assert not early.pose_pending and early.deferred_record.fused
+    late.predict(0.2, *imu(2))
+    assert late.update_pose(0.2, r, Q_ID, R_POSE).fused
+    np.testing.assert_array_equal(early.state(), late.state())
+    np.testing.assert_array_equal(early.P, late.P)
+    early.predict(0.3, *imu(3))
+    assert early.deferred_record is None  # one predict's record only
+
+
+def test_pose_further_ahead_than_max_dt_is_refused_and_not_kept():
+    f = make_filter()
+    rec = f.update_pose(5.0, np.array([0.75, 0.0, 0.0]), Q_ID, R_POSE)
+    assert rec.detail == "from_future" and not f.pose_pending
+
+
+def test_whole_log_in_one_call_in_float_follows_double():
+    """nav_replay(scalar='float') runs the float build over a docking run's
+    log: same poses fused, states within a small fraction of the pose noise."""
+    from bench.sim.scenario_docking import ScenarioConfig, run_docking
+
+    run = run_docking(1000, ScenarioConfig())
+    u = run.updates
+    m = len(u.t_capture) + 1
+    r = np.vstack([run.est[0, 0:3], u.r_meas])
+    q = np.vstack([run.est[0, 6:10], u.q_meas])
+    R = np.array([np.diag([(0.05 * np.linalg.norm(ri)) ** 2] * 3 + [0.01**2] * 3) for ri in r])
+    tc = np.concatenate([[0.0], u.t_capture])
+    args = (run.imu_t, run.imu_accel, run.imu_gyro, tc, tc, r, q, R, np.zeros(m, bool), np.full(m, 0.003), 0.0)
+    d = fb.nav_replay(_cfg(), *args, record_states=True)
+    f = fb.nav_replay(_cfg(), *args, record_states=True, scalar="float")
+    assert d["fused"][1:].all() and np.array_equal(d["fused"], f["fused"])
+    assert np.abs(f["states"][:, 0:3] - d["states"][:, 0:3]).max() < 1e-4
+    assert np.abs(f["nis"] - d["nis"]).max() < 1e-2
+    with pytest.raises(ValueError, match="scalar"):
+        fb.nav_replay(_cfg(), *args, scalar="half")
