@@ -92,7 +92,7 @@ DeframeResult Deframer::reject(RejectReason r, int apid_row, std::uint16_t apid)
 
 std::size_t Deframer::feed(const std::uint8_t* data, std::size_t n, DeframeResult& out) {
   out = DeframeResult{};
-  CobsAccumulator<kMaxFrameLen>::Event ev;
+  CobsAccumulator<kMaxFrameLen>::Event ev{};
   const std::size_t used = acc_.push_bytes(data, n, ev);
   const std::uint32_t room = UINT32_MAX - counters_.bytes_received;  // saturate rather than wrap
   counters_.bytes_received += used < room ? static_cast<std::uint32_t>(used) : room;

@@ -4,6 +4,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <vector>
 
 namespace fsw_vision {
@@ -129,7 +130,7 @@ SpotFit fit_spots(const cv::Mat& gray, const SpotWindow& w, const PixelNoise& no
   for (int r = r0; r < r1; ++r)
     for (int c = c0; c < c1; ++c)
       if (r == r0 || r == r1 - 1 || c == c0 || c == c1 - 1) edge.push_back(gray.at<uint8_t>(r, c));
-  std::nth_element(edge.begin(), edge.begin() + edge.size() / 2, edge.end());
+  std::nth_element(edge.begin(), edge.begin() + static_cast<std::ptrdiff_t>(edge.size() / 2), edge.end());
   const double b0 = edge[edge.size() / 2];
 
   std::vector<Pixel> px;

@@ -76,7 +76,7 @@ template <typename S>
 struct RelativeFrameTerms {
   Quat<S> q;
   Vec3<S> w, r;
-  S nu, nd, ndd;
+  S nu = S(0), nd = S(0), ndd = S(0);
   Vec3<S> b, c, wf;
 };
 

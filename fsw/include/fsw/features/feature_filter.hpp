@@ -517,18 +517,28 @@ inline auto FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::meas_cov(
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
 inline bool FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::check_predict(double t_s, Record& rec) const {
-  if (!config_ok()) return reject(rec, StepStatus::BadInput, StepDetail::BadConfig), false;
-  if (!initialized_) return reject(rec, StepStatus::BadInput, StepDetail::NotInitialized), false;
-  if (!std::isfinite(t_s)) return reject(rec, StepStatus::BadInput, StepDetail::NonFinite), false;
-  if (!(t_s > t_)) return reject(rec, StepStatus::BadInput, StepDetail::TimeNotIncreasing), false;
-  if (t_s - t_ > cfg_.max_dt_s) return reject(rec, StepStatus::BadInput, StepDetail::StepTooLong), false;
-  return true;
+  StepDetail why = StepDetail::None;
+  if (!config_ok()) {
+    why = StepDetail::BadConfig;
+  } else if (!initialized_) {
+    why = StepDetail::NotInitialized;
+  } else if (!std::isfinite(t_s)) {
+    why = StepDetail::NonFinite;
+  } else if (!(t_s > t_)) {
+    why = StepDetail::TimeNotIncreasing;
+  } else if (t_s - t_ > cfg_.max_dt_s) {
+    why = StepDetail::StepTooLong;
+  }
+  if (why == StepDetail::None) return true;
+  reject(rec, StepStatus::BadInput, why);
+  return false;
 }
 
 template <typename S, int kMaxPoints, int kMaxLines, int kMaxCircles>
 inline void FeatureFilterBase<S, kMaxPoints, kMaxLines, kMaxCircles>::score(Record& rec, const MeasVec& y,
                                                                             const MeasCov& Ls, int used_rows) {
-  MeasVec w = y;
+  // Eigen's solveInPlace takes its argument as const and writes through it.
+  MeasVec w = y;  // NOLINT(performance-unnecessary-copy-initialization): solved in place below
   Ls.template triangularView<Eigen::Lower>().solveInPlace(w);
   rec.nis = w.squaredNorm();
   const S l2pi = std::log(S(2) * S(3.14159265358979323846));

@@ -146,7 +146,7 @@ struct UtWeights {
   S wm0, wc0, wi, gamma;
   static UtWeights make(int n, const UtParams<S>& p) {
     const S lambda = p.alpha * p.alpha * (S(n) + p.kappa) - S(n);
-    UtWeights w;
+    UtWeights w{};
     w.wm0 = lambda / (S(n) + lambda);
     w.wc0 = w.wm0 + S(1) - p.alpha * p.alpha + p.beta;
     w.wi = S(1) / (S(2) * (S(n) + lambda));
