@@ -96,10 +96,11 @@ inline int cholesky_lower_repaired(const Eigen::Matrix<S, N, N>& A, Eigen::Matri
   if (cholesky_lower(A, L)) return 0;
   if (!A.allFinite()) return -1;
   S rel = S(64 * N) * std::numeric_limits<S>::epsilon();
-  for (int k = 1; k <= 3; ++k, rel *= S(16)) {  // bounded: three retries
+  for (int k = 1; k <= 3; ++k) {  // bounded: three retries
     Eigen::Matrix<S, N, N> B = A;
     for (int i = 0; i < N; ++i) B(i, i) += rel * std::abs(A(i, i));
     if (cholesky_lower(B, L)) return k;
+    rel *= S(16);
   }
   return -1;
 }
