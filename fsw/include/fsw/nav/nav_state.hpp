@@ -74,6 +74,18 @@ struct NavState {
     return out;
   }
 
+  // plus() without the attitude (the caller sets q_hb).
+  NavState plus_vectors(const ErrVec& dx) const {
+    NavState out = *this;
+    out.r_hill_m += dx.template segment<3>(Layout::kDPos.index);
+    out.v_hill_mps += dx.template segment<3>(Layout::kDVel.index);
+    if constexpr (kWithBias) {
+      out.gyro_bias_rps += dx.template segment<3>(Layout::kDGyroBias.index);
+      out.accel_bias_mps2 += dx.template segment<3>(Layout::kDAccelBias.index);
+    }
+    return out;
+  }
+
   // x [-] x0, so that x0.plus(x.minus(x0)) == x.
   ErrVec minus(const NavState& x0) const {
     ErrVec d;

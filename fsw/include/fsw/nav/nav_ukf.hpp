@@ -12,6 +12,25 @@
 // Unit norm is restored only in fsw::normalized (through boxplus /
 // propagate_attitude).
 //
+// Only where the model is nonlinear are sigma points propagated. The square
+// root of P is taken with the nonlinear states first (attitude, and the
+// biases with the bias option) and r, v last: L = chol(Pi P Pi^T). Its last
+// six columns then move r and v only, along which the step is linear
+// (Phi), so their 12 sigma points are known without propagating them: they
+// add nothing to the mean (they cancel in pairs) and exactly
+// (2 Wi gamma^2 = 1) Phi L_rv L_rv^T Phi^T plus 12 Wi d0 d0^T (d0: the centre's
+// deviation from the mean) to the covariance. The 2 m + 1 others (m = 3, or
+// 9 with biases) go through the dynamics. The result is the 2n + 1 point
+// transform with this square root, to rounding. Without the bias option
+// the sample's turn Exp(omega dt) and mid-step acceleration do not depend on
+// the state and are computed once per step; each pair x [+] d, x [+] -d
+// shares Exp(d_theta).
+// The pose measurement [r, q] is linear in the tangent space: with the
+// sigma points x [+] d_i, the predicted mean is the centre and the
+// deviations are H d_i (H selects dr and dtheta; boxminus(q [+] d, q) = d),
+// so the transform's S = H P H^T + R and P_xz = P H^T exactly; the update
+// computes them so, without sigma points.
+//
 // Predict (IMU, nominally 10 Hz). predict(t, accel, omega) moves the filter
 // from its current time to t with the sample (accel = specific force in the
 // body frame, omega = omega_BI_B) held constant over that interval:
@@ -138,6 +157,9 @@ class NavUkf {
   using Layout = NavLayout<kWithBias>;
   static constexpr int kN = Layout::kErrorSize;
   static constexpr int kSigma = 2 * kN + 1;
+  static constexpr int kLin = 6;         // r, v: the step is linear in them
+  static constexpr int kNl = kN - kLin;  // attitude (and biases): propagated by sigma points
+  static constexpr int kSigmaNl = 2 * kNl + 1;
   static constexpr int kMeas = 6;
   static constexpr int kHistoryCapacity = kHistory;
   static_assert(kHistory >= 2, "history holds at least the current and one earlier tick");
@@ -223,18 +245,26 @@ class NavUkf {
 
   StepModel make_step(S dt) const;
 
+  // What the IMU sample does over a step, from the (bias-corrected) sample:
+  // the body acceleration at mid-step and the body's turn Exp(omega dt).
+  struct StepInput {
+    Vec3<S> a_mid_b;
+    Quat<S> turn;
+    S dt;
+  };
+  static StepInput step_input(const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt);
+  // The sample as the state sees it: without the bias option the same for
+  // every sigma point (computed once), else corrected by its biases.
+  StepInput input_for(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt,
+                      const StepInput& shared) const;
+
   // One sigma point through the dynamics.
-  State dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt, const StepModel& m) const;
+  State dynamics(const State& x, const StepInput& in, const StepModel& m) const;
 
-  // Sigma-point offsets: column i of gamma * L, i in [0, 2n], 0 the centre.
-  ErrVec sigma_offset(const Cov& L, int i) const;
-
-  S wm(int i) const { return i == 0 ? wm0_ : wi_; }
-  S wc(int i) const { return i == 0 ? wc0_ : wi_; }
-
-  // Weighted tangent-space mean of sigma states (single step around the
-  // centre) and deviations from it.
-  void sigma_mean(const State* X, State& mean, Eigen::Matrix<S, kN, kSigma>& D) const;
+  // P with the nonlinear states first (file comment), and back.
+  static void nonlinear_first(const Cov& P, Cov& Pp);
+  // Column j of a square root in that order, as an error-state vector.
+  static ErrVec column_in_state_order(const Cov& L, int j);
 
   // Pure predict: no member written. Returns false if P does not factor,
   // even with the jitter of cholesky_lower_repaired.
@@ -496,18 +526,34 @@ inline auto NavUkf<S, kWithBias, kHistory>::make_step(S dt) const -> StepModel {
 }
 
 template <typename S, bool kWithBias, int kHistory>
-inline auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b,
-                                                     S dt, const StepModel& m) const -> State {
-  Vec3<S> w = omega_b;
-  Vec3<S> a = accel_b;
+inline auto NavUkf<S, kWithBias, kHistory>::step_input(const Vec3<S>& a, const Vec3<S>& w, S dt) -> StepInput {
+  StepInput in;
+  in.a_mid_b = a + (S(0.5) * dt) * w.cross(a);  // body acceleration at mid-step
+  in.turn = exp(Vec3<S>(w * dt));
+  in.dt = dt;
+  return in;
+}
+
+template <typename S, bool kWithBias, int kHistory>
+inline auto NavUkf<S, kWithBias, kHistory>::input_for(const State& x, const Vec3<S>& accel_b, const Vec3<S>& omega_b,
+                                                      S dt, const StepInput& shared) const -> StepInput {
   if constexpr (kWithBias) {
-    w -= x.gyro_bias_rps;
-    a -= x.accel_bias_mps2;
+    return step_input(accel_b - x.accel_bias_mps2, omega_b - x.gyro_bias_rps, dt);
+  } else {
+    (void)x;
+    (void)accel_b;
+    (void)omega_b;
+    (void)dt;
+    return shared;
   }
+}
+
+template <typename S, bool kWithBias, int kHistory>
+inline auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const StepInput& in, const StepModel& m) const
+    -> State {
   // Body acceleration at mid-step, into the Hill frame at mid-step.
-  const Vec3<S> a_mid_b = a + (S(0.5) * dt) * w.cross(a);
-  const Vec3<S> v = x.q_hb._transformVector(a_mid_b);
-  const S th = S(0.5) * cfg_.n_radps * dt;  // Hill frame turns by -n dt / 2 about z
+  const Vec3<S> v = x.q_hb._transformVector(in.a_mid_b);
+  const S th = S(0.5) * cfg_.n_radps * in.dt;  // Hill frame turns by -n dt / 2 about z
   const Vec3<S> a_hill(v.x() + th * v.y(), v.y() - th * v.x(), v.z());
   Vec6<S> rv;
   rv << x.r_hill_m, x.v_hill_mps;
@@ -515,46 +561,67 @@ inline auto NavUkf<S, kWithBias, kHistory>::dynamics(const State& x, const Vec3<
   State out = x;
   out.r_hill_m = rv1.template head<3>();
   out.v_hill_mps = rv1.template tail<3>();
-  out.q_hb = propagate_attitude(x.q_hb, w, dt, m.hill_step);
+  out.q_hb = normalized(Quat<S>(m.hill_step * x.q_hb * in.turn));  // propagate_attitude, the turn computed once
   return out;
 }
 
 template <typename S, bool kWithBias, int kHistory>
-inline auto NavUkf<S, kWithBias, kHistory>::sigma_offset(const Cov& L, int i) const -> ErrVec {
-  if (i == 0) return ErrVec::Zero();
-  if (i <= kN) return gamma_ * L.col(i - 1);
-  return -gamma_ * L.col(i - 1 - kN);
+inline void NavUkf<S, kWithBias, kHistory>::nonlinear_first(const Cov& P, Cov& Pp) {
+  Pp.template topLeftCorner<kNl, kNl>() = P.template bottomRightCorner<kNl, kNl>();
+  Pp.template topRightCorner<kNl, kLin>() = P.template bottomLeftCorner<kNl, kLin>();
+  Pp.template bottomLeftCorner<kLin, kNl>() = P.template topRightCorner<kLin, kNl>();
+  Pp.template bottomRightCorner<kLin, kLin>() = P.template topLeftCorner<kLin, kLin>();
 }
 
 template <typename S, bool kWithBias, int kHistory>
-inline void NavUkf<S, kWithBias, kHistory>::sigma_mean(const State* X, State& mean,
-                                                       Eigen::Matrix<S, kN, kSigma>& D) const {
-  const State& c = X[0];
-  ErrVec acc = ErrVec::Zero();
-  for (int i = 0; i < kSigma; ++i) acc += wm(i) * X[i].minus(c);
-  mean = c.plus(acc);
-  for (int i = 0; i < kSigma; ++i) D.col(i) = X[i].minus(mean);
+inline auto NavUkf<S, kWithBias, kHistory>::column_in_state_order(const Cov& L, int j) -> ErrVec {
+  ErrVec d;
+  d.template head<kLin>() = L.col(j).template tail<kLin>();
+  d.template tail<kNl>() = L.col(j).template head<kNl>();
+  return d;
 }
 
 template <typename S, bool kWithBias, int kHistory>
 inline bool NavUkf<S, kWithBias, kHistory>::propagate(const State& x, const Cov& P, const Vec3<S>& accel_b,
                                                       const Vec3<S>& omega_b, S dt, bool bridged, State& x_out,
                                                       Cov& P_out, bool* repaired) const {
+  Cov Pp;
+  nonlinear_first(P, Pp);
   Cov L;
-  const int rep = cholesky_lower_repaired(P, L);
+  const int rep = cholesky_lower_repaired(Pp, L);
   if (rep < 0) return false;
   if (rep > 0 && repaired != nullptr) *repaired = true;
   const bool nominal = std::abs(dt - dt_nom_) <= S(1e-6) * dt_nom_;
   StepModel other;
   if (!nominal) other = make_step(dt);
   const StepModel& m = nominal ? prop_nom_ : other;
-  State X[kSigma];
-  for (int i = 0; i < kSigma; ++i) X[i] = dynamics(x.plus(sigma_offset(L, i)), accel_b, omega_b, dt, m);
-  State mean;
-  Eigen::Matrix<S, kN, kSigma> D;
-  sigma_mean(X, mean, D);
-  Cov Pn = wc0_ * D.col(0) * D.col(0).transpose();
-  Pn.noalias() += wi_ * D.template rightCols<kSigma - 1>() * D.template rightCols<kSigma - 1>().transpose();
+  // The centre and the 2 kNl points along the nonlinear columns: x [+] d and
+  // x [+] -d share Exp(d_theta) (Exp(-v) = Exp(v)^-1).
+  const StepInput shared = step_input(accel_b, omega_b, dt);
+  State X[kSigmaNl];
+  X[0] = dynamics(x, input_for(x, accel_b, omega_b, dt, shared), m);
+  for (int j = 0; j < kNl; ++j) {
+    const ErrVec d = gamma_ * column_in_state_order(L, j);
+    const Quat<S> e = exp(Vec3<S>(d.template segment<3>(Layout::kDTheta.index)));
+    State xp = x.plus_vectors(d), xm = x.plus_vectors(-d);
+    xp.q_hb = normalized(Quat<S>(x.q_hb * e));  // boxplus(q, d_theta)
+    xm.q_hb = normalized(Quat<S>(x.q_hb * e.conjugate()));
+    X[1 + j] = dynamics(xp, input_for(xp, accel_b, omega_b, dt, shared), m);
+    X[1 + kNl + j] = dynamics(xm, input_for(xm, accel_b, omega_b, dt, shared), m);
+  }
+  // Tangent-space mean around the centre; the linear columns' points cancel in pairs.
+  ErrVec acc = ErrVec::Zero();
+  for (int i = 1; i < kSigmaNl; ++i) acc += X[i].minus(X[0]);
+  const State mean = X[0].plus(wi_ * acc);
+  const ErrVec d0 = X[0].minus(mean);
+  Eigen::Matrix<S, kN, kSigmaNl - 1> D;
+  for (int i = 1; i < kSigmaNl; ++i) D.col(i - 1) = X[i].minus(mean);
+  Cov Pn = (wc0_ + S(2 * kLin) * wi_) * d0 * d0.transpose();
+  Pn.noalias() += wi_ * D * D.transpose();
+  // The linear columns: Phi L_rv L_rv^T Phi^T on r, v.
+  const Mat6<S> PhiL = (S(2) * wi_ * gamma_ * gamma_) * m.phi *
+                       L.template bottomRightCorner<kLin, kLin>().template triangularView<Eigen::Lower>();
+  Pn.template topLeftCorner<kLin, kLin>().noalias() += PhiL * PhiL.transpose();
   Pn += m.Q;
   if (bridged) {  // the held sample stands in for an unknown one
     const S ga = cfg_.gap_accel_sigma_mps2, gg = cfg_.gap_gyro_sigma_rps * dt;
@@ -575,37 +642,22 @@ inline auto NavUkf<S, kWithBias, kHistory>::fuse(const State& x, const Cov& P, c
   Cov L;
   const int rep = cholesky_lower_repaired(P, L);
   if (rep < 0) return set(rec, StepStatus::NotPosDef, StepDetail::PriorCholesky);
-  Eigen::Matrix<S, kN, kSigma> DX;
-  Vec3<S> r_sig[kSigma];
-  Quat<S> q_sig[kSigma];
-  for (int i = 0; i < kSigma; ++i) {
-    DX.col(i) = sigma_offset(L, i);
-    r_sig[i] = x.r_hill_m + DX.col(i).template segment<3>(Layout::kDPos.index);
-    q_sig[i] = boxplus(x.q_hb, Vec3<S>(DX.col(i).template segment<3>(Layout::kDTheta.index)));
-  }
-  // Predicted measurement: weighted mean, attitude in the tangent space
-  // around the central point.
-  Vec3<S> r_hat = Vec3<S>::Zero();
-  Vec3<S> dq = Vec3<S>::Zero();
-  for (int i = 0; i < kSigma; ++i) {
-    r_hat += wm(i) * r_sig[i];
-    dq += wm(i) * boxminus(q_sig[i], q_sig[0]);
-  }
-  const Quat<S> q_hat = boxplus(q_sig[0], dq);
-  Eigen::Matrix<S, kMeas, kSigma> DZ;
-  for (int i = 0; i < kSigma; ++i) {
-    DZ.col(i).template head<3>() = r_sig[i] - r_hat;
-    DZ.col(i).template tail<3>() = boxminus(q_sig[i], q_hat);
-  }
-  MeasCov Szz = wc0_ * DZ.col(0) * DZ.col(0).transpose();
-  Szz.noalias() += wi_ * DZ.template rightCols<kSigma - 1>() * DZ.template rightCols<kSigma - 1>().transpose();
+  // The transform's covariance is L L^T: P itself unless the factor needed a jitter.
+  Cov Pj;
+  if (rep > 0) Pj.noalias() = L * L.transpose();
+  const Cov& Pt = rep > 0 ? Pj : P;
+  constexpr int ip = Layout::kDPos.index, ia = Layout::kDTheta.index;
+  Eigen::Matrix<S, kN, kMeas> Pxz;  // P H^T
+  Pxz.template leftCols<3>() = Pt.template middleCols<3>(ip);
+  Pxz.template rightCols<3>() = Pt.template middleCols<3>(ia);
+  MeasCov Szz;
+  Szz.template topRows<3>() = Pxz.template middleRows<3>(ip);
+  Szz.template bottomRows<3>() = Pxz.template middleRows<3>(ia);
   Szz += R;
   symmetrize(Szz);
-  Eigen::Matrix<S, kN, kMeas> Pxz = wc0_ * DX.col(0) * DZ.col(0).transpose();
-  Pxz.noalias() += wi_ * DX.template rightCols<kSigma - 1>() * DZ.template rightCols<kSigma - 1>().transpose();
   MeasVec y;
-  y.template head<3>() = r_meas - r_hat;
-  y.template tail<3>() = boxminus(q_meas, q_hat);
+  y.template head<3>() = r_meas - x.r_hill_m;
+  y.template tail<3>() = boxminus(q_meas, x.q_hb);
   rec.innovation = y;
   rec.innovation_cov = Szz;
   Eigen::LLT<MeasCov> llt;
@@ -615,11 +667,11 @@ inline auto NavUkf<S, kWithBias, kHistory>::fuse(const State& x, const Cov& P, c
   const S log_2pi = S(1.8378770664093454836);
   rec.log_likelihood = S(-0.5) * (rec.nis + S(kMeas) * log_2pi + log_det(llt));
   if (cfg_.gate_chi2 > S(0) && !(rec.nis <= cfg_.gate_chi2)) return set(rec, StepStatus::Gated, StepDetail::None);
-  // K = Pxz S^-1, via S K^T = Pxz^T.
+  // K = Pxz S^-1, via S K^T = Pxz^T; K S K^T = K Pxz^T.
   const Eigen::Matrix<S, kN, kMeas> K = llt.solve(Pxz.transpose()).transpose();
-  const ErrVec dx = K * y;
+  const ErrVec dx = Pxz * Siy;  // K y
   Cov Pn = P;
-  Pn.noalias() -= K * Szz * K.transpose();
+  Pn.noalias() -= K * Pxz.transpose();
   Cov Ln;
   if (!condition_covariance(Pn, var_min_, var_max_))
     return set(rec, StepStatus::NotPosDef, StepDetail::PosteriorCholesky);
