@@ -97,6 +97,10 @@ def _cpu_model() -> str:
     return platform.processor()
 
 
+def _medians_us(times_ns: dict) -> dict:
+    return {k: float(np.median(v)) / 1e3 for k, v in times_ns.items() if v}
+
+
 def run(predicts: int, seed: int) -> dict:
     load_before = os.getloadavg()[0]
     cfg = fb.NavConfig()
@@ -119,8 +123,7 @@ def run(predicts: int, seed: int) -> dict:
     ours = fb.NavUkf(cfg)
     ours.init(0.0, r0, v0, q0, P0)
     ours_f = fb.NavUkfFloat(cfg) if hasattr(fb, "NavUkfFloat") else None  # the float build, same calls
-    if ours_f is not None:
-        ours_f.init(0.0, r0, v0, q0, P0)
+    _ = ours_f is not None and ours_f.init(0.0, r0, v0, q0, P0)
     theirs = make_filterpy(n, Q, R, np.concatenate([r0, v0, phi0]), P0)
 
     rng = np.random.default_rng(seed)
@@ -164,14 +167,11 @@ def run(predicts: int, seed: int) -> dict:
                 t_upd["ours_float"].append(clock() - t0)
             max_pos_diff = max(max_pos_diff, float(np.abs(theirs.x[:3] - ours.r_hill_m).max()))
 
-    def med_us(v):
-        return float(np.median(v)) / 1e3
-
     res = {
         "predicts": predicts,
         "updates": len(t_upd["ours"]),
-        "predict_median_us": {k: med_us(v) for k, v in t_pred.items() if v},
-        "update_median_us": {k: med_us(v) for k, v in t_upd.items() if v},
+        "predict_median_us": _medians_us(t_pred),
+        "update_median_us": _medians_us(t_upd),
         "max_pos_estimate_diff_m": max_pos_diff,
         "python": platform.python_version(),
         "machine": _cpu_model(),
