@@ -49,8 +49,7 @@ struct Rng {
 };
 
 void load(Corpus& c) {
-  const std::filesystem::path dir =
-      std::filesystem::path(__FILE__).parent_path().parent_path().parent_path() / "fuzz" / "corpus" / "deframer";
+  const std::filesystem::path dir = PROXOPS_DEFRAMER_CORPUS;
   std::vector<std::filesystem::path> files;
   for (const auto& e : std::filesystem::directory_iterator(dir)) files.push_back(e.path());
   std::sort(files.begin(), files.end());
