@@ -15,21 +15,10 @@ import numpy as np
 import pytest
 
 from bench import cli
-from bench.gap import bundled
-from bench.sim.flight_log import FlightLog, read_flight_log, validate_log, write_flight_log
-from bench.sim.log_description import bench_description
+from bench.sim.flight_log import FlightLog, write_flight_log
 from bench.sim.vehicles import inspector_12kg
 
 WHOLE_RUN = {"t_start_s": 0.0, "t_end_s": 120.05, "manoeuvre": "docking", "starts_at_rest": True}
-
-
-@pytest.fixture(scope="module")
-def base() -> FlightLog:
-    log = read_flight_log(bundled.LOG)
-    log.description = dict(bench_description(), segments=[dict(WHOLE_RUN)])
-    log.streams = {k: log.streams[k] for k in ("imu", "pose", "valves")}
-    assert validate_log(log) == []
-    return log
 
 
 def _keep(log: FlightLog, stream: str, mask) -> None:
@@ -137,8 +126,8 @@ def _one_line(capsys, prog: str) -> str:
 
 
 @pytest.mark.parametrize("what, mutate, message", DIAGNOSE, ids=[c[0] for c in DIAGNOSE])
-def test_diagnose_names_the_wrong_field_and_writes_nothing(base, tmp_path, capsys, what, mutate, message):
-    log = copy.deepcopy(base)
+def test_diagnose_names_the_wrong_field_and_writes_nothing(docking_log, tmp_path, capsys, what, mutate, message):
+    log = copy.deepcopy(docking_log)
     mutate(log)
     path = write_flight_log(tmp_path / "log.h5", log, validate=False)
     out, rep = tmp_path / "out.json", tmp_path / "rep"

@@ -32,7 +32,7 @@ from bench.gap import bundled, null
 from bench.gap.calibration_file import problem
 from bench.runner import records
 from bench.runner.store import damaged
-from bench.sim.flight_log import STREAMS, FlightLog, read_flight_log, validate_log, write_flight_log
+from bench.sim.flight_log import STREAMS, write_flight_log
 from bench.sim.log_description import bench_description
 
 WHOLE_RUN = {"t_start_s": 0.0, "t_end_s": 120.05, "manoeuvre": "docking", "starts_at_rest": True}
@@ -43,15 +43,6 @@ SETTINGS = settings(
     database=None,  # nothing written into the checkout
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
-
-
-@pytest.fixture(scope="module")
-def base() -> FlightLog:
-    log = read_flight_log(bundled.LOG)
-    log.description = dict(bench_description(), segments=[dict(WHOLE_RUN)])
-    log.streams = {k: log.streams[k] for k in ("imu", "pose", "valves")}
-    assert validate_log(log) == []
-    return log
 
 
 def _refused(args: list, capsys, folder: Path, keep: set, prog: str = "diagnose") -> str:
@@ -209,8 +200,8 @@ NAMED = [
 
 
 @pytest.mark.parametrize("what, mutate, post, message", NAMED, ids=[c[0] for c in NAMED])
-def test_a_hostile_log_is_refused_in_one_line(base, tmp_path, capsys, what, mutate, post, message):
-    log = copy.deepcopy(base)
+def test_a_hostile_log_is_refused_in_one_line(docking_log, tmp_path, capsys, what, mutate, post, message):
+    log = copy.deepcopy(docking_log)
     if mutate is not None:
         mutate(log)
     path = write_flight_log(tmp_path / "log.h5", log, validate=False)
@@ -260,9 +251,9 @@ GENERATED = _generated_stream_cases(3501, 30)
 
 
 @pytest.mark.parametrize("where, how, seed", GENERATED, ids=[f"{w[0]}/{w[1]}-{h}" for w, h, _ in GENERATED])
-def test_a_generated_hostile_field_is_refused_naming_its_stream(base, tmp_path, capsys, where, how, seed):
+def test_a_generated_hostile_field_is_refused_naming_its_stream(docking_log, tmp_path, capsys, where, how, seed):
     stream, field = where
-    log = copy.deepcopy(base)
+    log = copy.deepcopy(docking_log)
     log[stream][field] = HOSTILE_ARRAYS[how](np.asarray(log[stream][field]), random.Random(seed))
     path = write_flight_log(tmp_path / "log.h5", log, validate=False)
     line = _diagnose_refuses(path, capsys)
@@ -300,10 +291,10 @@ def _field_name(path) -> str:
 
 @SETTINGS
 @given(path=st.sampled_from(LEAVES), value=HOSTILE_VALUES)
-def test_a_hostile_description_value_is_refused_naming_the_field(base, capsys, path, value):
+def test_a_hostile_description_value_is_refused_naming_the_field(docking_log, capsys, path, value):
     if isinstance(value, str) and path[-1] in ("manoeuvre", "sample") and value in ("docking", "other", "mean"):
         return  # a valid value of that field
-    log = copy.deepcopy(base)
+    log = copy.deepcopy(docking_log)
     log.description = copy.deepcopy(DESCRIPTION)
     _desc(path, value)(log)
     with tempfile.TemporaryDirectory() as d:
