@@ -49,8 +49,9 @@ FA_EACH = 0.005
 DEFAULT_RUNS = 40
 # 2: the tail fitted to the top of the values; the pose noise at the log's
 # own sigmas; the key without absolute times or the first pose. 3: the
-# statistics of the exact candidates.
-VERSION = 4  # bump when the bootstrap, the tail or the diagnosis statistics change
+# statistics of the exact candidates. 4: shared Jacobians. 5: the gyro
+# rows whitened with the gyroscopic term's share of their noise.
+VERSION = 5  # bump when the bootstrap, the tail or the diagnosis statistics change
 STATISTICS = ("map_max_abs_z", "screen_logp")
 TAIL_FRACTION = 0.6  # the share of the runs, from the top, whose excesses are fitted
 TIME_QUANTUM_S = 1e-6  # time stamps in the key, relative to their run's start
