@@ -56,6 +56,11 @@ STATISTICS = ("map_max_abs_z", "screen_logp")
 TAIL_FRACTION = 0.6  # the share of the runs, from the top, whose excesses are fitted
 TIME_QUANTUM_S = 1e-6  # time stamps in the key, relative to their run's start
 SIGMA_DIGITS = 3  # significant digits of the pose sigmas in the key
+# Another flight of the same vehicle and plan shares a calibration when its
+# timing has the same shape (``shape_differs``): commands within
+# COMMAND_TOLERANCE_S of each other, the same IMU and pose rates, jitter of
+# the same size, as many samples dropped.
+COMMAND_TOLERANCE_S = 0.005
 EULER_GAMMA = 0.5772156649015329
 
 
@@ -173,10 +178,11 @@ def key_contents(log, runs: int, seed: int, prepared=None) -> dict:
     logged, and per run its length, valve commands and on-times, IMU time
     stamps, pose capture times and delivery delays (all relative to the
     run's start, in TIME_QUANTUM_S) and its poses' stated sigmas (to
-    SIGMA_DIGITS significant digits). Each stamp, not a summary of them:
-    another flight of the same vehicle and plan whose samples jitter and
-    drop otherwise can need other thresholds (docs/GAP.md). Not the first
-    pose: the runs start there, but its noise does not move the thresholds."""
+    SIGMA_DIGITS significant digits): the log exactly, less its noise and
+    epoch. Another flight of the same vehicle and plan (``family``) whose
+    timing has the same shape (``shape_differs``) shares its calibration.
+    Not the first pose: the runs start there, but its noise does not move
+    the thresholds."""
     description, plan, times, d = prepared or plan_of(log)
     q = TIME_QUANTUM_S
     per_run = []
@@ -208,6 +214,109 @@ def fingerprint(log, runs: int, seed: int, prepared=None) -> str:
     """SHA-256 of ``key_contents``."""
     text = json.dumps(key_contents(log, runs, seed, prepared), sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def family_contents(log, runs: int, seed: int, prepared=None) -> dict:
+    """What every flight sharing a calibration has in common: the
+    statistics' VERSION, runs, seed, the description, whether valves were
+    logged, and per run how many commands it gave and which valves each
+    opened. The rest (command times, the timing of the samples) is
+    compared within tolerances (``shape_differs``)."""
+    description, plan, _, _ = prepared or plan_of(log)
+    return {
+        "version": VERSION,
+        "runs": int(runs),
+        "seed": int(seed),
+        "description": description,
+        "has_valves": bool(log.has("valves")),
+        "valves_opened": [[int(np.dot(on > 0.0, 1 << np.arange(on.size))) for on in p.cmd_on_s] for p in plan],
+    }
+
+
+def family(log, runs: int, seed: int, prepared=None) -> str:
+    """SHA-256 of ``family_contents``."""
+    text = json.dumps(family_contents(log, runs, seed, prepared), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def timing_shape(prepared) -> list:
+    """Per run: its length, command times and on-times (from the run's
+    start), and the shape of its timing: IMU samples, their median interval,
+    jitter (RMS of the intervals about it, gaps left out) and share dropped;
+    poses, their median interval and delivery delay, and their median
+    stated sigmas."""
+    _, plan, times, d = prepared
+    out = []
+    for p, tm in zip(plan, times):
+        di = np.diff(tm["imu_t"])
+        step = float(np.median(di)) if di.size else float(d.dt_s)
+        kept, gaps = di[di < 1.5 * step], di[di >= 1.5 * step]
+        dp = np.diff(np.sort(tm["pose_t"]))
+        out.append(
+            {
+                "duration_s": float(p.duration_s),
+                "cmd_t_s": np.asarray(p.cmd_t_s, float).tolist(),
+                "cmd_on_s": np.asarray(p.cmd_on_s, float).tolist(),
+                "imu_n": int(tm["imu_t"].size),
+                "imu_step_s": step,
+                "imu_jitter_s": float(np.sqrt(np.mean((kept - step) ** 2))) if kept.size else 0.0,
+                "imu_dropped": float(np.sum(np.round(gaps / step) - 1.0) / max(tm["imu_t"].size, 1)),
+                "pose_n": int(tm["pose_t"].size),
+                "pose_step_s": float(np.median(dp)) if dp.size else 0.0,
+                "pose_delay_s": float(np.median(tm["pose_delay"])),
+                "r_sigma_m": float(np.median(tm["r_sigma_m"])),
+                "att_sigma_rad": float(np.median(tm["att_sigma_rad"])),
+            }
+        )
+    return out
+
+
+def _apart(a: float, b: float, rel: float, floor: float = 0.0) -> bool:
+    return abs(a - b) > rel * max(abs(a), abs(b)) + floor
+
+
+def shape_differs(made: list, this: list) -> str | None:
+    """Where the timing of the flight a calibration was made for (``made``)
+    and this log's (``this``, both ``timing_shape``) differ beyond what
+    moves the thresholds (None: they share it). Tolerances: the run's length
+    to 0.5 % and three samples, commands to COMMAND_TOLERANCE_S from the
+    first (which may sit up to an IMU interval elsewhere: the run starts at
+    its first sample, whose phase is the clock's), sample
+    and pose counts to 1 % and 2 %, their intervals to 0.5 % and 1 %, IMU
+    jitter to a factor of two (or 2 % of the interval), drops to 0.5 % of
+    the samples, the pose delay to 10 % and 5 ms, the pose sigmas to 5 %."""
+    if not isinstance(made, list) or len(made) != len(this):
+        return "another number of runs"
+    for i, (m, t) in enumerate(zip(made, this)):
+        step = t["imu_step_s"]
+        checks = (
+            ("length", _apart(m["duration_s"], t["duration_s"], 0.005, 3.0 * step)),
+            ("IMU interval", _apart(m["imu_step_s"], step, 0.005)),
+            ("IMU samples", _apart(m["imu_n"], t["imu_n"], 0.01, 2.0)),
+            ("IMU jitter", _apart(m["imu_jitter_s"], t["imu_jitter_s"], 0.5, 0.02 * step)),
+            ("IMU samples dropped", abs(m["imu_dropped"] - t["imu_dropped"]) > 0.005),
+            ("pose count", _apart(m["pose_n"], t["pose_n"], 0.02, 2.0)),
+            ("pose interval", _apart(m["pose_step_s"], t["pose_step_s"], 0.01)),
+            ("pose delay", _apart(m["pose_delay_s"], t["pose_delay_s"], 0.1, 0.005)),
+            (
+                "pose sigmas",
+                _apart(m["r_sigma_m"], t["r_sigma_m"], 0.05) or _apart(m["att_sigma_rad"], t["att_sigma_rad"], 0.05),
+            ),
+        )
+        for what, off in checks:
+            if off:
+                return f"run {i}: {what}"
+        ct, tt = np.asarray(m["cmd_t_s"], float), np.asarray(t["cmd_t_s"], float)
+        co, to = np.asarray(m["cmd_on_s"], float), np.asarray(t["cmd_on_s"], float)
+        if ct.shape != tt.shape or co.shape != to.shape:
+            return f"run {i}: another number of commands"
+        if ct.size and abs(ct[0] - tt[0]) > step + COMMAND_TOLERANCE_S:
+            return f"run {i}: the first command more than an IMU interval later or earlier"
+        # From the first command: the run's start is its first IMU sample, whose phase is the clock's.
+        apart = max(np.max(np.abs((ct - ct[0]) - (tt - tt[0])), initial=0.0), np.max(np.abs(co - to), initial=0.0))
+        if apart > COMMAND_TOLERANCE_S:
+            return f"run {i}: command times or on-times more than {COMMAND_TOLERANCE_S * 1e3:.0f} ms apart"
+    return None
 
 
 def null_log_like(log, seed: int, prepared=None):
@@ -309,6 +418,26 @@ def _cached(path: Path, key: str, runs: int) -> tuple:
     return (None, why) if why else (cal, None)
 
 
+def _shared(cdir: Path, fam: str, shape: list, runs: int) -> dict | None:
+    """A usable cached calibration made for another flight of the same
+    vehicle and plan (``family``) whose timing has this log's shape, or
+    None. It says so (``shared_from``)."""
+    for path in sorted(cdir.glob(f"{fam[:16]}-*.json")):
+        try:
+            cal = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if (
+            unusable(cal, None, runs) is None
+            and cal.get("family") == fam
+            and shape_differs(cal.get("shape"), shape) is None
+        ):
+            cal["_path"] = str(path)
+            cal["shared_from"] = f"another flight of this vehicle and plan (fingerprint {str(cal['fingerprint'])[:12]})"
+            return cal
+    return None
+
+
 def _store(cal: dict, path: Path, run_store) -> None:
     """Write ``cal`` at ``path`` (atomically); the runs' store goes."""
     try:
@@ -338,11 +467,14 @@ def calibrate_for_log(
     log = relative_to_start(log)  # as diagnose() reads it (the key is relative to each run's start anyway)
     prepared = plan_of(log)
     key = fingerprint(log, runs, seed, prepared)
+    fam, shape = family(log, runs, seed, prepared), timing_shape(prepared)
     cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = cdir / f"{key}.json"
+    path = cdir / f"{fam[:16]}-{key}.json"
     cal, why = _cached(path, key, runs)
+    if cal is None and why is None:  # none for this log: one for another flight of its vehicle and plan?
+        cal = _shared(cdir, fam, shape, runs)
     if cal is not None:
-        cal["from_cache"] = str(path)
+        cal["from_cache"] = cal.pop("_path", str(path))
         return cal
     if why:
         print(f"note: cached calibration {path.name} not used ({why}); making it again", file=sys.stderr)
@@ -387,6 +519,8 @@ def calibrate_for_log(
         "runs": int(runs),
         "seed": int(seed),
         "fingerprint": key,
+        "family": fam,
+        "shape": shape,
         "for_log": True,
         "null_map_max_abs_z": z.tolist(),
         "null_screen_logp": b.tolist(),
@@ -460,11 +594,19 @@ def check_supplied(cal: dict, log, d, source: str) -> None:
         why = unusable(cal)
         if why:
             raise CalibrationMismatch(f"{source}: {why}. Leave out --calibration to make one for the log")
-        key = fingerprint(log, int(cal.get("runs", DEFAULT_RUNS)), int(cal.get("seed", 7100)))
-        if cal.get("fingerprint") != key:
+        runs, seed = int(cal.get("runs", DEFAULT_RUNS)), int(cal.get("seed", 7100))
+        prepared = plan_of(log)
+        if cal.get("fingerprint") == fingerprint(log, runs, seed, prepared):
+            return
+        if cal.get("family") != family(log, runs, seed, prepared):
             raise CalibrationMismatch(
-                f"{source}: made for another log (its fingerprint {str(cal.get('fingerprint'))[:12]}, "
-                f"this log's {key[:12]}): vehicle, sensors, valve commands or time stamps differ"
+                f"{source}: made for another vehicle or plan (its family {str(cal.get('family'))[:12]}): "
+                "vehicle, sensors, noise model, runs or the valves each command opened differ"
+            )
+        off = shape_differs(cal.get("shape"), timing_shape(prepared))
+        if off:
+            raise CalibrationMismatch(
+                f"{source}: made for another flight of this vehicle and plan, timed otherwise ({off})"
             )
         return
     from bench.sim.log_description import DescriptionError, resolve
@@ -536,8 +678,14 @@ def choose(
         "elapsed_s": cal["elapsed_s"],
         "from_cache": cal.get("from_cache"),
         **({"made_again_because": cal["made_again_because"]} if cal.get("made_again_because") else {}),
+        **({"shared_from": cal["shared_from"]} if cal.get("shared_from") else {}),
         "note": f"null calibration made for this log ({why}): {cal['runs']} simulated flights of its own "
-        f"commands, " + ("from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s"),
+        f"commands, "
+        + (
+            f"from the cache, made for {cal['shared_from']}"
+            if cal.get("shared_from")
+            else ("from the cache" if cal.get("from_cache") else f"{cal['elapsed_s']:.0f} s")
+        ),
     }
 
 

@@ -158,7 +158,7 @@ def test_a_calibration_made_for_the_log_is_cached(tmp_path):
     log_null.check_supplied(again, log, prepare(log), "cal.json")
     other = copy.deepcopy(log)
     other["valves"]["on_time_s"][3, 0] += 0.01
-    with pytest.raises(log_null.CalibrationMismatch, match="made for another log"):
+    with pytest.raises(log_null.CalibrationMismatch, match="on-times more than 5 ms apart"):
         log_null.check_supplied(again, other, prepare(other), "cal.json")
 
 

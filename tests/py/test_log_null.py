@@ -166,7 +166,8 @@ def test_a_damaged_or_mismatched_cache_entry_is_made_again(one_vehicle, tmp_path
     key = cal["fingerprint"]
     assert cal["from_cache"] is None and cal["tail"]["screen_logp"]["n"] == 3
     assert log_null.unusable(cal, key, 3) is None
-    stored = json.loads((tmp_path / f"{key}.json").read_text())
+    entry = Path(cal["cached_at"])
+    stored = json.loads(entry.read_text())
 
     def variant(**changes):
         v = copy.deepcopy(stored)
@@ -186,7 +187,7 @@ def test_a_damaged_or_mismatched_cache_entry_is_made_again(one_vehicle, tmp_path
     for why, v in bad.items():
         assert why in log_null.unusable(v, key, 3), why
     # A cached entry with a NaN threshold is not used: made again, from the same runs' seeds.
-    (tmp_path / f"{key}.json").write_text(json.dumps(bad["not finite"]))
+    entry.write_text(json.dumps(bad["not finite"]))
     again = log_null.calibrate_for_log(log, runs=3, seed=3, workers=1, cache_dir=tmp_path, progress=False)
     assert again["from_cache"] is None and "not finite" in again["made_again_because"]
     assert again["thresholds"] == cal["thresholds"]
@@ -226,14 +227,16 @@ def test_false_alarm_campaign_mechanics(tmp_path):
     assert again["summary"] == res["summary"]
 
 
-def test_another_flight_of_the_plan_with_its_own_jitter_gets_its_own_calibration():
+def test_another_flight_of_the_plan_with_its_own_jitter_shares_its_calibration(tmp_path):
     """Two flights of one vehicle and plan, each with its own jittered and
-    dropped IMU samples: two keys. A null calibration depends on the stamps
-    themselves, not only on their jitter's size: on a random vehicle the
-    same 40 null seeds flown on two such flights' stamps gave screening
-    thresholds of 3.7 and 12.2 (docs/GAP.md). A flight at another IMU rate
-    has another key too."""
+    dropped IMU samples and its own epoch: two fingerprints, one family, the
+    same timing shape, so the second log's calibration is the first's, from
+    the cache. With the gyro rows' noise through the gyroscopic term in the
+    model, the thresholds no longer follow the stamps (docs/GAP.md, "The
+    cache"). A flight at another IMU rate, with other valves or with a
+    command 10 ms later does not share it."""
     from bench.gap.plans import characterisation_plan
+    from bench.gap.replay import prepare
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate
 
@@ -246,6 +249,27 @@ def test_another_flight_of_the_plan_with_its_own_jitter_gets_its_own_calibration
     b, _ = simulate(desc, plan, {}, seed=22, clocks=dataclasses.replace(clocks, epoch_s=clocks.epoch_s + 3600.0))
     assert not np.array_equal(np.diff(a["imu"]["t_s"]), np.diff(b["imu"]["t_s"]))  # other jitter and drops
     assert log_null.fingerprint(a, 40, 7100) != log_null.fingerprint(b, 40, 7100)
+    assert log_null.family(a, 40, 7100) == log_null.family(b, 40, 7100)
+    pa, pb = log_null.plan_of(a), log_null.plan_of(b)
+    assert log_null.shape_differs(log_null.timing_shape(pa), log_null.timing_shape(pb)) is None
+
     faster = dict(desc, imu=dict(desc["imu"], rate_hz=2 * desc["imu"]["rate_hz"]))
     c, _ = simulate(faster, plan, {}, seed=21, clocks=clocks, with_truth=False)
-    assert log_null.fingerprint(c, 40, 7100) != log_null.fingerprint(a, 40, 7100)
+    assert log_null.family(c, 40, 7100) != log_null.family(a, 40, 7100)
+    other_valves = plan[::-1]  # the same runs, flown in the other order
+    e, _ = simulate(desc, other_valves, {}, seed=21, clocks=clocks, with_truth=False)
+    assert log_null.family(e, 40, 7100) != log_null.family(a, 40, 7100)
+    later = copy.deepcopy(b)
+    later["valves"]["t_s"] = later["valves"]["t_s"] + np.where(np.arange(later["valves"]["t_s"].size) == 2, 0.01, 0.0)
+    off = log_null.shape_differs(log_null.timing_shape(pa), log_null.timing_shape(log_null.plan_of(later)))
+    assert off is not None and "command" in off
+
+    cal = log_null.calibrate_for_log(a, runs=3, seed=3, workers=1, cache_dir=tmp_path, progress=False)
+    shared = log_null.calibrate_for_log(b, runs=3, seed=3, workers=1, cache_dir=tmp_path, progress=False)
+    assert shared["from_cache"] and shared["thresholds"] == cal["thresholds"]
+    assert "another flight of this vehicle and plan" in shared["shared_from"]
+    log_null.check_supplied(cal, b, prepare(b), "cal.json")  # supplied: accepted for the second flight
+    with pytest.raises(log_null.CalibrationMismatch, match="command"):
+        log_null.check_supplied(cal, later, prepare(later), "cal.json")
+    with pytest.raises(log_null.CalibrationMismatch, match="another vehicle or plan"):
+        log_null.check_supplied(cal, e, prepare(e), "cal.json")
