@@ -42,6 +42,40 @@ def number(kind=float, lo=None, hi=None, lo_open=False, hi_open=False):
     return parse
 
 
+def seed(text: str) -> int:
+    """An argparse type: a seed, any integer >= 0 (numpy's generators take
+    any such integer; the bench draws every stream from one)."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
+    return v
+
+
+SEED_HELP = "seed of every random draw, any integer >= 0"
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Adds "(default: X)" only where it says something: not when the help
+    states its default already, not for a required option, a flag, or an
+    option whose absence means "not done"."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        quiet = (
+            "default" in text
+            or action.required
+            or action.default is None
+            or action.default is argparse.SUPPRESS
+            or action.default is False
+            or action.default == []
+            or not action.option_strings
+        )
+        return text if quiet else text + " (default: %(default)s)"
+
+
 def one_line_errors(parser: argparse.ArgumentParser, prog: str) -> argparse.ArgumentParser:
     """Makes parser report a bad argument in one line on stderr and exit 2
     (argparse prints the whole usage first)."""

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import argparse
-
 from bench.campaigns import cw_check
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import HelpFormatter, number, one_line_errors
 from bench.report import write_json
 from bench.sim import orbit
 
@@ -14,7 +12,7 @@ def register(sub):
     p = sub.add_parser(
         "cw-check",
         help="CW propagator vs two-body truth at 10 m over one orbit",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops cw-check")
     p.add_argument(

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import HelpFormatter, number, one_line_errors, seed
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 
@@ -37,10 +37,19 @@ def register(sub):
 
 
 def _register_modal(sub):
-    p = sub.add_parser("modal", help="modal estimator: plate simulation or quadruple-pendulum experiment analogue")
+    p = sub.add_parser(
+        "modal",
+        help="modal estimator: plate simulation or quadruple-pendulum experiment analogue",
+        formatter_class=HelpFormatter,
+    )
     one_line_errors(p, "proxops modal")
     periods = number(float, 0.0, 1000.0, lo_open=True)
-    p.add_argument("--scenario", choices=["structure", "pendulum"], required=True)
+    p.add_argument(
+        "--scenario",
+        choices=["structure", "pendulum"],
+        required=True,
+        help="structure: the vibrating plate seen in range images; pendulum: the quadruple pendulum",
+    )
     p.add_argument(
         "--modes",
         type=number(int, 1, 50),
@@ -48,8 +57,13 @@ def _register_modal(sub):
         help="modes estimated (structure: 1 to 50, default 10; pendulum: 3, the default)",
     )
     p.add_argument("--trials", type=number(int, 1, 1000), default=1, help="trials (1 to 1000, default 1)")
-    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0, help="first seed (0 to 2^32 - 1, default 0)")
-    p.add_argument("--filter", choices=["bank", "joint"], default="bank", help="default bank")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the first trial (trial k: seed + k), any integer >= 0")
+    p.add_argument(
+        "--filter",
+        choices=["bank", "joint"],
+        default="bank",
+        help="bank: one filter per mode (the default); joint: one filter over all modes",
+    )
     p.add_argument(
         "--images",
         type=number(int, 2, 100000),
@@ -63,7 +77,7 @@ def _register_modal(sub):
         help="image interval [s], > 0 and <= 1e5 (default: structure 60, pendulum 1/15)",
     )
     _add_structure_options(p, periods)
-    p.add_argument("--json", default=None)
+    p.add_argument("--json", default=None, help="write the results here (JSON)")
     p.add_argument("--plots", default=None, help="folder for the figures")
     add_campaign_arguments(p)
     p.set_defaults(func=main)
@@ -144,7 +158,9 @@ def _add_structure_options(p, periods):
 
 def _register_timing(sub):
     t = sub.add_parser(
-        "modal-timing", help="timing grid of the modal estimator: flight code vs numpy vs the published figures"
+        "modal-timing",
+        help="timing grid of the modal estimator: flight code vs numpy vs the published figures",
+        formatter_class=HelpFormatter,
     )
     one_line_errors(t, "proxops modal-timing")
     t.add_argument(
@@ -158,7 +174,7 @@ def _register_timing(sub):
     )
     t.add_argument("--max-points", type=number(int, 1, 10**7), default=100000, help="1 to 1e7 (default 100000)")
     t.add_argument("--repeats", type=number(int, 1, 1000), default=5, help="1 to 1000 (default 5)")
-    t.add_argument("--json", default=None)
+    t.add_argument("--json", default=None, help="write the timing grid here (JSON)")
     t.set_defaults(func=timing_main)
 
 

@@ -3,13 +3,12 @@ navigation filter; summary table, JSON metrics and the paper's Figs. 3-6."""
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
 
 from bench.campaigns.nav_campaign import run_campaign
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import HelpFormatter, number, one_line_errors, seed
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 from bench.sim.scenario_docking import ScenarioConfig, errors_from_first_update
@@ -20,13 +19,11 @@ def register(sub):
     p = sub.add_parser(
         "nav",
         help="navigation Monte Carlo over the docking scenario",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops nav")
     p.add_argument("--runs", type=number(int, 1, 10000), default=50, help="number of docking runs (1 to 10000)")
-    p.add_argument(
-        "--seed", type=number(int, 0, 10**6), default=1, help="campaign seed, 0 to 1e6 (run i uses seed*1000 + i)"
-    )
+    p.add_argument("--seed", type=seed, default=1, help="campaign seed, any integer >= 0 (run i uses seed*1000 + i)")
     p.add_argument("--json", default=None, help="write the metrics here")
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.add_argument("--dynamics", choices=("nonlinear", "cw"), default="nonlinear", help="truth translation model")

@@ -5,10 +5,9 @@ filters (bench/campaigns/feature_pose.py, docs/FEATURES.md)."""
 
 from __future__ import annotations
 
-import argparse
 import time
 
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import SEED_HELP, HelpFormatter, number, one_line_errors, seed
 from bench.report import write_json
 
 
@@ -16,11 +15,16 @@ def register(sub):
     p = sub.add_parser(
         "pose",
         help="pose from images (LED campaign) or from image features (points, lines, circles)",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops pose")
-    p.add_argument("--experiment", choices=["images", "features"], required=True)
-    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
+    p.add_argument(
+        "--experiment",
+        choices=["images", "features"],
+        required=True,
+        help="images: LED pose from rendered images; features: relative pose from points, lines, circles",
+    )
+    p.add_argument("--seed", type=seed, default=0, help=SEED_HELP)
     p.add_argument(
         "--runs",
         type=number(int, 1, 100000),
@@ -35,14 +39,14 @@ def register(sub):
     )
     p.add_argument(
         "--duration",
-        type=number(float, 0.0, 86400.0, lo_open=True),
+        type=number(float, 10.0, 86400.0),
         default=300.0,
-        help="features: seconds of flight per run (1 s sampling; > 0 to 86400)",
+        help="features: seconds of flight per run (1 s sampling; 10 to 86400, the last third scored as steady state)",
     )
     p.add_argument(
         "--feature-runs", type=number(int, 1, 1000), default=3, help="features: noise realisations per case (1 to 1000)"
     )
-    p.add_argument("--json", default=None)
+    p.add_argument("--json", default=None, help="write the results here (JSON)")
     p.add_argument("--plots", default=None, help="folder for the figures")
     p.set_defaults(func=main)
 
@@ -114,8 +118,6 @@ def _print_features(result):
 def _main_features(args):
     from bench.campaigns import feature_pose as fp
 
-    if args.feature_runs < 1 or args.duration < 10:
-        raise ValueError("--feature-runs must be >= 1 and --duration >= 10")
     t0 = time.perf_counter()
     result = fp.comparison(args.seed, duration_s=args.duration, runs=args.feature_runs)
     result["experiment"] = "features"

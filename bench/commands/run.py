@@ -11,14 +11,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import SEED_HELP, HelpFormatter, number, one_line_errors, seed
 
 
 def register(sub):
     p = sub.add_parser(
         "run",
         help="the main end-to-end job (make run): HIL docking over a pseudo-terminal",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops run")
     p.add_argument("--report", default="report", help="report folder")
@@ -28,7 +28,7 @@ def register(sub):
         default=120.0,
         help="simulated seconds (> 0 to 86400)",
     )
-    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=1)
+    p.add_argument("--seed", type=seed, default=1, help=SEED_HELP)
     p.set_defaults(func=main)
 
 

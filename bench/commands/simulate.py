@@ -6,19 +6,18 @@ optional extra `pip install .[basilisk]`)."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
 
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import SEED_HELP, HelpFormatter, one_line_errors, seed
 
 
 def register(sub):
     p = sub.add_parser(
         "simulate",
         help="write a simulated flight log from the bench's plant or from Basilisk",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops simulate")
     p.add_argument(
@@ -47,7 +46,7 @@ def register(sub):
         default="{}",
         help="effects as JSON, name -> parameters (docs/EFFECTS.md), or a JSON file holding them",
     )
-    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
+    p.add_argument("--seed", type=seed, default=0, help=SEED_HELP)
     p.add_argument(
         "--clocks",
         default="regular",

@@ -4,12 +4,10 @@ for Small-Spacecraft Proximity Operations" (Rogers-Marcovitz; bench/campaigns/th
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 
 from bench.campaigns import thrusters as th
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import HelpFormatter, number, one_line_errors, seed
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from
 from bench.report import matplotlib_agg, report_dir, write_json
 
@@ -30,10 +28,10 @@ def register(sub):
         "thrusters",
         help="online thruster learning: BLR (flight code) against GPR, correlation "
         "of predicted and measured velocity changes",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops thrusters")
-    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0, help="first seed (0 to 2^32 - 1)")
+    p.add_argument("--seed", type=seed, default=0, help="first seed, any integer >= 0")
     p.add_argument(
         "--seeds",
         type=number(int, 1, 1000),
@@ -45,7 +43,12 @@ def register(sub):
     p.add_argument(
         "--samples", type=number(int, 50, 100000), default=th.N_SAMPLES, help="samples per run (50 to 100000)"
     )
-    p.add_argument("--noise-model", choices=("component", "norm"), default="component")
+    p.add_argument(
+        "--noise-model",
+        choices=("component", "norm"),
+        default="component",
+        help="measurement noise: a fraction of each component's true value, or of the vector's norm (harsher)",
+    )
     p.add_argument(
         "--extra",
         nargs="*",

@@ -36,6 +36,7 @@ BAD = [
     ("validate-gap", "--duration", "nan"),
     ("pose", "--runs", "-1"),
     ("pose", "--duration", "0"),
+    ("pose", "--duration", "5"),
     ("cw-check", "--separation-m", "-5"),
     ("cw-check", "--altitude-km", "inf"),
     ("run", "--duration", "-10"),
