@@ -4,13 +4,13 @@ and what the log let it examine."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import HelpFormatter, number, one_line_errors
 
 MAX_CALIBRATION_BYTES = 64 << 20  # a calibration of 100000 runs is about 4 MiB
 
@@ -19,7 +19,7 @@ def register(sub):
     p = sub.add_parser(
         "diagnose",
         help="diagnose the sim-to-real gap of a flight log (where, which, how far)",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops diagnose")
     p.add_argument("log", help="flight log (HDF5, format version 1 or 2, docs/FLIGHT_LOG.md)")
@@ -54,7 +54,9 @@ def register(sub):
         metavar="tcp://HOST:PORT",
         help="make a calibration for the log on the existing Dask cluster at this address",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress output (it is shown only when stderr is a terminal)"
+    )
     p.set_defaults(func=main)
 
 
@@ -106,7 +108,8 @@ def main(args):
         res = diagnose(
             log,
             calibration=cal,
-            progress=not args.quiet,
+            # Redrawn in place with "\r": only on a terminal, never into a log file.
+            progress=not args.quiet and sys.stderr.isatty(),
             calibration_source=args.calibration,
             calibration_runs=args.null_runs,
         )
@@ -119,12 +122,8 @@ def main(args):
         from bench.gap.report import write_report
 
         page = _write_report_atomically(res, args.report, Path(args.log).name, write_report)
-        import sys
-
         print(f"report: {page}", file=sys.stderr if args.json == "-" else sys.stdout)
     if args.json == "-":
-        import sys
-
         from bench.report import json_text
 
         sys.stdout.write(json_text(out, strict=True))

@@ -5,13 +5,12 @@ faults), or a flight computer on a real serial port (--device)."""
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import sys
 
 import numpy as np
 
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import SEED_HELP, HelpFormatter, number, one_line_errors, seed
 from bench.report import json_text, staged_report_dir, write_json
 
 BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)  # fsw_node's (serial_port.cpp)
@@ -22,7 +21,7 @@ def register(sub):
         "hil",
         help="docking or plate range images over a serial link with the flight "
         "executable (fsw_node on a pseudo-terminal, or a flight computer on a port)",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops hil")
     prob = number(float, 0.0, 1.0)
@@ -60,7 +59,7 @@ def register(sub):
         "--reorder-rate", type=prob, default=0.0, help="probability a frame is held back behind the next (0 to 1)"
     )
     p.add_argument("--stall-rate", type=prob, default=0.0, help="probability of a stall per chunk (0 to 1)")
-    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=1, help="seed (0 to 2^32 - 1)")
+    p.add_argument("--seed", type=seed, default=1, help=SEED_HELP)
     p.add_argument(
         "--learner",
         action="store_true",
@@ -184,9 +183,18 @@ def _baud(args):
 
 
 def _node_line(s: dict) -> str:
+    # fsw_node's own summary starts with its name; the line already says it.
+    text = s["fsw_node_summary"].removeprefix("fsw_node: ")
     if s["fsw_node_exit_code"] is None:
-        return s["fsw_node_summary"]
-    return f"{s['fsw_node_summary']} (exit code {s['fsw_node_exit_code']})"
+        return text
+    return f"{text} (exit code {s['fsw_node_exit_code']})"
+
+
+def _rejected(what: str, by_reason: dict) -> str:
+    """ "flight rejected 0" or "flight rejected 3 (bad_crc 2, seq_gap 1)"."""
+    counts = {k: v for k, v in by_reason.items() if v}
+    detail = ", ".join(f"{k} {v}" for k, v in counts.items())
+    return f"{what} {sum(counts.values())}" + (f" ({detail})" if detail else "")
 
 
 def print_summary(s: dict):
@@ -209,11 +217,11 @@ def print_summary(s: dict):
     )
     if s.get("degraded"):
         print(f"  degraded by the link: {s['degraded']}")
-    rej = {k: v for k, v in s["packets_rejected_by_reason"].items() if v}
-    trej = {k: v for k, v in s["telemetry_rejected_by_reason"].items() if v}
     print(
-        f"  link: {s['packets_sent']} packets sent; flight rejected {sum(rej.values())} {rej or ''}; "
-        f"bench rejected {sum(trej.values())} telemetry {trej or ''}; bad CRC delivered {s['bad_crc_delivered']}"
+        f"  link: {s['packets_sent']} packets sent; "
+        f"{_rejected('flight rejected', s['packets_rejected_by_reason'])}; "
+        f"{_rejected('bench rejected telemetry', s['telemetry_rejected_by_reason'])}; "
+        f"bad CRC delivered {s['bad_crc_delivered']}"
     )
     print(f"  fsw_node: {_node_line(s)}")
 

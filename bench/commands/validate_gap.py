@@ -3,9 +3,7 @@ gap diagnoser on drawn null, in-library and out-of-library runs."""
 
 from __future__ import annotations
 
-import argparse
-
-from bench.commands.args import number, one_line_errors
+from bench.commands.args import HelpFormatter, number, one_line_errors, seed
 from bench.commands.campaign_args import add_campaign_arguments, campaign_from, report_campaign
 
 
@@ -13,11 +11,11 @@ def register(sub):
     p = sub.add_parser(
         "validate-gap",
         help="blind validation campaign of the gap diagnoser",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops validate-gap")
     p.add_argument("--runs", type=number(int, 1, 100000), default=40, help="drawn runs (1 to 100000)")
-    p.add_argument("--seed", type=number(int, 0, 2**31 - 1), default=0)
+    p.add_argument("--seed", type=seed, default=0, help="seed of the drawn campaign, any integer >= 0")
     p.add_argument("--json", default=None, help="write the scores here (and OUT.prereg.json with the key hashes first)")
     p.add_argument(
         "--duration",
@@ -121,38 +119,55 @@ def main(args):
         Path(str(args.json) + ".runs.csv").write_text(runs_table(res))
     print(f"runs {res['runs']} (seed {res['seed']}, {res['manoeuvres']}, {res['elapsed_s']:.0f} s on {where})")
     report_campaign(res)
-    print(f"false alarms on null runs: {res['false_alarm_rate']} (n = {res['n_null']})")
+    for line in score_lines(res):
+        print(line)
+    return 0
+
+
+def _value(v, fmt: str = ".2f", none: str = "none measured") -> str:
+    """A score, or what stands for a score that has no runs behind it."""
+    return none if v is None else format(v, fmt)
+
+
+def score_lines(res: dict) -> list:
+    """The single-effect campaign's scores as printed, in words where a score
+    has no runs behind it."""
+    lines = [f"false alarms on null runs: {_value(res['false_alarm_rate'], '.3f')} (n = {res['n_null']})"]
     for s, v in res["in_library_by_scale"].items():
-        print(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")
+        lines.append(f"in-library {s}: detection {v['detection']:.2f}, top-1 {v['top1']:.2f} (n = {v['n']})")
     for s, v in res.get("in_library_by_scale_separable", {}).items():
-        t1 = "-" if v["top1_separable"] is None else f"{v['top1_separable']:.2f}"
-        print(
-            f"  {s}, runs whose data separate the effect from every other candidate: top-1 {t1} "
+        lines.append(
+            f"  {s}, runs whose data separate the effect from every other candidate: top-1 "
+            f"{_value(v['top1_separable'], none='-')} "
             f"(n = {v['n_separable']}; not separable: {v['n_not_separable']}, "
             + ", ".join(f"{e} {n}" for e, n in v["not_separable_by_effect"].items())
             + ")"
         )
     if "out_of_library" in res:
         o = res["out_of_library"]
-        print(
+        lines.append(
             f"out-of-library: unexplained {o['unexplained_rate']:.2f}, not detected {o['not_detected_rate']:.2f}, "
             f"confident misattribution {o['confident_misattribution_rate']:.2f} (n = {o['n']})"
         )
     b = res["beyond_detection_limit"]
-    print(
-        f"beyond the detection limit of their run (scored apart): {b['n']} runs, "
-        + ", ".join(f"{e} {v['detected']}/{v['n']} detected" for e, v in b["by_effect"].items())
+    lines.append(
+        f"beyond the detection limit of their run (scored apart): {b['n']} runs"
+        + "".join(f", {e} {v['detected']}/{v['n']} detected" for e, v in b["by_effect"].items())
     )
     sh = res["shrink_heldout"]
-    print(f"held-out shrink median: true effect {sh['true_effect_median']}, wrong effect {sh['wrong_effect_median']}")
-    print(f"95 % interval coverage: {res['interval_coverage_95']['fraction']}")
+    lines.append(
+        f"held-out shrink median: true effect fitted {_value(sh['true_effect_median'], '.4f')} "
+        f"(n = {sh['n_true']}), wrong effect fitted {_value(sh['wrong_effect_median'], '.4f')} (n = {sh['n_wrong']})"
+    )
+    cov = res["interval_coverage_95"]
+    lines.append(f"95 % interval coverage: {_value(cov['fraction'])} ({cov['n_parameters']} parameters)")
     if "no_valves_stream" in res:
         nv = res["no_valves_stream"]
-        print(
+        lines.append(
             f"runs without a valves stream: {nv['n']}, answer said the dynamics were not examined in "
             f"{nv['said_dynamics_not_examined']}"
         )
-    return 0
+    return lines
 
 
 def _single_effects(args, campaign) -> dict:
