@@ -8,6 +8,8 @@ import importlib
 import importlib.metadata
 import sys
 
+from bench.commands.args import one_line_errors
+
 # Sub-command modules, in the order `proxops --help` lists them.
 COMMAND_MODULES = [
     "bench.commands.run",
@@ -35,11 +37,28 @@ def build_parser() -> argparse.ArgumentParser:
         prog="proxops",
         description="Inspector proximity-operations flight software bench.",
     )
+    one_line_errors(parser, "proxops")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    # Not required: a missing command is told apart from an unknown option (_parse).
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    parser.commands = sub.choices  # name -> its parser, for its own error messages
     return parser
+
+
+def _parse(parser: argparse.ArgumentParser, argv) -> argparse.Namespace:
+    """The arguments; an unknown option is named by the command it was given
+    to, and `proxops --bogus` is told the option is unknown, not that a
+    command is missing."""
+    args, extra = parser.parse_known_args(argv)
+    if args.command is not None and extra:
+        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
+    if extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}; a command comes first")
+    if args.command is None:
+        parser.error("give a command")
+    return args
 
 
 # Commands that write `--json -` to standard output themselves.
@@ -77,7 +96,7 @@ def _json_to_stdout(args) -> int:
 def main(argv=None) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = _parse(parser, argv)
     except SystemExit as exc:  # --help, or a bad argument (reported already)
         return int(exc.code or 0)
     try:
