@@ -87,6 +87,18 @@ def stand_in_arrays(seed: int = 3):
 
 
 if __name__ == "__main__":
+    import time
+
     out = sys.argv[1] if len(sys.argv) > 1 else "flight_log_v2.h5"
-    write_log(out, *stand_in_arrays())
+    # The stand-in flight can take the simulator a while on a first run; say so first.
+    print(
+        "simulating a 12 kg inspector's characterisation as stand-in arrays "
+        "(your own arrays replace stand_in_arrays)...",
+        file=sys.stderr,
+        flush=True,
+    )
+    t0 = time.perf_counter()
+    arrays = stand_in_arrays()
+    print(f"simulated in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    write_log(out, *arrays)
     print(f"wrote {out}; diagnose it with: proxops diagnose {out} --report report_v2")

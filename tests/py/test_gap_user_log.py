@@ -164,12 +164,16 @@ def test_a_calibration_made_for_the_log_is_cached(tmp_path):
 
 def test_the_example_writes_a_log_a_user_would(tmp_path):
     out = tmp_path / "user.h5"
-    subprocess.run(
+    done = subprocess.run(
         [sys.executable, str(ROOT / "examples" / "write_flight_log.py"), str(out)],
         check=True,
         cwd=ROOT,
         capture_output=True,
+        text=True,
     )
+    # it says what takes the time before it starts, and what it wrote at the end
+    assert done.stderr.startswith("simulating a 12 kg inspector") and "simulated in" in done.stderr
+    assert done.stdout.startswith(f"wrote {out}")
     log = read_flight_log(out)
     d = prepare(log)
     assert d.desc.n_thrusters == 12 and d.desc.imu_rate_hz == 20.0
