@@ -38,3 +38,28 @@ def test_a_small_campaign_runs_end_to_end(tmp_path, monkeypatch):
     )
     assert res["first_answer_s"]["max"] > 0.0
     assert all(a["gap_detected"] == (a["verdict"] != "no_gap") for a in res["answers"])
+
+
+def test_the_detection_limit_is_measured_on_the_engine_that_flies_the_run(monkeypatch):
+    """A Basilisk run is sized on Basilisk's flights of it (its slosh and
+    hinged panel move a vehicle otherwise than the bench's), calibrated on
+    Basilisk's effect-free flight."""
+    from bench.gap import detectable, log_null
+
+    key = next(k for k in vr.draw_campaign(10, 3403, "basilisk") if k["effect"] is not None)
+    flown = []
+
+    def fake_simulate(k, effects=None, engine=None):
+        flown.append((engine or k["engine"], effects))
+        return "log"
+
+    def fake_search(seed, name, unit, duration, cal, simulate=None, max_size=None, **kw):
+        simulate({name: [0.0]})
+        return {"size": 1e-3, "detectable": True, "lambda_at_size": 1.0}
+
+    monkeypatch.setattr(vr, "simulate_key", fake_simulate)
+    monkeypatch.setattr(detectable, "min_detectable_size", fake_search)
+    monkeypatch.setattr(log_null, "calibrate_for_log", lambda log, **kw: {"thresholds": {}})
+    sized = vr.size_one(key)
+    assert [e for e, _ in flown] == ["basilisk", "basilisk"] and flown[0][1] == {}
+    assert sized["min_detectable"] == 1e-3 and sized["effects"]
