@@ -8,8 +8,6 @@ import importlib
 import importlib.metadata
 import sys
 
-from bench.commands.args import one_line_errors
-
 # Sub-command modules, in the order `proxops --help` lists them.
 COMMAND_MODULES = [
     "bench.commands.run",
@@ -32,12 +30,19 @@ def _version() -> str:
         return "(not installed)"
 
 
+def _one_line_error(message: str):
+    """A mistake in the arguments before the command: one line, exit 2
+    (as each command's own, bench/commands/args.py)."""
+    print(f"proxops: error: {message} (see proxops --help)", file=sys.stderr)
+    sys.exit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="proxops",
         description="Inspector proximity-operations flight software bench.",
     )
-    one_line_errors(parser, "proxops")
+    parser.error = _one_line_error
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     # Not required: a missing command is told apart from an unknown option (_parse).
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
