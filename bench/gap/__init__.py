@@ -11,6 +11,7 @@ the answer
   diagnose    the whole pipeline on one log (``proxops diagnose``): verdict, set, shares
   answers     the answer in words, one text for the command line and the report
   report      Markdown page with plots
+  report_plots  its figures: the gap map, residuals and their spectra
 null calibrations
   null        the committed thresholds (seeded Monte Carlo of simulated-on-simulated logs)
   log_null    a calibration made for a log (parametric bootstrap of its own flight)

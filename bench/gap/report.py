@@ -8,83 +8,21 @@ import numpy as np
 
 from bench.gap import localise
 from bench.gap.candidates import candidates_of
-from bench.report import matplotlib_agg
+from bench.gap.report_plots import gap_map_figure, residuals_figure, save
 
 CH = ("r_x", "r_y", "r_z", "th_x", "th_y", "th_z")
 
 
-def _gap_map_png(cells, path: Path):
-    plt = matplotlib_agg()
-    rows = [(s, a) for s, _, _ in localise.STREAMS for a in "xyz"] + [
-        (s, a) for s, _ in localise.DYN_STREAMS for a in "xyz"
-    ]
-    cols = [(r, st) for r in localise.REGIMES for st in localise.STATS if r == "all" or st in ("mean", "variance")]
-    z = np.full((len(rows), len(cols)), np.nan)
-    for c in cells:
-        i = rows.index((c["stream"], c["axis"]))
-        if (c["regime"], c["stat"]) in cols:
-            z[i, cols.index((c["regime"], c["stat"]))] = c["z"]
-    fig, ax = plt.subplots(figsize=(10, 5.0))
-    lim = max(4.0, float(np.nanmax(np.abs(z))) if np.isfinite(z).any() else 4.0)
-    im = ax.imshow(z, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
-    short = {
-        "pose position": "pose pos",
-        "pose attitude": "pose att",
-        "imu accel vs valves": "accel-valves",
-        "gyro vs valve torques": "gyro-torques",
-    }
-    ax.set_yticks(range(len(rows)), [f"{short[s]} {a}" for s, a in rows])
-    ax.set_xticks(range(len(cols)), [f"{r}\n{s}" for r, s in cols], fontsize=7)
-    for i in range(z.shape[0]):
-        for j in range(z.shape[1]):
-            if np.isfinite(z[i, j]):
-                ax.text(j, i, f"{z[i, j]:.1f}", ha="center", va="center", fontsize=6)
-    fig.colorbar(im, ax=ax, label="z (N(0,1) under the null)")
-    ax.set_title("Gap map: whitened residuals by stream, axis, regime and statistic")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _residuals_png(series, label, path: Path, what: str, origin_s: float = 0.0):
-    """series: [(name, t, before, after or None, held mask, sample interval)],
-    one row each: whitened residuals over time (held-out blocks shaded) and
-    their periodogram (1 = white)."""
-    plt = matplotlib_agg()
-    fig, ax = plt.subplots(len(series), 2, figsize=(11, 1.7 * len(series)), sharex="col", squeeze=False)
-    for i, (name, t, before, after, held, dt) in enumerate(series):
-        a = ax[i, 0]
-        a.plot(t, before, ".", ms=2, color="0.5", label="nominal")
-        if after is not None:
-            a.plot(t, after, ".", ms=2, color="C3", label=f"with {label}")
-        a.axhline(0, color="k", lw=0.5)
-        a.set_ylabel(f"{name}", fontsize=8)
-        for t0, t1 in _spans(t, held):
-            a.axvspan(t0, t1, color="C0", alpha=0.08, lw=0)
-        b = ax[i, 1]
-        for vals, color in ((before, "0.5"), (after, "C3")):
-            if vals is None:
-                continue
-            ok = np.isfinite(vals)
-            if ok.sum() < 4:
-                continue
-            f = np.fft.rfftfreq(int(ok.sum()), dt)[1:]
-            b.semilogy(f, (np.abs(np.fft.rfft(vals[ok])) ** 2 / ok.sum())[1:], color=color, lw=0.8)
-        b.axhline(1.0, color="k", lw=0.5, ls=":")
-    ax[0, 0].legend(loc="upper right", fontsize=7)
-    ax[0, 0].set_title(what, fontsize=9)
-    since = f" from {origin_s:.0f} s" if origin_s else ""
-    ax[-1, 0].set_xlabel(f"time [s]{since} (shaded: held-out blocks)")
-    ax[-1, 1].set_xlabel("frequency [Hz] (periodogram; 1 = white)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+def _where_stream(result: dict):
+    """The stream of the gap map's largest cell, or None (no gap located)."""
+    where = (result.get("location") or {}).get("where") or {}
+    return where.get("stream")
 
 
 def residual_series(result: dict) -> tuple:
-    """The channels the named effect acts on, before and after it: the pose
-    innovations for an effect seen by the navigation replay, the accelerometer
-    and gyro against the valve model for one seen only in the dynamics."""
+    """The channels where the gap map found the gap (else those the named
+    effect acts on), before and after the effect: the pose innovations, or
+    the accelerometer and gyro against the valve model."""
     it = result["_internal"]
     d, nominal, held, ctx = it["d"], it["nominal"], it["held"], it["ctx"]
     best = result["attribution"][0] if result["attribution"] and result["verdict"] != "unexplained" else None
@@ -95,7 +33,10 @@ def residual_series(result: dict) -> tuple:
         from bench.gap.select import as_fit
 
         fit, names = as_fit(es["_fit"]), [m["effect"] for m in es["members"]]
-    nav = fit is None or any(candidates_of(d)[n].nav for n in names) or ctx.ch is None
+    if _where_stream(result) is not None:  # the channel where the gap map found the gap
+        nav = ctx.ch is None or _where_stream(result) not in {s for s, _ in localise.DYN_STREAMS}
+    else:
+        nav = fit is None or any(candidates_of(d)[n].nav for n in names) or ctx.ch is None
     if nav:
         after = fit.after_nav.white if fit is not None else None
         series = [
@@ -127,19 +68,6 @@ def residual_series(result: dict) -> tuple:
                 )
             )
     return series, "accelerometer and gyro against the valve model (whitened rows)"
-
-
-def _spans(t, mask):
-    out, start = [], None
-    for ti, m in zip(t, mask):
-        if m and start is None:
-            start = ti
-        if not m and start is not None:
-            out.append((start, ti))
-            start = None
-    if start is not None:
-        out.append((start, t[-1]))
-    return out
 
 
 def _not_told_apart_lines(result: dict, best) -> list:
@@ -246,12 +174,12 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     it = result["_internal"]
-    _gap_map_png(it["cells"], out / "gap_map.png")
+    save(gap_map_figure(it["cells"], result["statistics"]["map_threshold"]), out / "gap_map.png")
     best = result["attribution"][0] if result["attribution"] else None
     series, what = residual_series(result)
     named = " + ".join(m["effect"] for m in result.get("effects") or []) if result["verdict"] != "unexplained" else ""
     origin = float(result["log"].get("time_origin_s") or 0.0)
-    _residuals_png(series, named, out / "residuals.png", what, origin)
+    save(residuals_figure(series, named, what, origin), out / "residuals.png", dpi=100)
 
     st = result["statistics"]
     loc = result["location"]

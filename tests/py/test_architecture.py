@@ -30,7 +30,7 @@ GAP_LAYERS = (
             "detectable",
         },
     ),
-    ("the answer: verdicts, words, report", {"diagnose", "answers", "report"}),
+    ("the answer: verdicts, words, report", {"diagnose", "answers", "report", "report_plots"}),
     (
         "null calibrations and the flights they simulate",
         {"null", "log_null", "plans", "simlogs", "calibration_file", "validity"},

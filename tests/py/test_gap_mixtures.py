@@ -38,7 +38,8 @@ def test_thrust_loss_and_gyro_bias_are_both_named(tmp_path):
     assert "thrust_loss + gyro_bias (explained, together)" in text and "adds" in text
     page = write_report(full, tmp_path, "mixture").read_text()
     assert "RMS on held-out rows, nominal -> with thrust_loss + gyro_bias" in page
-    assert "pose innovations" in page  # the gyro bias acts on the navigation replay: its channel is shown
+    # the channel shown is where the gap map found the gap, not the one an effect of the set acts on
+    assert "Where**: gyro vs valve torques" in page and "accelerometer and gyro against the valve model" in page
 
 
 def test_one_effect_stays_one():
