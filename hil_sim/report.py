@@ -10,34 +10,68 @@ from bench.report import matplotlib_agg
 from bench.sim.flight_log import FlightLogError, runs_to_flight_log, write_flight_log
 from bench.sim.scenario_docking import DockingRun, errors_from_first_update
 
+# Per state block: the error's attribute, its columns of P, display unit and scale.
+BLOCKS = (("pos", 0, "m", 1.0), ("vel", 3, "mm/s", 1e3), ("att", 6, "mrad", 1e3))
+NIS_GATE = 22.46  # chi-square, 6 dof, p = 0.999: the flight filter's gate
 
-def plot_run(run: DockingRun, path: Path, title: str):
+
+def _run_label(run: DockingRun, k: int) -> str:
+    s = run.summary
+    how = "docked" if s.docked else "cut short" if s.cut_by_duration else "not docked"
+    return f"run {k + 1} ({how} at {s.t_end_s:.0f} s)"
+
+
+def _error_panels(fig, grid, runs) -> list:
+    """A 3 x 3 grid: position, velocity and attitude error per axis, each run
+    in its colour with its own +/- 3 sigma from the flight covariance."""
+    axes = []
+    for row, (block, col0, unit, scale) in enumerate(BLOCKS):
+        for j, axis in enumerate("xyz"):
+            a = fig.add_subplot(grid[row, j], sharex=axes[0] if axes else None)
+            for k, run in enumerate(runs):
+                e = errors_from_first_update(run)
+                color = f"C{k % 10}"
+                a.plot(e.t, scale * e.block(block)[:, j], color=color, lw=0.9)
+                sig = 3 * scale * e.sigma[:, col0 + j]
+                a.plot(e.t, sig, "--", color=color, lw=0.6)
+                a.plot(e.t, -sig, "--", color=color, lw=0.6)
+            a.set_title(f"{block} {axis}", fontsize=9)
+            if j == 0:
+                a.set_ylabel(f"{block} error [{unit}]")
+            a.grid(alpha=0.3)
+            axes.append(a)
+    return axes
+
+
+def nav_errors_figure(runs, title: str):
+    """Navigation errors of every run with their 3-sigma bounds, and the NIS
+    of every pose update against its gate; the legend below the panels."""
     plt = matplotlib_agg()
-    e = errors_from_first_update(run)
-    fig, ax = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
-    labels = "xyz"
-    for block, a, unit in (("pos", ax[0], "m"), ("vel", ax[1], "m/s")):
-        off = 0 if block == "pos" else 3
-        for i in range(3):
-            (line,) = a.plot(e.t, e.block(block)[:, i], label=f"{labels[i]}")
-            a.plot(e.t, 3 * e.sigma[:, off + i], "--", color=line.get_color(), lw=0.7)
-            a.plot(e.t, -3 * e.sigma[:, off + i], "--", color=line.get_color(), lw=0.7)
-        a.set_ylabel(f"{block} error [{unit}]")
-        a.legend(loc="upper right", ncol=3)
-        a.grid(alpha=0.3)
-    ax[2].semilogy(run.t, [np.trace(P) for P in run.P])
-    ax[2].set_ylabel("trace P")
-    ax[2].grid(alpha=0.3)
-    u = run.updates
-    ax[3].plot(u.t_fused, u.nis, "o", ms=3)
-    ax[3].axhline(22.46, color="r", lw=0.8, label="gate (chi2 6, p=0.999)")
-    ax[3].axhline(6.0, color="k", lw=0.8, ls=":", label="expected (6)")
-    ax[3].set_ylabel("NIS")
-    ax[3].set_xlabel("t [s]")
-    ax[3].legend(loc="upper right")
-    ax[3].grid(alpha=0.3)
-    fig.suptitle(title + "  (dashed: +/- 3 sigma from the flight covariance)")
+    fig = plt.figure(figsize=(11, 11))
+    grid = fig.add_gridspec(4, 3, height_ratios=(1, 1, 1, 0.9))
+    axes = _error_panels(fig, grid, runs)
+    nis = fig.add_subplot(grid[3, :], sharex=axes[0])
+    for k, run in enumerate(runs):
+        u = run.updates
+        nis.plot(u.t_fused, u.nis, "o", ms=3, color=f"C{k % 10}", label=_run_label(run, k))
+    nis.axhline(NIS_GATE, color="r", lw=0.8, label="gate (chi-square 6 dof, p = 0.999)")
+    nis.axhline(6.0, color="k", lw=0.8, ls=":", label="expected (6)")
+    nis.set_ylabel("NIS [-]")
+    nis.set_xlabel("time since the run's start [s]")
+    nis.grid(alpha=0.3)
+    nis.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncol=min(4, len(runs) + 2), fontsize=8)
+    fig.suptitle(
+        f"{title}: {len(runs)} run(s), from each run's first pose update (solid: error; dashed: +/- 3 sigma of the "
+        "flight covariance)",
+        fontsize=10,
+    )
     fig.tight_layout()
+    return fig
+
+
+def plot_runs(runs, path: Path, title: str):
+    plt = matplotlib_agg()
+    fig = nav_errors_figure(runs, title)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -98,7 +132,7 @@ def write_hil_report(res: dict, summary: dict, out: Path) -> str | None:
         write_flight_log(out / "flight_log.h5", log)
     except FlightLogError as exc:
         why = f"flight log not written: what the link brought back is no valid log ({str(exc)[:160]})"
-    plot_run(res["runs"][0], out / "nav_errors.png", "Docking over the HIL link: navigation errors")
+    plot_runs(res["runs"], out / "nav_errors.png", "Docking over the HIL link")
     if res["steps"]:
         plot_latency(res["step_latency_ms"], out / "step_latency.png")
     return why
