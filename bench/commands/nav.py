@@ -165,37 +165,55 @@ def print_summary(s: dict) -> None:
         )
 
 
-def make_plots(runs, summary, folder) -> None:
-    plt = matplotlib_agg()
-    out = report_dir(folder)
-    # Fig. 3: trace of P, every kept run.
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    for r in runs:
-        ax.semilogy(r.t, np.trace(r.P, axis1=1, axis2=2), lw=0.7)
-    ax.set(xlabel="time [s]", ylabel="trace P", title="UKF uncertainty (trace of P)")
+# Per state block: its columns of P and its unit.
+BLOCKS = (("pos", 0, "m", "position"), ("vel", 3, "m/s", "velocity"), ("att", 6, "rad", "attitude (body frame)"))
+
+
+def _sigma_plot(plt, runs, path) -> None:
+    """The filter's 1-sigma per block (RMS over its three axes), each in its
+    own unit, every kept run: no sum of variances of different units."""
+    fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
+    for ax, (_, c0, unit, name) in zip(axes, BLOCKS):
+        for r in runs:
+            var = np.trace(r.P[:, c0 : c0 + 3, c0 : c0 + 3], axis1=1, axis2=2) / 3.0
+            ax.semilogy(r.t, np.sqrt(var), lw=0.7, label=f"seed {r.summary.seed}")
+        ax.set_ylabel(f"{name.split()[0]} 1-sigma [{unit}]")
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_title(f"UKF uncertainty, RMS over axes, {len(runs)} run(s)")
+    axes[0].legend(loc="upper right", fontsize=7)
+    axes[-1].set_xlabel("time [s]")
     fig.tight_layout()
-    fig.savefig(out / "nav_trace_p.png", dpi=120)
+    fig.savefig(path, dpi=120)
     plt.close(fig)
-    # Figs. 4-6: errors per axis with 3-sigma bounds, first run.
-    e = errors_from_first_update(runs[0])
-    for key, blk, unit, title, fname in (
-        ("pos", 0, "m", "position error", "nav_pos_err.png"),
-        ("vel", 1, "m/s", "velocity error", "nav_vel_err.png"),
-        ("att", 2, "rad", "attitude error (body frame)", "nav_att_err.png"),
-    ):
+
+
+def _error_plots(plt, runs, out) -> None:
+    """Errors per axis with each run's own 3-sigma bounds, every kept run."""
+    errs = [errors_from_first_update(r) for r in runs]
+    for key, c0, unit, name in BLOCKS:
         fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
         for j, ax in enumerate(axes):
-            sig = 3 * e.sigma[:, 3 * blk + j]
-            ax.plot(e.t, e.block(key)[:, j], lw=0.8, label="error")
-            ax.plot(e.t, sig, "k--", lw=0.6, label="3-sigma")
-            ax.plot(e.t, -sig, "k--", lw=0.6)
+            for k, (r, e) in enumerate(zip(runs, errs)):
+                color = f"C{k % 10}"
+                ax.plot(e.t, e.block(key)[:, j], lw=0.8, color=color, label=f"seed {r.summary.seed}")
+                sig = 3 * e.sigma[:, c0 + j]
+                ax.plot(e.t, sig, "--", lw=0.6, color=color)
+                ax.plot(e.t, -sig, "--", lw=0.6, color=color)
             ax.set_ylabel(f"{'xyz'[j]} [{unit}]")
-        axes[0].set_title(f"UKF {title}, seed {runs[0].summary.seed}")
+            ax.grid(alpha=0.3)
+        axes[0].set_title(f"UKF {name} error, {len(runs)} run(s) (dashed: +/- 3 sigma)")
         axes[0].legend(loc="upper right", fontsize=7)
         axes[-1].set_xlabel("time [s]")
         fig.tight_layout()
-        fig.savefig(out / fname, dpi=120)
+        fig.savefig(out / f"nav_{key}_err.png", dpi=120)
         plt.close(fig)
+
+
+def make_plots(runs, summary, folder) -> None:
+    plt = matplotlib_agg()
+    out = report_dir(folder)
+    _sigma_plot(plt, runs, out / "nav_sigma.png")
+    _error_plots(plt, runs, out)
     # NIS of the kept runs against the per-sample 95 % band.
     from scipy.stats import chi2
 
