@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.sim import flight_log_bounds as bounds
+from bench.sim import flight_log_dims
 
 FORMAT_NAME = "proxops-flight-log"
 FORMAT_VERSION = 2
@@ -513,6 +514,8 @@ def write_flight_log(path, log: FlightLog, validate: bool = True) -> Path:
                 ds = g.create_dataset(key, data=np.asarray(arr), compression="gzip", compression_opts=4, shuffle=True)
                 if key in units:
                     ds.attrs["unit"] = units[key]
+            if spec is not None:
+                flight_log_dims.label(g, spec)
     return path
 
 
@@ -687,9 +690,11 @@ def _read_streams(h5, h, path) -> dict:
         fields = list(g.keys())
         if len(fields) > bounds.MAX_MEMBERS:
             raise FlightLogError(f"{path}: {name}: {len(fields)} fields, more than {bounds.MAX_MEMBERS}")
+        members = {k: _plain_member(h5, g, k, f"{name}/{k}", path) for k in fields}
         found[name] = {
-            k: _checked_field(h5, _plain_member(h5, g, k, f"{name}/{k}", path), f"{name}/{k}", path, budget)
-            for k in fields
+            k: _checked_field(h5, ds, f"{name}/{k}", path, budget)
+            for k, ds in members.items()
+            if not (isinstance(ds, h5.Dataset) and flight_log_dims.is_dimension(ds, k))
         }
     # Read only once every field's size is known to fit.
     return {
