@@ -52,16 +52,23 @@ def which_text(out: dict) -> str | None:
             f"{names} (partly explained: each accounts for part of the gap on held-out data; "
             "a remainder no effect in the library accounts for stays)"
         )
+    hidden = "; ".join(f"{a['add']} could be there too" for a in out.get("ambiguous_with", []) if "add" in a)
     if len(out.get("effects") or []) > 1:
         alts = "; ".join(
-            f"{a['replace']} cannot be told from {a['with']}" for a in out.get("ambiguous_with", []) if "replace" in a
+            [f"{a['replace']} cannot be told from {a['with']}" for a in out.get("ambiguous_with", []) if "replace" in a]
+            + ([hidden] if hidden else [])
         )
         return (
             " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together" + (f"; {alts}" if alts else "") + ")"
         )
     best = out["attribution"][0]
-    amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []))
-    return f"{best['effect']} ({v}" + (f"; cannot be told apart from {amb}" if amb else "") + ")"
+    amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []) if "effect" in a)
+    return (
+        f"{best['effect']} ({v}"
+        + (f"; cannot be told apart from {amb}" if amb else "")
+        + (f"; {hidden}" if hidden else "")
+        + ")"
+    )
 
 
 def fitted_text(out: dict) -> str | None:

@@ -488,8 +488,11 @@ def _set_answer(
                 "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}",
             }
             for a in look_alike_sets(ctx, fits, names, DELTA2_95)
-        ]
+        ] + _hidden(ctx, fits, names, thr_glr)
         return ("ambiguous" if ambiguous_with else "explained"), effect_set, ambiguous_with
+    if verdict in ("explained", "ambiguous") and ranking:  # the single answer, and what could hide beside it
+        ambiguous_with = ambiguous_with + _hidden(ctx, fits, [ranking[0]["effect"]], thr_glr)
+        verdict = "ambiguous" if ambiguous_with else verdict
     if verdict == "unexplained" and effect_set is not None:
         effect_set = _partial_set(
             effect_set,
@@ -506,6 +509,22 @@ def _set_answer(
         if effect_set is not None and effect_set["partly_explains"]:
             verdict = "partly_explained"
     return verdict, effect_set, ambiguous_with
+
+
+def _hidden(ctx: Context, fits: list, names: list, thr_glr: float) -> list:
+    """The answer's sets with one more member the data cannot rule out
+    (bench/gap/select.py hidden_members), as look-alike sets."""
+    from bench.gap.select import hidden_members
+
+    cands = candidates_of(ctx.d)
+    return [
+        {
+            "set": names + [a["add"]],
+            **a,
+            "separate_by": f"{cands[a['add']].separate_by}",
+        }
+        for a in hidden_members(ctx, fits, names, DELTA2_95, thr_glr)
+    ]
 
 
 def _dynamics_or_sensor(where, verdict: str, ranking: list, effect_set) -> str | None:

@@ -77,6 +77,12 @@ def _not_told_apart_lines(result: dict, best) -> list:
         return lines
     lines += ["### Not told apart", ""]
     for a in result["ambiguous_with"]:
+        if "add" in a:  # one more member the data cannot rule out
+            lines.append(
+                f"- {' + '.join(a['set'])}: {a['add']} beside the answer, absorbed by its members, leaves "
+                f"{a['signature_distance2']:.1f} noise variances of difference: separate with: {a['separate_by']}"
+            )
+            continue
         if "replace" in a:  # a set with one member swapped for a look-alike
             lines.append(
                 f"- {' + '.join(a['set'])}: {a['with']} in place of {a['replace']} reproduces the set's "

@@ -111,6 +111,47 @@ def look_alike_sets(ctx: Context, fits: list, names: list, delta2: float) -> lis
     return sorted(out, key=lambda a: a["signature_distance2"])
 
 
+# The share of its own single fit at which a candidate beside the answer
+# is asked whether the answer's members absorb it (hidden_members).
+HIDDEN_SHARE = 0.5
+
+
+def hidden_members(ctx: Context, fits: list, names: list, delta2: float, min_logp: float) -> list:
+    """Candidates that could be present beside ``names`` without the data
+    showing it: each fits the gap on its own (its screen passes
+    ``min_logp``) with a signature of at least HIDDEN_SHARE of its largest
+    member's part of the set's fit (in noise variances, and more than
+    ``delta2``), and at HIDDEN_SHARE of
+    that size (a share of the gap worth naming) the set's members, refitted
+    inside their physical bounds, reproduce the set's fitted signature less
+    that one to within ``delta2``. A nozzle
+    tilt beside a thrust loss on a docking approach is the usual one: the
+    loss of the same valves absorbs it. [{"add", "signature_distance2"}]."""
+    fits_by = {f.name: f for f in fits if getattr(f, "J_u", None) is not None and np.isfinite(f.screen_bic)}
+    if not names or not all(n in fits_by for n in names):
+        return []
+    e0, _ = training_residuals(ctx)
+    J, lo, hi = _stacked(ctx, fits_by, names)
+    u = _bounded_lstsq(J, -e0, lo, hi)
+    sig = J @ u
+    edges = np.cumsum([0] + [fits_by[n].J_u.shape[1] for n in names])
+    largest = max(float(np.sum((J[:, a:b] @ u[a:b]) ** 2)) for a, b in zip(edges[:-1], edges[1:]))
+    out = []
+    for c, f in fits_by.items():
+        if c in names or not getattr(f, "screen_logp", 0.0) > min_logp:
+            continue
+        Jc, lc, hc = _stacked(ctx, fits_by, [c])
+        sig_c = Jc @ _bounded_lstsq(Jc, -e0, lc, hc)
+        if sig_c @ sig_c < max(delta2, HIDDEN_SHARE * largest):
+            continue
+        rest = sig - HIDDEN_SHARE * sig_c
+        r = rest - J @ _bounded_lstsq(J, rest, lo, hi)
+        d2 = float(r @ r)
+        if d2 < delta2:
+            out.append({"add": c, "signature_distance2": d2})
+    return sorted(out, key=lambda a: a["signature_distance2"])
+
+
 def _conditional(ctx, fits_by, names: list, m: str, e0) -> tuple:
     """(-log10 p, rank added, 2 dLL gain) of member m beside the others of names."""
     t, rank = _two_dll(ctx, fits_by, names, e0)
