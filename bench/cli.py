@@ -20,6 +20,7 @@ COMMAND_MODULES = [
     "bench.commands.diagnose",
     "bench.commands.validate_gap",
     "bench.commands.simulate",
+    "bench.commands.export",
 ]
 
 
