@@ -250,7 +250,7 @@ class NavUkf {
   struct StepInput {
     Vec3<S> a_mid_b;
     Quat<S> turn;
-    S dt;
+    S dt{0};
   };
   static StepInput step_input(const Vec3<S>& accel_b, const Vec3<S>& omega_b, S dt);
   // The sample as the state sees it: without the bias option the same for
@@ -477,9 +477,8 @@ auto NavUkf<S, kWithBias, kHistory>::update_pose(double t_capture_s, const Vec3<
   const Entry& at = hist_[index_back(back)];
   Entry* out = scratch_;
   out[0] = at;
-  const Vec3<S> r_meas = r_hill_m;
   const Quat<S> q_meas = normalized(q_hb);
-  const StepStatus st = fuse(at.x, at.P, r_meas, q_meas, R, rec, out[0].x, out[0].P);
+  const StepStatus st = fuse(at.x, at.P, r_hill_m, q_meas, R, rec, out[0].x, out[0].P);
   if (st != StepStatus::Ok) return rec;  // state untouched; rec says why
   bool repaired = rec.detail == StepDetail::CovarianceRepaired;
   // Re-apply the stored IMU samples from the capture tick to now.
