@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from bench.report import matplotlib_agg
-from bench.sim.flight_log import FlightLogError, runs_to_flight_log, write_flight_log
+from bench.sim.flight_log import FlightLogError, write_flight_log
+from bench.sim.reality import runs_to_log
 from bench.sim.scenario_docking import DockingRun, errors_from_first_update
 
 # Per state block: the error's attribute, its columns of P, display unit and scale.
@@ -123,7 +124,9 @@ def write_hil_report(res: dict, summary: dict, out: Path) -> str | None:
         "dt_imu_s": 0.1,
         "source": "proxops hil",
     }
-    log = runs_to_flight_log(res["runs"], cfg)
+    # With the valve commands the plant flew (every step's configuration),
+    # so a diagnosis of this log examines the dynamics channel.
+    log = runs_to_log(res["runs"], cfg)
     left_out = _received_only(log)
     if left_out:
         log.config["rows_left_out_lost_on_link"] = left_out
