@@ -9,7 +9,10 @@ propagated with the Hill frame turning at n, the same process noise Q and
 pose noise R, scaled sigma points alpha = 1, beta = 2, kappa = 0. FilterPy
 carries the attitude as an absolute rotation vector (its sigma points and
 means are plain vector arithmetic); ours is the multiplicative quaternion
-filter. Medians of per-call wall times (time.perf_counter_ns).
+filter. Medians of per-call wall times (time.perf_counter_ns): first
+with the two filters called in turn on each sample (each call finds the
+caches holding the other's work), then each of ours stepped alone over the
+same samples (what a log stepped from Python sees).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python -m bench.perf.perf_nav_filterpy [--predicts 3000] [--json OUT]
 
@@ -101,6 +104,29 @@ def _medians_us(times_ns: dict) -> dict:
     return {k: float(np.median(v)) / 1e3 for k, v in times_ns.items() if v}
 
 
+def _alone(make, accel, omega, meas_noise, R) -> dict:
+    """Per-call times of one of our filters stepped by itself over the same
+    samples (no FilterPy call between: the caches hold our code and data,
+    as when a whole log is stepped from Python)."""
+    f = make()
+    clock = time.perf_counter_ns
+    t_pred, t_upd = [], []
+    for k in range(accel.shape[0]):
+        t = (k + 1) * DT
+        a, w = accel[k], omega[k]
+        t0 = clock()
+        f.predict(t, a, w)
+        t_pred.append(clock() - t0)
+        if (k + 1) % 10 == 0:
+            e = meas_noise[(k + 1) // 10]
+            r_meas = f.r_hill_m + POS_SIGMA * e[:3]
+            q_meas = fb.boxplus(f.q_hb, ATT_SIGMA * e[3:])
+            t0 = clock()
+            f.update_pose(t, r_meas, q_meas, R)
+            t_upd.append(clock() - t0)
+    return {"predict": float(np.median(t_pred)) / 1e3, "update": float(np.median(t_upd)) / 1e3}
+
+
 def run(predicts: int, seed: int) -> dict:
     load_before = os.getloadavg()[0]
     cfg = fb.NavConfig()
@@ -167,7 +193,19 @@ def run(predicts: int, seed: int) -> dict:
                 t_upd["ours_float"].append(clock() - t0)
             max_pos_diff = max(max_pos_diff, float(np.abs(theirs.x[:3] - ours.r_hill_m).max()))
 
+    def made(kind):
+        def make():
+            f = kind(cfg)
+            f.init(0.0, r0, v0, q0, P0)
+            return f
+
+        return make
+
+    alone = {"ours": _alone(made(fb.NavUkf), accel, omega, meas_noise, R)}
+    if ours_f is not None:
+        alone["ours_float"] = _alone(made(fb.NavUkfFloat), accel, omega, meas_noise, R)
     res = {
+        "alone_median_us": alone,
         "predicts": predicts,
         "updates": len(t_upd["ours"]),
         "predict_median_us": _medians_us(t_pred),
@@ -194,6 +232,11 @@ def main(argv=None) -> int:
         m = res[f"{step}_median_us"]
         fl = f"{m['ours_float']:>16.2f}" if "ours_float" in m else f"{'-':>16}"
         print(f"{step:<8} {m['ours']:>12.2f} {fl} {m['filterpy']:>14.1f} {res[f'{step}_ratio']:>7.0f}x")
+    al = res["alone_median_us"]
+    print(
+        "ours alone (no FilterPy call between, as a log stepped from Python): "
+        + "; ".join(f"{k} predict {v['predict']:.2f} us, update {v['update']:.2f} us" for k, v in al.items())
+    )
     print(
         f"({res['predicts']} predicts, {res['updates']} updates, medians per call; "
         f"largest position estimate difference {res['max_pos_estimate_diff_m']:.2e} m)"
