@@ -206,7 +206,9 @@ def test_a_unix_epoch_copy_of_the_bundled_log_gets_the_same_answer(tmp_path):
     epoch = read_flight_log(path, relative_time=True)
     a, b = public(diagnose(base)), public(diagnose(epoch))
     assert b["log"]["time_origin_s"] == EPOCH_S and a["log"]["time_origin_s"] == 0.0
-    assert (a["verdict"], b["verdict"]) == ("explained", "explained")
+    # a docking log: a nozzle tilt could hide in the loss (docs/GAP.md, Verdict)
+    assert (a["verdict"], b["verdict"]) == ("ambiguous", "ambiguous")
+    assert [x["set"] for x in b["ambiguous_with"]] == [x["set"] for x in a["ambiguous_with"]]
     assert [e["effect"] for e in b["effects"]] == [e["effect"] for e in a["effects"]] == ["thrust_loss"]
     assert [r["effect"] for r in b["attribution"]] == [r["effect"] for r in a["attribution"]]
     assert {k: v for k, v in b["location"]["where"].items() if isinstance(v, str)} == {
