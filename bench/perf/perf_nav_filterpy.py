@@ -104,6 +104,17 @@ def _medians_us(times_ns: dict) -> dict:
     return {k: float(np.median(v)) / 1e3 for k, v in times_ns.items() if v}
 
 
+def _maker(kind, cfg, start):
+    """A function that makes a filter of ``kind`` set at ``start`` (r, v, q, P0) at t = 0."""
+
+    def make():
+        f = kind(cfg)
+        f.init(0.0, *start)
+        return f
+
+    return make
+
+
 def _alone(make, accel, omega, meas_noise, R) -> dict:
     """Per-call times of one of our filters stepped by itself over the same
     samples (no FilterPy call between: the caches hold our code and data,
@@ -127,13 +138,19 @@ def _alone(make, accel, omega, meas_noise, R) -> dict:
     return {"predict": float(np.median(t_pred)) / 1e3, "update": float(np.median(t_upd)) / 1e3}
 
 
-def run(predicts: int, seed: int) -> dict:
-    load_before = os.getloadavg()[0]
+def _config():
+    """The filters' configuration: 500 km orbit, 10 Hz IMU, the bench's noises."""
     cfg = fb.NavConfig()
     cfg.n_radps = fb.orbit_rate(fb.EARTH_RADIUS + 500e3)
     cfg.dt_imu_s = DT
     cfg.accel_sigma_mps2 = 0.25 * 0.020 / 3.0
     cfg.gyro_sigma_rps = 0.005
+    return cfg
+
+
+def run(predicts: int, seed: int) -> dict:
+    load_before = os.getloadavg()[0]
+    cfg = _config()
     n = cfg.n_radps
     gam = fb.cw_accel_response(n, DT)
     Q = np.zeros((9, 9))
@@ -193,19 +210,11 @@ def run(predicts: int, seed: int) -> dict:
                 t_upd["ours_float"].append(clock() - t0)
             max_pos_diff = max(max_pos_diff, float(np.abs(theirs.x[:3] - ours.r_hill_m).max()))
 
-    def made(kind):
-        def make():
-            f = kind(cfg)
-            f.init(0.0, r0, v0, q0, P0)
-            return f
-
-        return make
-
-    alone = {"ours": _alone(made(fb.NavUkf), accel, omega, meas_noise, R)}
-    if ours_f is not None:
-        alone["ours_float"] = _alone(made(fb.NavUkfFloat), accel, omega, meas_noise, R)
+    kinds = {"ours": fb.NavUkf, **({"ours_float": fb.NavUkfFloat} if ours_f is not None else {})}
     res = {
-        "alone_median_us": alone,
+        "alone_median_us": {
+            k: _alone(_maker(f, cfg, (r0, v0, q0, P0)), accel, omega, meas_noise, R) for k, f in kinds.items()
+        },
         "predicts": predicts,
         "updates": len(t_upd["ours"]),
         "predict_median_us": _medians_us(t_pred),
