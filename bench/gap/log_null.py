@@ -200,20 +200,28 @@ def key_contents(log, runs: int, seed: int, prepared=None) -> dict:
                 "att_sigma_rad": _significant(tm["att_sigma_rad"]),
             }
         )
+    return {**_statistics_and_vehicle(log, runs, seed, description), "runs_flown": per_run}
+
+
+def _statistics_and_vehicle(log, runs: int, seed: int, description: dict) -> dict:
+    """What both keys hold: the statistics' VERSION, runs, seed, the
+    description and whether valves were logged."""
     return {
         "version": VERSION,
         "runs": int(runs),
         "seed": int(seed),
         "description": description,
         "has_valves": bool(log.has("valves")),
-        "runs_flown": per_run,
     }
+
+
+def _sha256(contents: dict) -> str:
+    return hashlib.sha256(json.dumps(contents, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def fingerprint(log, runs: int, seed: int, prepared=None) -> str:
     """SHA-256 of ``key_contents``."""
-    text = json.dumps(key_contents(log, runs, seed, prepared), sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
+    return _sha256(key_contents(log, runs, seed, prepared))
 
 
 def family_contents(log, runs: int, seed: int, prepared=None) -> dict:
@@ -223,20 +231,13 @@ def family_contents(log, runs: int, seed: int, prepared=None) -> dict:
     opened. The rest (command times, the timing of the samples) is
     compared within tolerances (``shape_differs``)."""
     description, plan, _, _ = prepared or plan_of(log)
-    return {
-        "version": VERSION,
-        "runs": int(runs),
-        "seed": int(seed),
-        "description": description,
-        "has_valves": bool(log.has("valves")),
-        "valves_opened": [[int(np.dot(on > 0.0, 1 << np.arange(on.size))) for on in p.cmd_on_s] for p in plan],
-    }
+    opened = [[int(np.dot(on > 0.0, 1 << np.arange(on.size))) for on in p.cmd_on_s] for p in plan]
+    return {**_statistics_and_vehicle(log, runs, seed, description), "valves_opened": opened}
 
 
 def family(log, runs: int, seed: int, prepared=None) -> str:
     """SHA-256 of ``family_contents``."""
-    text = json.dumps(family_contents(log, runs, seed, prepared), sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
+    return _sha256(family_contents(log, runs, seed, prepared))
 
 
 def timing_shape(prepared) -> list:
