@@ -276,6 +276,23 @@ def _apart(a: float, b: float, rel: float, floor: float = 0.0) -> bool:
     return abs(a - b) > rel * max(abs(a), abs(b)) + floor
 
 
+def _shape_like(m, t: dict) -> bool:
+    """Whether ``m`` holds every field of the timing shape ``t`` as finite
+    numbers (lists of them for the commands)."""
+    if not isinstance(m, dict) or set(m) != set(t):
+        return False
+    for k, v in m.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float, list)):
+            return False
+        try:
+            a = np.asarray(v, float)
+        except (TypeError, ValueError):
+            return False
+        if not np.all(np.isfinite(a)) or (isinstance(v, list) and a.ndim != np.asarray(t[k]).ndim):
+            return False
+    return True
+
+
 def shape_differs(made: list, this: list) -> str | None:
     """Where the timing of the flight a calibration was made for (``made``)
     and this log's (``this``, both ``timing_shape``) differ beyond what
@@ -288,6 +305,9 @@ def shape_differs(made: list, this: list) -> str | None:
     the samples, the pose delay to 10 % and 5 ms, the pose sigmas to 5 %."""
     if not isinstance(made, list) or len(made) != len(this):
         return "another number of runs"
+    bad = next((i for i, (m, t) in enumerate(zip(made, this)) if not _shape_like(m, t)), None)
+    if bad is not None:  # a damaged or edited entry: refused, not read
+        return f"shape[{bad}]: not a timing shape (a field missing or not finite numbers)"
     for i, (m, t) in enumerate(zip(made, this)):
         step = t["imu_step_s"]
         checks = (

@@ -273,3 +273,12 @@ def test_another_flight_of_the_plan_with_its_own_jitter_shares_its_calibration(t
         log_null.check_supplied(cal, later, prepare(later), "cal.json")
     with pytest.raises(log_null.CalibrationMismatch, match="another vehicle or plan"):
         log_null.check_supplied(cal, e, prepare(e), "cal.json")
+    # A damaged or edited shape is refused, never read: supplied, one line;
+    # cached, the second flight makes its own.
+    for damaged in ([{}], [dict(cal["shape"][0], imu_jitter_s="x")], [dict(cal["shape"][0], cmd_t_s=[[1.0], 2.0])]):
+        with pytest.raises(log_null.CalibrationMismatch, match="not a timing shape"):
+            log_null.check_supplied(dict(cal, shape=damaged + cal["shape"][1:]), b, prepare(b), "cal.json")
+    entry = Path(cal["cached_at"])
+    entry.write_text(json.dumps(dict(json.loads(entry.read_text()), shape=[{}] * len(cal["shape"]))))
+    own = log_null.calibrate_for_log(b, runs=3, seed=3, workers=1, cache_dir=tmp_path, progress=False)
+    assert own["from_cache"] is None and own["fingerprint"] != cal["fingerprint"]
