@@ -286,9 +286,9 @@ def gyro_whiteners(ch: "DynChannel") -> list:
     same noisy samples: row k reads (I - h/2 G_k) n_k - (I + h/2 G_k-1) n_k-1,
     G = d(-J^-1 (w x J w))/dw at the measured rate. Whitened as plain
     differences (tridiagonal 2, -1 per axis) that part was missing, and on
-    a random vehicle slewing at 0.1-0.2 rad/s its integral over a 10-minute
-    log read as a gyro bias, scale or misalignment at z 8-12 on effect-free
-    logs: the null runs then set thresholds from each log's own rates.
+    a fast-turning vehicle its integral along a run read as a gyro bias,
+    scale or misalignment on effect-free logs (tests/py/test_gap_dyn.py):
+    the null runs then set thresholds from each log's own stamps and rates.
     Taken at the nominal model, so it is the same for every candidate."""
     _, w = ch.imu_body({})
     J = np.asarray(ch.veh.inertia_kgm2, float)
