@@ -13,7 +13,7 @@ import pytest
 
 from bench.gap import validate_basilisk
 
-STORED = Path(__file__).resolve().parents[2] / "bench/gap/data/validate_gap_basilisk_8_seed2050.full.json.gz"
+STORED = Path(__file__).resolve().parents[2] / "docs/results/data/validate_gap_basilisk_8_seed2050.full.json.gz"
 
 
 @pytest.fixture()
