@@ -1,5 +1,5 @@
 """The bench's plant (bench/sim/vehicle_sim.py) against Basilisk
-(bench/basilisk_sim.py): the same described vehicle, the same valve
+(bench/sim/basilisk_sim.py): the same described vehicle, the same valve
 commands and time stamps, the sensors without noise.
 
 - ``null_agreement``: with no effect, the largest difference of the truth
@@ -79,8 +79,7 @@ def _streams(log) -> dict:
 
 
 def _fly(engine: str, description: dict, plan: list, effects: dict) -> dict:
-    from bench import basilisk_sim
-    from bench.sim import vehicle_sim
+    from bench.sim import basilisk_sim, vehicle_sim
 
     clocks = Clocks(pose_period_s=0.5, pose_phase_s=0.4)
     if engine == "bench":
@@ -171,7 +170,7 @@ def impulse_check(pulse_s: float = 0.04, thrust_n: float = 0.02, mass_kg: float 
     from Basilisk.simulation import imuSensor, spacecraft, thrusterDynamicEffector
     from Basilisk.utilities import SimulationBaseClass, simIncludeGravBody
 
-    from bench.basilisk_sim import imu_dv_error
+    from bench.sim.basilisk_sim import imu_dv_error
 
     arm, inertia = 0.05, 0.02
     out = {"pulse_s": pulse_s, "step_s": step_s, "dv_commanded_mps": thrust_n * pulse_s / mass_kg}
@@ -247,7 +246,7 @@ def main(argv=None):
     import argparse
     import json
 
-    from bench.basilisk_sim import basilisk_version
+    from bench.sim.basilisk_sim import basilisk_version
     from bench.sim.vehicles import VEHICLES
 
     ap = argparse.ArgumentParser(description="The bench's plant against Basilisk: null, effect signatures, impulses")

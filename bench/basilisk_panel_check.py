@@ -1,5 +1,5 @@
 """Is a flexible appendage a thrust loss? The signature of ``flex_mode`` in
-each engine (Basilisk's hinged panel, bench/basilisk_sim.py; the bench's
+each engine (Basilisk's hinged panel, bench/sim/basilisk_sim.py; the bench's
 mode, bench/sim/plant.py) and the share of it that the best non-negative
 per-thruster thrust loss reproduces.
 
@@ -38,7 +38,7 @@ def panel_added_on_top(description: dict) -> dict:
     """The description of the rigid vehicle the first mapping flew: a hub of
     the described mass less the panel's, at the described centre of mass
     with the described inertia, and the panel (at rest) on it."""
-    from bench.basilisk_sim import PANEL_ARM_M, PANEL_MASS_FRACTION
+    from bench.sim.basilisk_sim import PANEL_ARM_M, PANEL_MASS_FRACTION
 
     d = copy.deepcopy(description)
     v = d["vehicle"]
@@ -58,8 +58,7 @@ def panel_added_on_top(description: dict) -> dict:
 
 
 def _imu(engine: str, description: dict, plan: list, effects: dict) -> np.ndarray:
-    from bench import basilisk_sim
-    from bench.sim import vehicle_sim
+    from bench.sim import basilisk_sim, vehicle_sim
 
     if engine == "bench":
         log, _ = vehicle_sim.simulate(description, plan, effects, seed=0, clocks=Clocks(), with_truth=False)
@@ -119,8 +118,8 @@ def main(argv=None):
     import json
 
     from bench.basilisk_crosscheck import short_plan
-    from bench.basilisk_sim import basilisk_version
     from bench.gap.plans import characterisation_plan
+    from bench.sim.basilisk_sim import basilisk_version
     from bench.sim.vehicles import VEHICLES
 
     ap = argparse.ArgumentParser(description="flex_mode in each engine against a thrust loss")

@@ -1,7 +1,7 @@
 """`proxops simulate --engine {bench,basilisk} --vehicle V --manoeuvres characterisation
 --effects JSON --seed S --out LOG.h5`: a flight log (format version 2) of a
 described vehicle flying a characterisation open loop, from the bench's own
-plant (bench/sim/vehicle_sim.py) or from Basilisk (bench/basilisk_sim.py, the
+plant (bench/sim/vehicle_sim.py) or from Basilisk (bench/sim/basilisk_sim.py, the
 optional extra `pip install .[basilisk]`)."""
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ def main(args):
     except DescriptionError as exc:
         raise ValueError(f"--description {args.description}: {exc}" if args.description else str(exc)) from None
     if args.engine == "basilisk":
-        from bench.basilisk_sim import EFFECTS_HERE as known
+        from bench.sim.basilisk_sim import EFFECTS_HERE as known
     else:
         from bench.sim.vehicle_sim import KNOWN as known
     effects = check_effects(read_effects(args.effects), desc, known)
@@ -111,7 +111,7 @@ def main(args):
     plan = characterisation_plan(description, seed=args.seed)
     t0 = time.time()
     if args.engine == "basilisk":
-        from bench.basilisk_sim import simulate
+        from bench.sim.basilisk_sim import simulate
     else:
         from bench.sim.vehicle_sim import simulate
     log, key = simulate(description, plan, effects, seed=args.seed, clocks=clocks, with_truth=not args.no_truth)

@@ -5,7 +5,7 @@ The campaign of ``--vehicle 12kg`` (bench/gap/validate_vehicle.py: the 12 kg
 inspector's characterisation, time stamps as real logs have them, one run in
 ten without a valves stream, null, in-library and out-of-library runs at 1x
 and 2x each run's own minimum detectable size, keys hashed before any
-diagnosis), with every scored log flown by Basilisk (bench/basilisk_sim.py)
+diagnosis), with every scored log flown by Basilisk (bench/sim/basilisk_sim.py)
 instead of the bench's plant. The out-of-library effects are Basilisk's own
 modules: ``flex_mode`` a hinged panel (hingedRigidBodyStateEffector),
 ``fuel_slosh`` spring-mass-damper slosh (linearSpringMassDamper).
@@ -28,8 +28,8 @@ from bench.gap.validate import score, sized_and_diagnosed
 
 def simulate_key(key: dict, effects: dict | None = None):
     """The Basilisk log of ``key``'s run (with ``effects``, default the key's)."""
-    from bench.basilisk_sim import simulate
     from bench.gap.plans import characterisation_plan
+    from bench.sim.basilisk_sim import simulate
 
     desc = vv.description()
     log, _ = simulate(
@@ -54,8 +54,8 @@ def run_one(key: dict, calibration: dict) -> dict:
 def run_campaign(
     n_runs: int, seed: int, out: str | None, workers: int | None = None, progress: bool = True, campaign=None
 ) -> dict:
-    from bench.basilisk_sim import basilisk_version
     from bench.runner.runner import new_campaign
+    from bench.sim.basilisk_sim import basilisk_version
 
     cal = vv.load_calibration()
     campaign = new_campaign(campaign, workers, progress)
@@ -157,7 +157,7 @@ def main(argv=None):
     import gzip
     import json
 
-    from bench.basilisk_sim import basilisk_version
+    from bench.sim.basilisk_sim import basilisk_version
 
     ap = argparse.ArgumentParser(
         description="Fly one effect's runs of a finished Basilisk campaign again with the "

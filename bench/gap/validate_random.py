@@ -56,7 +56,7 @@ def simulate_key(key: dict, effects: dict | None = None, engine: str | None = No
 
     engine = engine or key.get("engine", "bench")
     if engine == "basilisk":
-        from bench.basilisk_sim import simulate
+        from bench.sim.basilisk_sim import simulate
     else:
         from bench.sim.vehicle_sim import simulate
     desc = description_of(key)

@@ -54,9 +54,6 @@ PACKAGE_LAYERS = (
     ("simulation models", ("bench.sim",)),
     ("shared: rotations, report files, the campaign runner", ("bench.so3", "bench.report", "bench.runner")),
 )
-# Modules outside their package's folder for now: the Basilisk engine is a
-# simulation model.
-PLACED_WITH = {"bench.basilisk_sim": "bench.sim"}
 # Modules in no layer yet: the package itself and the Basilisk checks
 # (campaigns that use bench.gap.plans).
 UNLAYERED = {"bench", "bench.basilisk_crosscheck", "bench.basilisk_panel_check"}
@@ -147,7 +144,6 @@ def test_hil_loop_is_used_only_by_the_command_line(graph):
 
 def _package_of(module: str):
     """(layer index, package) of a module, or None when it is in no layer."""
-    module = PLACED_WITH.get(module, module)
     for i, (_, packages) in enumerate(PACKAGE_LAYERS):
         for p in packages:
             if module == p or module.startswith(p + "."):

@@ -1,4 +1,4 @@
-"""The Basilisk engine (bench/basilisk_sim.py) and `proxops simulate`: a
+"""The Basilisk engine (bench/sim/basilisk_sim.py) and `proxops simulate`: a
 valid format-2 log from either engine; the out-of-library effects only
 Basilisk's modules provide (hinged panel, slosh) show in the sensors."""
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from bench import basilisk_crosscheck as xc
-from bench import basilisk_sim
 from bench.cli import main
+from bench.sim import basilisk_sim
 from bench.sim.flight_log import read_flight_log, validate_log
 from bench.sim.vehicles import VEHICLES
 
