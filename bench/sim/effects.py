@@ -133,7 +133,7 @@ def _draw_drag(rng, size):
 # Parameters that do not scale with an effect's size (EffectSpec.at).
 _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": (1,)}
 
-# min_detectable: measured with `python -m bench.sim.reality detect` (docs/EFFECTS.md);
+# min_detectable: measured with `python -m bench.campaigns.detect` (docs/EFFECTS.md);
 # lens distortion on image-pose docking runs (`--effects lens_distortion`).
 LENS_K1_MIN_DETECTABLE = 0.029
 # Clock drift: no gap statistic of a docking run shows it up to 0.05; the
