@@ -128,7 +128,7 @@ def test_coarse_amplitudes_are_consistent_at_the_footprint_and_biased_at_the_mea
     # measured point the range noise enters the regressors too (errors in
     # variables) and eq. 4's covariance no longer describes the error; at the
     # ray's footprint it does. NEES standard error here: sqrt(20 / 180) = 0.33.
-    from bench.commands import modal as cmd
+    from bench.campaigns.modal_study import coarse_check_summary
 
     rows = {}
     for at in ("measured", "footprint"):
@@ -137,7 +137,7 @@ def test_coarse_amplitudes_are_consistent_at_the_footprint_and_biased_at_the_mea
             for s in range(3)
         ]
         assert all(t["points_at"] == at for t in trials)
-        rows[at] = cmd._coarse_check_summary(trials, 10, at)
+        rows[at] = coarse_check_summary(trials, 10, at)
     assert rows["footprint"]["images"] == 180
     assert abs(rows["footprint"]["nees_mean"] - 10) < 4 * rows["footprint"]["nees_mean_se"]
     assert rows["footprint"]["modes_biased_4se"] == []

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from bench.commands import modal as cmd
+from bench.perf import modal_timing
 
 
 def test_fit_recovers_the_constants_of_the_cost_model():
     c1, c2 = 1.2e-8, 5e-9
     cells = [(m, n, c1 * m * n + c2 * m**3) for m in (10, 20, 30, 40, 50) for n in (100, 1000, 10000)]
-    got = cmd._fit(cells)
+    got = modal_timing.fit(cells)
     assert got == pytest.approx((c1, c2), rel=1e-9)
 
 
@@ -42,7 +43,7 @@ def test_bench_output_is_read_as_medians_per_cell(tmp_path):
     ]
     fake.write_text(f"#!{sys.executable}\nimport json\nprint(json.dumps({{'benchmarks': {rows!r}}}))\n")
     fake.chmod(0o755)
-    got = cmd._run_bench_exe(str(fake))
+    got = modal_timing.run_bench_exe(str(fake))
     assert got == {("joint", 10, 1000): pytest.approx(63.5e-6), ("decoupled", 50, 10000): pytest.approx(1.24e-3)}
 
 
