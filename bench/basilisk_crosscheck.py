@@ -55,8 +55,8 @@ def quiet(description: dict) -> dict:
 
 def short_plan(description: dict, seconds: float, seed: int = 3) -> list:
     """The first ``seconds`` of the first run of the characterisation plan
-    (bench/gap/plans.py): two thrusters fired alone, with coasts."""
-    from bench.gap.plans import characterisation_plan
+    (bench/sim/plans.py): two thrusters fired alone, with coasts."""
+    from bench.sim.plans import characterisation_plan
 
     seg = characterisation_plan(description, seed=seed, fire_s=1.0, coast_s=2.0, per_run=2, passes=1)[0]
     keep = seg.cmd_t_s + seg.cmd_on_s.max(axis=1) <= seconds

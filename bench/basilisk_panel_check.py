@@ -118,8 +118,8 @@ def main(argv=None):
     import json
 
     from bench.basilisk_crosscheck import short_plan
-    from bench.gap.plans import characterisation_plan
     from bench.sim.basilisk_sim import basilisk_version
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicles import VEHICLES
 
     ap = argparse.ArgumentParser(description="flex_mode in each engine against a thrust loss")

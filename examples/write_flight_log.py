@@ -56,7 +56,7 @@ def stand_in_arrays(seed: int = 3):
     """Arrays of a simulated 12 kg inspector with jittered IMU stamps, pose
     captures between IMU samples on a clock of their own, and pulse-width
     modulated valves, standing in for a team's own telemetry."""
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import Clocks, simulate
     from bench.sim.vehicles import inspector_12kg
 

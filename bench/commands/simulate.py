@@ -39,7 +39,7 @@ def register(sub):
         "--manoeuvres",
         default="characterisation",
         choices=("characterisation",),
-        help="every thruster alone, pulse-width modulated, then a coast (bench/gap/plans.py), flown open loop",
+        help="every thruster alone, pulse-width modulated, then a coast (bench/sim/plans.py), flown open loop",
     )
     p.add_argument(
         "--effects",
@@ -86,9 +86,9 @@ def _check_outputs(args) -> None:
 
 def main(args):
     from bench.commands.effect_args import check_effects, read_effects
-    from bench.gap.plans import characterisation_plan
     from bench.sim.flight_log import validate_log, write_flight_log
     from bench.sim.log_description import DescriptionError, resolve
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import Clocks
 
     _check_outputs(args)

@@ -35,7 +35,7 @@ import sys
 
 import numpy as np
 
-from bench.gap.plans import scripts_duration_s, single_valve_scripts
+from bench.sim.plans import scripts_duration_s, single_valve_scripts
 
 RIVAL = {"thruster_misalignment": "thrust_loss", "thrust_loss": "thruster_misalignment"}
 

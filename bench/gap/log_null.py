@@ -823,8 +823,8 @@ def _print_tails(ev: dict) -> None:
 
 def random_flight(vehicle_seed: int) -> tuple:
     """(description, clocks, plan) of a random vehicle flying its
-    characterisation (bench/sim/random_vehicle.py, bench/gap/plans.py)."""
-    from bench.gap.plans import characterisation_plan
+    characterisation (bench/sim/random_vehicle.py, bench/sim/plans.py)."""
+    from bench.sim.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
 
     description = random_description(vehicle_seed)

@@ -47,8 +47,8 @@ def load(path=DATA, manoeuvres: str | None = None) -> dict:
 def null_log(seed: int, duration_s: float, manoeuvres: str = "docking"):
     """One simulated-on-simulated log: bench.sim.reality without effects when
     available, else the bench's docking scenario."""
-    from bench.gap.plans import then_scripts
     from bench.gap.simlogs import docking_log, reality_available
+    from bench.sim.plans import then_scripts
 
     then = then_scripts({"manoeuvres": manoeuvres})
     if reality_available():

@@ -20,7 +20,7 @@ import numpy as np
 
 def long_log(minutes: float, seed: int = 5, effects: dict | None = None):
     from bench.gap import validate_vehicle as vv
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
 
     desc = vv.description()

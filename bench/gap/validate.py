@@ -30,9 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-# What each campaign run flies: bench/gap/plans.py.
-from bench.gap.plans import MANOEUVRES, then_scripts
 from bench.runner.runner import new_campaign  # noqa: F401  (re-exported for the validations)
+
+# What each campaign run flies: bench/sim/plans.py.
+from bench.sim.plans import MANOEUVRES, then_scripts
 
 FRACTIONS = {"null": 0.2, "in_library": 0.6, "out_of_library": 0.2}
 SCALES = (1.0, 2.0)

@@ -28,8 +28,8 @@ from bench.gap.validate import score, sized_and_diagnosed
 
 def simulate_key(key: dict, effects: dict | None = None):
     """The Basilisk log of ``key``'s run (with ``effects``, default the key's)."""
-    from bench.gap.plans import characterisation_plan
     from bench.sim.basilisk_sim import simulate
+    from bench.sim.plans import characterisation_plan
 
     desc = vv.description()
     log, _ = simulate(

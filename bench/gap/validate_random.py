@@ -7,7 +7,7 @@ at 10 to 50 Hz turned and up to 0.2 m off the centre of mass, a pose
 reference point off the centre of mass on its own clock, the centre of mass
 off the body origin), its own clocks (jitter, dropped samples, pose captures
 between IMU samples, time stamps on a Unix epoch) and flies its
-characterisation (bench/gap/plans.py, pulse-width-modulated valves), by the
+characterisation (bench/sim/plans.py, pulse-width-modulated valves), by the
 bench's truth plant or by Basilisk. Nothing about the vehicle is committed:
 the diagnosis thresholds each log with the null calibration made for it
 (bench/gap/log_null.py), as for a team's first log, and the minimum
@@ -52,7 +52,7 @@ def clocks_of(key: dict):
 def simulate_key(key: dict, effects: dict | None = None, engine: str | None = None):
     """The log of ``key``'s run (with ``effects``, default the key's), flown
     by ``engine`` (default the key's)."""
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
 
     engine = engine or key.get("engine", "bench")
     if engine == "basilisk":

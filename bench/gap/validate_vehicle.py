@@ -2,7 +2,7 @@
 ``proxops validate-gap --vehicle 12kg``.
 
 The logs are flown by the 12 kg, twelve-thruster inspector of
-bench/sim/vehicles.py through its characterisation (bench/gap/plans.py: every
+bench/sim/vehicles.py through its characterisation (bench/sim/plans.py: every
 thruster alone, pulse-width modulated, then a coast; three runs), with time
 stamps as real logs have them: IMU samples 20 Hz with 5 % jitter and 2 %
 dropped, pose captures anywhere between IMU samples on a clock 0.25 s off
@@ -88,7 +88,7 @@ def unit_draw(rng, name: str, k: int) -> list:
 
 def simulate_key(key: dict, effects: dict | None = None):
     """The log of ``key``'s run (with ``effects``, default the key's)."""
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
 
     desc = description()

@@ -9,7 +9,7 @@ the one-call replay in the flight code, in one run:
 
 The vehicle is ``bench.sim.random_vehicle.random_description(seed)`` with
 its clocks (``random_clocks``: IMU jitter and drops, pose phase and jitter,
-a Unix epoch), flying ``bench.gap.plans.characterisation_plan`` runs until
+a Unix epoch), flying ``bench.sim.plans.characterisation_plan`` runs until
 ``--minutes`` of flight; two logs of it (sensor noise seeds 1 and 2) are
 written with the flight-log writer. Each first answer is the command
 ``proxops diagnose LOG_1`` with ``PROXOPS_CACHE`` an empty folder; the
@@ -44,8 +44,8 @@ from bench.report import write_json
 def new_vehicle_logs(seed: int, minutes: float, folder: Path, noise_seeds=(1, 2)) -> list:
     """Paths of the logs (one per noise seed) of vehicle ``seed`` flying
     characterisation runs for ``minutes``."""
-    from bench.gap.plans import characterisation_plan
     from bench.sim.flight_log import write_flight_log
+    from bench.sim.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate
 

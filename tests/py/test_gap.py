@@ -233,8 +233,8 @@ def test_a_nozzle_tilt_in_a_docking_run_is_not_separable_from_thrust_loss():
 
 def test_single_valve_characterisation_separates_thrust_loss_that_docking_cannot():
     from bench.gap.characterise import compare
-    from bench.gap.plans import single_valve_scripts
     from bench.gap.separability import DELTA2_95
+    from bench.sim.plans import single_valve_scripts
 
     scripts = single_valve_scripts(fire_s=3.0, coast_s=20.0)
     assert len(scripts) == 8
@@ -382,7 +382,7 @@ def test_half_cauchy_prior_doubles_the_density_and_a_parameter_held_at_zero_keep
 
 
 def test_a_characterisation_flown_after_docking_is_replayed_run_for_run():
-    from bench.gap.plans import single_valve_scripts
+    from bench.sim.plans import single_valve_scripts
 
     then = single_valve_scripts(fire_s=1.0, coast_s=2.0)
     runs = reality.simulate_runs(12, {"thrust_loss": [0.0, 0.1, 0, 0, 0, 0, 0, 0]}, 20.0, then_scripts=then)
@@ -446,7 +446,7 @@ def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
     # candidate must turn a run's last pose by that run's rate.
     from bench.gap.attribute import signature
     from bench.gap.detectable import residuals_of
-    from bench.gap.plans import single_valve_scripts
+    from bench.sim.plans import single_valve_scripts
 
     then = single_valve_scripts(fire_s=3.0, coast_s=6.0)
     tau = 0.1
@@ -486,7 +486,7 @@ def test_the_clock_candidate_undoes_a_drifting_flight_clock():
     from bench.gap import dyn
     from bench.gap.attribute import candidate
     from bench.gap.detectable import _bench_simulate
-    from bench.gap.plans import then_scripts
+    from bench.sim.plans import then_scripts
 
     key = {"manoeuvres": "docking+characterisation"}
     eps = 0.01  # four times its minimum detectable size in these logs

@@ -79,7 +79,7 @@ def test_thrust_loss_named_beside_a_flexible_panel():
     """A thrust loss on one valve and a flexible panel (no candidate models
     it) on a docking-then-characterisation log: the loss is named, fitted on
     its valve, and the panel's part stays a located remainder."""
-    from bench.gap.plans import then_scripts
+    from bench.sim.plans import then_scripts
 
     then = then_scripts({"manoeuvres": "docking+characterisation"})
     log, _ = reality.simulate_log_with_key(
@@ -105,8 +105,8 @@ def test_propellant_slosh_is_not_half_named_as_propellant_use():
     0.02 kg/s per open valve, 200 times the 20 mN valve's flow at 20 s of
     specific impulse, and the answer was "partly explained: mass_depletion"."""
     from bench.gap.candidates import candidates_for
-    from bench.gap.plans import then_scripts
     from bench.sim.log_description import resolve
+    from bench.sim.plans import then_scripts
 
     assert candidates_for(8, 0.35, resolve(None).max_mass_flow_kgps)["mass_depletion"].bound == pytest.approx(
         0.02 / (9.80665 * 20.0)
@@ -203,7 +203,7 @@ def test_a_drifting_clock_beside_a_flexible_panel_is_one_clock_not_scale_and_los
     docking-then-characterisation log) with a flexible panel (out of the
     library): the drift is named as the one-parameter clock, not as a gyro
     scale factor with a thrust loss, and the panel stays a remainder."""
-    from bench.gap.plans import then_scripts
+    from bench.sim.plans import then_scripts
 
     key = {"manoeuvres": "docking+characterisation"}
     log, _ = reality.simulate_log_with_key(

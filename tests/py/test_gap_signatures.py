@@ -16,8 +16,8 @@ from bench.gap.replay import prepare
 def flight():
     """A random vehicle's short characterisation, with its clocks' jitter
     and drops, as a calibration prepares it."""
-    from bench.gap.plans import characterisation_plan
     from bench.sim.flight_log import relative_to_start
+    from bench.sim.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate
 

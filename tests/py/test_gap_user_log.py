@@ -119,7 +119,7 @@ def test_defaults_taken_are_named(bundled_log, calibration):
 
 
 def test_a_calibration_for_another_vehicle_is_refused(calibration):
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
     from bench.sim.vehicles import inspector_12kg
 
@@ -148,7 +148,7 @@ def test_stated_manoeuvres_must_match_the_calibration(bundled_log, calibration):
 
 
 def test_a_calibration_made_for_the_log_is_cached(tmp_path):
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
     from bench.sim.vehicles import inspector_12kg
 

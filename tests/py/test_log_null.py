@@ -73,8 +73,8 @@ def test_stated_bias_stability_puts_biases_into_the_null():
     """A bias within the IMU's stated stability is part of the null: each
     bootstrap flight carries a constant bias drawn at that size."""
     from bench.gap.log_null import _bench_like, null_log_like, stated_biases
-    from bench.gap.plans import characterisation_plan
     from bench.sim.log_description import resolve
+    from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
     from bench.sim.vehicles import inspector_12kg
 
@@ -106,7 +106,7 @@ def one_vehicle():
     """(description, plan, clocks, log A, log B): two effect-free logs of one
     random vehicle flying one plan, other noise (seeds 11 and 12), the same
     time stamps relative to each run, written a day and a bit apart."""
-    from bench.gap.plans import characterisation_plan
+    from bench.sim.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate
 
@@ -235,8 +235,8 @@ def test_another_flight_of_the_plan_with_its_own_jitter_shares_its_calibration(t
     model, the thresholds no longer follow the stamps (docs/GAP.md, "The
     cache"). A flight at another IMU rate, with other valves or with a
     command 10 ms later does not share it."""
-    from bench.gap.plans import characterisation_plan
     from bench.gap.replay import prepare
+    from bench.sim.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate
 

@@ -14,10 +14,10 @@ if not hasattr(fb, "nav_replay"):
     pytest.skip("fsw_bindings has no nav_replay (rebuild the bindings)", allow_module_level=True)
 
 from bench.gap import bundled  # noqa: E402
-from bench.gap.plans import characterisation_plan  # noqa: E402
 from bench.gap.replay import V0_SIGMA_MPS, Corrections, ReplayResult, nav_config, prepare, reference, replay  # noqa: E402
 from bench.perf.nav_replay_stepped import stepped  # noqa: E402
 from bench.sim.flight_log import read_flight_log  # noqa: E402
+from bench.sim.plans import characterisation_plan  # noqa: E402
 from bench.sim.vehicle_sim import Clocks, simulate  # noqa: E402
 from bench.sim.vehicles import VEHICLES  # noqa: E402
 

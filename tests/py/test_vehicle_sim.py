@@ -4,8 +4,8 @@ valve integration agreeing with the simulator's."""
 
 import numpy as np
 
-from bench.gap.plans import characterisation_plan
 from bench.gap.replay import open_fractions
+from bench.sim.plans import characterisation_plan
 from bench.sim.vehicle_sim import Clocks, PlanSegment, simulate
 from bench.sim.vehicles import inspector_12kg
 
