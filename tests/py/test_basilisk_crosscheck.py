@@ -1,4 +1,4 @@
-"""The bench's plant against Basilisk (bench/basilisk_crosscheck.py): the
+"""The bench's plant against Basilisk (bench/campaigns/basilisk_crosscheck.py): the
 same vehicle, commands and stamps, noise-free. Fails when the engines
 disagree. The 12 kg inspector (IMU 6 cm off the centre of mass and turned,
 centre of mass off the body origin, canted nozzles), 12 s of its
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench import basilisk_crosscheck as xc
+from bench.campaigns import basilisk_crosscheck as xc
 from bench.sim.vehicles import VEHICLES
 
 DESC = VEHICLES["12kg"]()

@@ -1,4 +1,4 @@
-"""A flexible appendage against a thrust loss (bench/basilisk_panel_check.py):
+"""A flexible appendage against a thrust loss (bench/campaigns/basilisk_panel_check.py):
 the first 12 s of the 12 kg inspector's characterisation (its two x
 thrusters, which turn it about the panel's hinge axis), noise-free. About 20 s."""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench import basilisk_crosscheck as xc
-from bench.basilisk_panel_check import panel_added_on_top, panel_projection
+from bench.campaigns import basilisk_crosscheck as xc
+from bench.campaigns.basilisk_panel_check import panel_added_on_top, panel_projection
 from bench.sim.vehicles import VEHICLES
 
 DESC = VEHICLES["12kg"]()

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from bench import basilisk_crosscheck as xc
+from bench.campaigns import basilisk_crosscheck as xc
 from bench.cli import main
 from bench.sim import basilisk_sim
 from bench.sim.flight_log import read_flight_log, validate_log

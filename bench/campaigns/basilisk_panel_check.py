@@ -16,7 +16,7 @@ alone (the two engines agree on them to 2e-5, docs/BASILISK.md). Cases:
   rigid-body error of a panel not taken out of the described inertia;
 - the bench's mode, and the same mode started at rest.
 
-    python -m bench.basilisk_panel_check --freq 0.139 --amplitude 0.00213 --seed 800763998 [--seconds S] [--json OUT]
+    python -m bench.campaigns.basilisk_panel_check --freq 0.139 --amplitude 0.00213 --seed 800763998 [--seconds S] [--json OUT]
 
 flies the 12 kg inspector's characterisation of that seed (or its first S
 seconds) and prints the table recorded in docs/BASILISK.md.
@@ -75,7 +75,7 @@ def panel_projection(description: dict, plan: list, freq_hz: float, amplitude_ra
     share of it a non-negative per-thruster thrust loss captures, per stream."""
     from scipy.optimize import nnls
 
-    from bench.basilisk_crosscheck import quiet
+    from bench.campaigns.basilisk_crosscheck import quiet
     from bench.sim.log_description import resolve
 
     desc = resolve(description)
@@ -117,7 +117,7 @@ def main(argv=None):
     import argparse
     import json
 
-    from bench.basilisk_crosscheck import short_plan
+    from bench.campaigns.basilisk_crosscheck import short_plan
     from bench.sim.basilisk_sim import basilisk_version
     from bench.sim.plans import characterisation_plan
     from bench.sim.vehicles import VEHICLES

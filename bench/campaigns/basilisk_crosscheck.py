@@ -11,7 +11,7 @@ commands and time stamps, the sensors without noise.
   commanded by its own on-time countdown and by explicit switches, against
   the commanded impulse; the IMU's delta-v and delta-angle against it.
 
-    python -m bench.basilisk_crosscheck [--vehicle 12kg] [--seconds 20]
+    python -m bench.campaigns.basilisk_crosscheck [--vehicle 12kg] [--seconds 20]
 
 prints the table recorded in docs/BASILISK.md.
 """
