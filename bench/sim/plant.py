@@ -271,10 +271,15 @@ class Plant:
         """Advance by dt_s with the valve vector (8,) held open; returns the
         interval's mean specific force and mean inertial body rate."""
         force_b, torque_b = self.vehicle.wrench(valves)
+        if self.effects is None or self.effects.mass_flow_kgps_per_valve <= 0.0:
+            return self.step_wrench(force_b, torque_b, dt_s)
+        # Propellant flows while the valves are open: the interval flies at the
+        # mass of its midpoint (half the valve-seconds' propellant used before
+        # it, the other half after), as bench/sim/vehicle_sim.py flies a step.
+        used = self.effects.mass_flow_kgps_per_valve * float(np.sum(valves)) * dt_s
+        self.mass_kg -= 0.5 * used
         res = self.step_wrench(force_b, torque_b, dt_s)
-        if self.effects is not None and self.effects.mass_flow_kgps_per_valve > 0.0:
-            # Mass held over each interval, lowered after it by the valve-seconds used.
-            self.mass_kg -= self.effects.mass_flow_kgps_per_valve * float(np.sum(valves)) * dt_s
+        self.mass_kg -= 0.5 * used
         return res
 
     def step_wrench(self, force_b_n, torque_b_nm, dt_s: float) -> StepResult:

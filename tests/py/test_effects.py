@@ -286,7 +286,26 @@ def test_mass_depletion_lowers_mass_by_flow_times_valve_seconds():
     assert p.mass_kg == pytest.approx(3.0 - flow * 3 * 1.0, rel=1e-14)
     res = p.step(valves, 0.1)
     f, _ = Vehicle().wrench(valves)
-    assert np.allclose(res.specific_force_b_mps2, f / (3.0 - 3e-3), rtol=1e-12)
+    # The interval flies at the mass of its midpoint: half its propellant used.
+    assert np.allclose(res.specific_force_b_mps2, f / (3.0 - 3e-3 - 0.5 * flow * 3 * 0.1), rtol=1e-12)
+
+
+def test_mass_depletion_follows_the_rocket_equation_without_a_half_interval_lag():
+    # A long firing at a large flow: the velocity the accelerometer integrates
+    # is (F / mdot) ln(m0 / m1). Mass held at each interval's start (lowered
+    # after it) understates it by about mdot dt / (2 m) = 5e-4 here; flown at
+    # each interval's midpoint mass the error is second order (~1e-7).
+    flow, dt, n = 1e-2, 0.1, 20
+    fx = realise(EffectSet(mass_depletion=[flow]), Vehicle(), NoiseProfile.paper(), 0)
+    p = Plant(hill_fixed(), effects=fx.plant)
+    valves = np.array([1, 1, 0, 0, 1, 0, 0, 0], float)
+    dv = sum(p.step(valves, dt).specific_force_b_mps2 * dt for _ in range(n))
+    f, _ = Vehicle().wrench(valves)
+    mdot = flow * valves.sum()
+    m0, m1 = 3.0, 3.0 - mdot * dt * n
+    assert p.mass_kg == pytest.approx(m1, rel=1e-14)
+    rocket = f / mdot * np.log(m0 / m1)
+    assert np.allclose(dv, rocket, rtol=1e-6, atol=0.0)
 
 
 def _kepler_state(a, e, f, mu):
