@@ -347,6 +347,14 @@ class Plant:
         """[eta, eta_dot, slosh s_b (3), slosh s_dot_b (3)] (zeros without effects)."""
         return self._internal.copy() if self.effects is not None else np.zeros(8)
 
+    def hill_rate_radps(self, t_s: float) -> float:
+        """The Hill frame's inertial rotation rate at t (about its z axis): the
+        host's true-anomaly rate on an eccentric orbit, else the mean motion.
+        A body at rest in the Hill frame turns at this rate."""
+        if self.effects is not None and self.effects.host_eccentricity > 0.0:
+            return float(self._host(t_s)[2])
+        return self.n_radps
+
     def _host(self, t_s: float):
         """Host on its Kepler orbit at t: (r_c, r_c_dot, theta_dot, theta_ddot,
         theta(t) - theta(0))."""

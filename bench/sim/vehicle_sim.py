@@ -421,7 +421,6 @@ def _fly_segment(
     key = _flight_key(seg, t0, veh, desc, T, latency, times) if times is not None and pfx is None else None
     if key is not None and key in _FLIGHTS:
         return _copy_flight(_FLIGHTS[key][0])
-    n = desc.mean_motion_radps
     q0 = qnormalize(np.asarray(seg.q0_hb, float))
     plant = Plant(
         PlantState(
@@ -432,8 +431,7 @@ def _fly_segment(
         effects=pfx,
     )
     # At rest in the Hill frame: the body turns with it, at theta_dot (n unless the host's orbit is eccentric).
-    thd = plant._host(t0)[2] if pfx is not None and pfx.host_eccentricity > 0.0 else n
-    plant.state.omega_bi_b_rps = rotmat(q0).T @ np.array([0.0, 0.0, thd])
+    plant.state.omega_bi_b_rps = rotmat(q0).T @ np.array([0.0, 0.0, plant.hill_rate_radps(t0)])
     imu_t, pose_t, t_end = _sample_times(seg, t0, T, clocks, rng, times)
     pose_cap = pose_t - latency  # the image is taken this long before its stamp's instant
     pose_ok = (pose_cap >= t0) & (pose_t <= t_end)
