@@ -48,7 +48,7 @@ def simulate_key(key: dict, effects: dict | None = None):
 
 def run_one(key: dict, calibration: dict) -> dict:
     """The 12 kg campaign's diagnosis of one run, on its Basilisk log."""
-    return vv._run_one(key, calibration, simulate_key)
+    return vv.diagnose_run(key, calibration, simulate_key)
 
 
 def run_campaign(
@@ -63,7 +63,7 @@ def run_campaign(
     keys, answers, hashes, info = sized_and_diagnosed(
         campaign,
         vv.draw_campaign(n_runs, seed),
-        vv._size_one,
+        vv.size_run,
         run_one,
         cal,
         out,

@@ -150,7 +150,7 @@ def run_one(key: dict, _shared=None) -> dict:
     """The diagnosis of one run's log as a team's first log: thresholded by
     the calibration made for that log (or found in the cache), its making
     included in the answer's wall time."""
-    return vv._run_one(key, None, lambda k, e=None: simulate_key(k, e), None, key.get("null_runs"))
+    return vv.diagnose_run(key, None, lambda k, e=None: simulate_key(k, e), None, key.get("null_runs"))
 
 
 def run_campaign(

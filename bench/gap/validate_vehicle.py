@@ -138,7 +138,11 @@ def draw_campaign(n_runs: int, seed: int) -> list:
     return keys
 
 
-def _size_one(key, calibration):
+def size_run(key, calibration):
+    """The key of one drawn run with its effect's size: ``scale`` times the
+    smallest size the diagnosis detects on this run's flight by the bench's
+    plant (``calibration`` thresholding it), never beyond what the vehicle
+    can carry; unchanged for an effect-free run."""
     from bench.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
@@ -163,8 +167,13 @@ def _size_one(key, calibration):
     return key
 
 
-def _run_one(key, calibration, simulate=None, source: str = "the 12 kg vehicle's null calibration", null_runs=None):
-    # simulate(key, effects): the flight of the key's run (default: this vehicle's plant).
+def diagnose_run(key, calibration, simulate=None, source: str = "the 12 kg vehicle's null calibration", null_runs=None):
+    """The diagnosis of one run's log, scored against its key: the answer's
+    verdict and ranking, the forced fits of the true and of a wrong
+    candidate, and the separability of the key's effect. ``simulate(key,
+    effects)`` flies the key's run (default: this vehicle on the bench's
+    plant); ``calibration`` None makes one for the log (``null_runs`` runs),
+    ``source`` names it in the answer."""
     simulate = simulate or simulate_key
     from bench.gap.candidates import candidates_of
     from bench.gap.diagnose import diagnose, public
@@ -219,8 +228,8 @@ def run_campaign(
     keys, answers, hashes, info = sized_and_diagnosed(
         campaign,
         draw_campaign(n_runs, seed),
-        _size_one,
-        _run_one,
+        size_run,
+        diagnose_run,
         cal,
         out,
         {"seed": seed, "runs": n_runs, "vehicle": VEHICLE},
