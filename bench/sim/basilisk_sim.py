@@ -43,7 +43,7 @@ import numpy as np
 
 from bench.sim.flight_log import FlightLog
 from bench.sim.log_description import resolve
-from bench.sim.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks
+from bench.sim.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks, sample_imu
 from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
 
 STEP_S = 1e-3
@@ -710,15 +710,8 @@ def simulate(
         f_mean, w_mean, tr_imu, tr_pose, _ = _fly_segment(seg, t0, desc, effects, T, imu_i, cap_i, h)
         s_a = desc.accel_sigma_mps2 if noise else 0.0
         s_g = desc.gyro_sigma_rps if noise else 0.0
-        acc = f_mean + s_a * rng.standard_normal(f_mean.shape)
-        gyr = w_mean + s_g * rng.standard_normal(w_mean.shape)
-        keep = np.ones(imu_i.size, bool)
-        if clocks.imu_drop_frac > 0.0 and imu_i.size > 4:
-            keep[1:-1] = rng.uniform(size=imu_i.size - 2) >= clocks.imu_drop_frac
         imu_t = t0 + imu_i * h
-        out["imu_t"].append(imu_t[keep])
-        out["acc"].append(acc[keep])
-        out["gyr"].append(gyr[keep])
+        sample_imu(out, rng, clocks, imu_t, f_mean, w_mean, s_a, s_g)
         _measure_poses(out, desc, effects, clocks, rng, noise, tr_pose, t0 + pose_i * h)
         out["vt"].append(t0 + np.asarray(seg.cmd_t_s, float))
         out["von"].append(np.asarray(seg.cmd_on_s, float).reshape(-1, desc.n_thrusters))

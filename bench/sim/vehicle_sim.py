@@ -168,6 +168,23 @@ def simulate(
     return log, key
 
 
+def sample_imu(streams: dict, rng, clocks: Clocks, imu_t, f_imu, w_imu, accel_sigma: float, gyro_sigma: float) -> None:
+    """A run's IMU samples at ``imu_t``: the sensed mean specific force and
+    rate in the IMU's axes (``f_imu``, ``w_imu``: biases and scale errors
+    already in them) plus white noise of ``accel_sigma`` and ``gyro_sigma``,
+    less the samples the clocks drop (never a run's first or last). Appended
+    to ``streams``' imu_t, acc and gyr; the bench's plant and the Basilisk
+    engine (bench/sim/basilisk_sim.py) both sample their IMU so."""
+    acc = f_imu + accel_sigma * rng.standard_normal(f_imu.shape)
+    gyr = w_imu + gyro_sigma * rng.standard_normal(w_imu.shape)
+    keep = np.ones(imu_t.size, bool)
+    if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
+        keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac
+    streams["imu_t"].append(imu_t[keep])
+    streams["acc"].append(acc[keep])
+    streams["gyr"].append(gyr[keep])
+
+
 @dataclass
 class _Sensors:
     """The IMU and the pose sensor as mounted, with the effects on them."""
@@ -209,23 +226,17 @@ class _Sensors:
         rho, c_ib = self.rho, self.c_ib
         # The accelerometer sits at rho from the centre of mass (known to the log).
         f_imu = f_mean + np.cross(alpha, rho) + np.cross(w_mean, np.cross(w_mean, rho))
-        acc = (
-            (f_imu @ c_ib.T)
-            + self.accel_bias
-            + self.noise_scale * self.desc.accel_sigma_mps2 * rng.standard_normal(f_imu.shape)
-        )
         # Scale and bias are the gyro's own, in its own axes (as the accelerometer's bias).
-        gyr = (
-            (1.0 + self.gyro_scale) * (w_mean @ c_ib.T)
-            + self.gyro_bias
-            + self.noise_scale * self.desc.gyro_sigma_rps * rng.standard_normal(w_mean.shape)
+        sample_imu(
+            streams,
+            rng,
+            clocks,
+            imu_t,
+            (f_imu @ c_ib.T) + self.accel_bias,
+            (1.0 + self.gyro_scale) * (w_mean @ c_ib.T) + self.gyro_bias,
+            self.noise_scale * self.desc.accel_sigma_mps2,
+            self.noise_scale * self.desc.gyro_sigma_rps,
         )
-        keep = np.ones(imu_t.size, bool)
-        if clocks.imu_drop_frac > 0.0 and imu_t.size > 4:
-            keep[1:-1] = rng.uniform(size=imu_t.size - 2) >= clocks.imu_drop_frac
-        streams["imu_t"].append(imu_t[keep])
-        streams["acc"].append(acc[keep])
-        streams["gyr"].append(gyr[keep])
 
     def poses(self, streams: dict, rng, poses: list, times: dict | None, delay_s: float) -> None:
         """The segment's pose measurements. With given ``times`` (its pose_t,
