@@ -40,6 +40,26 @@ def where_text(out: dict) -> str | None:
     return f"{w.get('stream')} {w.get('axis')} ({w.get('stat')}); {regime}" + (f"; a {kind} gap" if kind else "")
 
 
+# How many of the sets an answer cannot be told from the one-line answer
+# shows; the JSON and the report list them all.
+SHOWN_SETS = 4
+
+
+def listed_sets(out: dict) -> list:
+    """The sets the answer lists beside its own, each as its members: the
+    answer cannot be told from any of them."""
+    return [list(a["set"]) if "set" in a else [a["effect"]] for a in out.get("ambiguous_with") or []]
+
+
+def _sets_text(out: dict) -> str:
+    sets = listed_sets(out)
+    if not sets:
+        return ""
+    shown = "; ".join(" + ".join(s) or "none of the library" for s in sets[:SHOWN_SETS])
+    more = f"; {len(sets) - SHOWN_SETS} more sets in the JSON" if len(sets) > SHOWN_SETS else ""
+    return f"; cannot be told from: {shown}{more}"
+
+
 def which_text(out: dict) -> str | None:
     if not out["gap_detected"]:
         return None
@@ -50,25 +70,11 @@ def which_text(out: dict) -> str | None:
         names = " + ".join(m["effect"] for m in out.get("effects") or [])
         return (
             f"{names} (partly explained: each accounts for part of the gap on held-out data; "
-            "a remainder no effect in the library accounts for stays)"
+            f"a remainder no effect in the library accounts for stays{_sets_text(out)})"
         )
-    hidden = "; ".join(f"{a['add']} could be there too" for a in out.get("ambiguous_with", []) if "add" in a)
     if len(out.get("effects") or []) > 1:
-        alts = "; ".join(
-            [f"{a['replace']} cannot be told from {a['with']}" for a in out.get("ambiguous_with", []) if "replace" in a]
-            + ([hidden] if hidden else [])
-        )
-        return (
-            " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together" + (f"; {alts}" if alts else "") + ")"
-        )
-    best = out["attribution"][0]
-    amb = ", ".join(a["effect"] for a in out.get("ambiguous_with", []) if "effect" in a)
-    return (
-        f"{best['effect']} ({v}"
-        + (f"; cannot be told apart from {amb}" if amb else "")
-        + (f"; {hidden}" if hidden else "")
-        + ")"
-    )
+        return " + ".join(m["effect"] for m in out["effects"]) + f" ({v}, together{_sets_text(out)})"
+    return f"{out['attribution'][0]['effect']} ({v}{_sets_text(out)})"
 
 
 def fitted_text(out: dict) -> str | None:

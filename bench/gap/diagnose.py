@@ -475,23 +475,11 @@ def _set_answer(
         null_map=cal.get("null_map_max_abs_z"),
     )
     if effect_set is not None and effect_set["explains_heldout"]:
-        from bench.gap.select import look_alike_sets
-
-        names = [m["effect"] for m in effect_set["members"]]
-        cands = candidates_of(ctx.d)
-        # A set the data cannot tell from this one (one member swapped for
-        # a look-alike that reproduces the set's signature): ambiguous.
-        ambiguous_with = [
-            {
-                "set": [a["with"] if n == a["replace"] else n for n in names],
-                **a,
-                "separate_by": f"{cands[a['replace']].separate_by}; {cands[a['with']].separate_by}",
-            }
-            for a in look_alike_sets(ctx, fits, names, DELTA2_95)
-        ] + _hidden(ctx, fits, names, thr_glr)
+        # Sets the data cannot tell from this one: ambiguous.
+        ambiguous_with = _listed(ctx, fits, [m["effect"] for m in effect_set["members"]], thr_glr, [])
         return ("ambiguous" if ambiguous_with else "explained"), effect_set, ambiguous_with
-    if verdict in ("explained", "ambiguous") and ranking:  # the single answer, and what could hide beside it
-        ambiguous_with = ambiguous_with + _hidden(ctx, fits, [ranking[0]["effect"]], thr_glr)
+    if verdict in ("explained", "ambiguous") and ranking:  # the single answer, and the sets beside it
+        ambiguous_with = _listed(ctx, fits, [ranking[0]["effect"]], thr_glr, ambiguous_with)
         verdict = "ambiguous" if ambiguous_with else verdict
     if verdict == "unexplained" and effect_set is not None:
         effect_set = _partial_set(
@@ -508,23 +496,37 @@ def _set_answer(
         )
         if effect_set is not None and effect_set["partly_explains"]:
             verdict = "partly_explained"
+            ambiguous_with = _partial_alternatives(ctx, fits, [m["effect"] for m in effect_set["members"]], thr_glr)
     return verdict, effect_set, ambiguous_with
 
 
-def _hidden(ctx: Context, fits: list, names: list, thr_glr: float) -> list:
-    """The answer's sets with one more member the data cannot rule out
-    (bench/gap/select.py hidden_members), as look-alike sets."""
-    from bench.gap.select import hidden_members
+def _listed(ctx: Context, fits: list, names: list, thr_glr: float, listed: list) -> list:
+    """``listed`` and then every other set the data cannot tell from the
+    answer ``names`` (bench/gap/alternatives.py), each set once, each with
+    what separates it from the answer: the separating manoeuvres of the
+    members the two do not share."""
+    from bench.gap.alternatives import alternative_sets
 
     cands = candidates_of(ctx.d)
-    return [
-        {
-            "set": names + [a["add"]],
-            **a,
-            "separate_by": f"{cands[a['add']].separate_by}",
-        }
-        for a in hidden_members(ctx, fits, names, DELTA2_95, thr_glr)
-    ]
+    seen = {frozenset(a["set"] if "set" in a else [a["effect"]]) for a in listed}
+    out = list(listed)
+    for a in alternative_sets(ctx, fits, names, thr_glr):
+        if frozenset(a["set"]) not in seen:
+            seen.add(frozenset(a["set"]))
+            differ = [n for n in names if n not in a["set"]] + [n for n in a["set"] if n not in names]
+            out.append({**a, "separate_by": "; ".join(cands[n].separate_by for n in differ)})
+    return out
+
+
+def _partial_alternatives(ctx: Context, fits: list, names: list, thr_glr: float) -> list:
+    """The sets a partial answer cannot be told from: the answer without
+    each of its members (with something outside the library in the log, a
+    member's fit may be that effect's shadow in the library, and the data
+    cannot say which), then the sets listed beside any answer (_listed)."""
+    without = [{"set": [n for n in names if n != m], "drop": m} for m in names] if len(names) > 1 else []
+    cands = candidates_of(ctx.d)
+    without = [dict(a, separate_by=cands[a["drop"]].separate_by) for a in without]
+    return _listed(ctx, fits, names, thr_glr, without)
 
 
 def _dynamics_or_sensor(where, verdict: str, ranking: list, effect_set) -> str | None:

@@ -79,8 +79,21 @@ def _not_told_apart_lines(result: dict, best) -> list:
     for a in result["ambiguous_with"]:
         if "add" in a:  # one more member the data cannot rule out
             lines.append(
-                f"- {' + '.join(a['set'])}: {a['add']} beside the answer, absorbed by its members, leaves "
-                f"{a['signature_distance2']:.1f} noise variances of difference: separate with: {a['separate_by']}"
+                f"- {' + '.join(a['set'])}: {a['add']} can carry {a['hidden_signature2']:.0f} noise variances of "
+                f"the gap beside {' + '.join(a['to'])}, whose members absorb it to within "
+                f"{a['signature_distance2']:.1f}: separate with: {a['separate_by']}"
+            )
+            continue
+        if "drop" in a:  # a partial answer without one member
+            lines.append(
+                f"- {' + '.join(a['set']) or 'none'}: {a['drop']}'s fit may be the remainder's shadow in the library: "
+                f"separate with: {a['separate_by']}"
+            )
+            continue
+        if "logp_beside" in a:  # a set that explains what the answer explains
+            lines.append(
+                f"- {' + '.join(a['set'])}: the answer's members beside it add -log10 p = {a['logp_beside']:.1f} "
+                f"(below the screening threshold): separate with: {a['separate_by']}"
             )
             continue
         if "replace" in a:  # a set with one member swapped for a look-alike

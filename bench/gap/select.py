@@ -54,7 +54,9 @@ class SetFit:
         return c
 
 
-def _bounded_lstsq(J: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def bounded_lstsq(J: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """argmin |J u - y| with lo <= u <= hi (plain least squares when that
+    already lies inside)."""
     u, *_ = np.linalg.lstsq(J, y, rcond=None)
     if np.all(u >= lo) and np.all(u <= hi):
         return u
@@ -63,7 +65,7 @@ def _bounded_lstsq(J: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray)
     return lsq_linear(J, y, bounds=(lo, hi)).x
 
 
-def _stacked(ctx: Context, fits_by: dict, names: list) -> tuple:
+def stacked(ctx: Context, fits_by: dict, names: list) -> tuple:
     """(J, lower, upper) of the names' stacked screening Jacobians, in units
     of each candidate's scale."""
     J = np.hstack([fits_by[n].J_u for n in names])
@@ -76,87 +78,21 @@ def _stacked(ctx: Context, fits_by: dict, names: list) -> tuple:
     return J, lo, hi
 
 
-def _two_dll(ctx: Context, fits_by: dict, names: list, e0: np.ndarray) -> tuple:
+def two_dll(ctx: Context, fits_by: dict, names: list, e0: np.ndarray) -> tuple:
     """(2 dLL, rank) of the names' stacked screening Jacobians on e0."""
     if not names:
         return 0.0, 0
-    J, lo, hi = _stacked(ctx, fits_by, names)
-    u = _bounded_lstsq(J, -e0, lo, hi)
+    J, lo, hi = stacked(ctx, fits_by, names)
+    u = bounded_lstsq(J, -e0, lo, hi)
     r = e0 + J @ u
     return float(e0 @ e0 - r @ r), numerical_rank(J)
 
 
-def look_alike_sets(ctx: Context, fits: list, names: list, delta2: float) -> list:
-    """The sets that differ from ``names`` by one member and reproduce the
-    set's fitted signature on the training rows to within ``delta2`` noise
-    variances (inside their physical bounds): sets the data cannot tell
-    from the chosen one. [{"replace", "with", "signature_distance2"}]."""
-    fits_by = {f.name: f for f in fits if getattr(f, "J_u", None) is not None and np.isfinite(f.screen_bic)}
-    if not all(n in fits_by for n in names):
-        return []
-    e0, _ = training_residuals(ctx)
-    J, lo, hi = _stacked(ctx, fits_by, names)
-    sig = J @ _bounded_lstsq(J, -e0, lo, hi)
-    out = []
-    for m in names:
-        for c in fits_by:
-            if c in names:
-                continue
-            alt = [c if n == m else n for n in names]
-            Ja, la, ha = _stacked(ctx, fits_by, alt)
-            r = sig - Ja @ _bounded_lstsq(Ja, sig, la, ha)
-            d2 = float(r @ r)
-            if d2 < delta2:
-                out.append({"replace": m, "with": c, "signature_distance2": d2})
-    return sorted(out, key=lambda a: a["signature_distance2"])
-
-
-# The share of its own single fit at which a candidate beside the answer
-# is asked whether the answer's members absorb it (hidden_members).
-HIDDEN_SHARE = 0.5
-
-
-def hidden_members(ctx: Context, fits: list, names: list, delta2: float, min_logp: float) -> list:
-    """Candidates that could be present beside ``names`` without the data
-    showing it: each fits the gap on its own (its screen passes
-    ``min_logp``) with a signature of at least HIDDEN_SHARE of its largest
-    member's part of the set's fit (in noise variances, and more than
-    ``delta2``), and at HIDDEN_SHARE of
-    that size (a share of the gap worth naming) the set's members, refitted
-    inside their physical bounds, reproduce the set's fitted signature less
-    that one to within ``delta2``. A nozzle
-    tilt beside a thrust loss on a docking approach is the usual one: the
-    loss of the same valves absorbs it. [{"add", "signature_distance2"}]."""
-    fits_by = {f.name: f for f in fits if getattr(f, "J_u", None) is not None and np.isfinite(f.screen_bic)}
-    if not names or not all(n in fits_by for n in names):
-        return []
-    e0, _ = training_residuals(ctx)
-    J, lo, hi = _stacked(ctx, fits_by, names)
-    u = _bounded_lstsq(J, -e0, lo, hi)
-    sig = J @ u
-    edges = np.cumsum([0] + [fits_by[n].J_u.shape[1] for n in names])
-    largest = max(float(np.sum((J[:, a:b] @ u[a:b]) ** 2)) for a, b in zip(edges[:-1], edges[1:]))
-    out = []
-    for c, f in fits_by.items():
-        if c in names or not getattr(f, "screen_logp", 0.0) > min_logp:
-            continue
-        Jc, lc, hc = _stacked(ctx, fits_by, [c])
-        sig_c = Jc @ _bounded_lstsq(Jc, -e0, lc, hc)
-        if sig_c @ sig_c < max(delta2, HIDDEN_SHARE * largest):
-            continue
-        rest = sig - HIDDEN_SHARE * sig_c
-        r = rest - J @ _bounded_lstsq(J, rest, lo, hi)
-        d2 = float(r @ r)
-        if d2 < delta2:
-            out.append({"add": c, "signature_distance2": d2})
-    return sorted(out, key=lambda a: a["signature_distance2"])
-
-
 def _conditional(ctx, fits_by, names: list, m: str, e0) -> tuple:
     """(-log10 p, rank added, 2 dLL gain) of member m beside the others of names."""
-    t, rank = _two_dll(ctx, fits_by, names, e0)
+    t, rank = two_dll(ctx, fits_by, names, e0)
     rest = [n for n in names if n != m]
-    t0, r0 = _two_dll(ctx, fits_by, rest, e0)
+    t0, r0 = two_dll(ctx, fits_by, rest, e0)
     dr = rank - r0
     return (screen_logp(t - t0, dr) if dr > 0 else 0.0), dr, t - t0
 
@@ -173,13 +109,13 @@ def forward_select(ctx: Context, fits: list, threshold_logp: float, max_effects:
     e0, _ = training_residuals(ctx)
     chosen, dropped = [], set()
     for _ in range(4 * max_effects):  # bounded: each pass adds one or drops one
-        base, base_rank = _two_dll(ctx, fits_by, chosen, e0)
+        base, base_rank = two_dll(ctx, fits_by, chosen, e0)
         best = None
         if len(chosen) < max_effects:
             for n in fits_by:
                 if n in chosen or n in dropped:
                     continue
-                t, rank = _two_dll(ctx, fits_by, chosen + [n], e0)
+                t, rank = two_dll(ctx, fits_by, chosen + [n], e0)
                 dr = rank - base_rank
                 if dr <= 0:
                     continue

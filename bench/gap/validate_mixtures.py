@@ -116,13 +116,11 @@ def _run_one(key, run_ctx):
     pub = public(res)
     named = [m["effect"] for m in pub["effects"]] if pub["gap_detected"] else []
     truth_in = sorted(e for e in key["members"] if EFFECTS[e].in_library)
-    # An ambiguous answer names the sets the data cannot tell apart: the first
-    # is the answer, the others its alternatives.
-    alternatives = (
-        [sorted(a["set"]) if "set" in a else [a["effect"]] for a in pub["ambiguous_with"]]
-        if pub["verdict"] == "ambiguous"
-        else []
-    )
+    # An ambiguous or partial answer lists the sets the data cannot tell
+    # from its own (bench/gap/answers.py listed_sets).
+    from bench.gap.answers import listed_sets
+
+    alternatives = [sorted(s) for s in listed_sets(pub)] if pub["gap_detected"] else []
     out = {
         "run": key["run"],
         "gap_detected": pub["gap_detected"],
@@ -167,8 +165,9 @@ def _scores(sel: list, kind: str) -> dict:
     out-of-library part left as a remainder, over (key, answer) pairs."""
     from bench.sim.effects import EFFECTS
 
-    exact, among, real, remainder = [], [], [], []
+    exact, among, real, remainder, n_listed = [], [], [], [], []
     for k, a in sel:
+        n_listed.append(len(a.get("alternatives", [])))
         truth_in = {e for e in k["members"] if EFFECTS[e].in_library}
         named = set(a["named"])
         exact.append(named == truth_in and a["verdict"] != "unexplained")
@@ -185,6 +184,10 @@ def _scores(sel: list, kind: str) -> dict:
         "exact_set": float(np.mean(exact)),
         "exact_set_among_named": float(np.mean(among)),
         "named_are_real": float(np.mean(real)),
+        # how many sets an answer lists beside its own: the price of the
+        # "among the listed sets" score
+        "listed_sets_median": float(np.median(n_listed)),
+        "listed_sets_max": int(max(n_listed)),
         **(
             {"out_of_library_left_unexplained": float(np.mean(remainder)), "n_in_out": len(remainder)}
             if remainder
@@ -212,6 +215,9 @@ def score_mixtures(keys: list, answers: list) -> dict:
         res[f"at_{s:g}x"] = _scores([(k, by[k["run"]]) for k in keys if k["scale"] == s], "all")
         res[f"at_{s:g}x"]["separable"] = _scores(
             [(k, by[k["run"]]) for k in keys if k["scale"] == s and _separable(k, by[k["run"]])], "all"
+        )
+        res[f"at_{s:g}x"]["not_separable"] = _scores(
+            [(k, by[k["run"]]) for k in keys if k["scale"] == s and not _separable(k, by[k["run"]])], "all"
         )
     # The joint shrink of the true set measures how much of the gap the set
     # explains; in an in + out run the out-of-library part is not the set's
@@ -262,13 +268,20 @@ def summary_lines(res: dict) -> list:
             continue
         sep = a["separable"]
         lines.append(
-            f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')} (among the sets an ambiguous "
-            f"answer names: {_pct(a, 'exact_set_among_named')}), named are real "
+            f"at {s:g}x, all kinds: exact set {_pct(a, 'exact_set')} (among the sets the "
+            f"answer lists: {_pct(a, 'exact_set_among_named')}), named are real "
             f"{_pct(a, 'named_are_real')}, remainder {_pct(a, 'out_of_library_left_unexplained')} "
             f"(n = {a['n']}); where the data separate the set: {_pct(sep, 'exact_set')}, "
             f"{_pct(sep, 'named_are_real')}, {_pct(sep, 'out_of_library_left_unexplained')} "
             f"(n = {sep.get('n', 0)})"
         )
+        ns = a.get("not_separable") or {}
+        if ns.get("n"):
+            lines.append(
+                f"at {s:g}x, where the data do not separate the set: the true set among the listed sets "
+                f"{_pct(ns, 'exact_set_among_named')} (n = {ns['n']}; listed sets per answer: median "
+                f"{ns['listed_sets_median']:g}, largest {ns['listed_sets_max']})"
+            )
     for k, v in res.get("true_set_shrink", {}).items():
         med = "-" if v["median"] is None else f"{v['median']:.2f}"
         lines.append(f"held-out shrink of the true set refitted jointly, {k}: median {med} (n = {v['n']})")

@@ -37,7 +37,7 @@ GAP_LAYERS = (
     ),
     (
         "the model: replay, dynamics channel, candidates, screening, selection, detection",
-        {"detection", "select", "attribute", "localise", "quantify", "dyn", "candidates", "replay"},
+        {"detection", "select", "alternatives", "attribute", "localise", "quantify", "dyn", "candidates", "replay"},
     ),
 )
 # Only the command line and the HIL performance comparison use the HIL loop;
