@@ -93,20 +93,10 @@ def _fly(engine: str, description: dict, plan: list, effects: dict) -> dict:
 def _noise_free_bench_pose(description, plan, effects) -> np.ndarray:
     """The bench's pose without noise: its truth at the captures, moved to the reference point."""
     from bench.sim import vehicle_sim
-    from bench.sim.log_description import resolve
-    from bench.so3 import rotmat
 
     clocks = Clocks(pose_period_s=0.5, pose_phase_s=0.4)
-    seg = plan[0]
-    desc = resolve(description)
-    veh, pfx = vehicle_sim._vehicle_with_effects(desc, effects)
-    latency = float(np.atleast_1d(effects.get("camera_latency", 0.0))[0])
-    out = vehicle_sim._fly_segment(
-        seg, 0.0, veh, pfx, desc, 1.0 / (desc.imu_rate_hz or 10.0), clocks, np.random.default_rng(0), latency
-    )
-    pref = desc.pose_reference_b_m - desc.com_b_m - np.asarray(effects.get("com_offset", np.zeros(3)), float)
-    lever = np.asarray(effects.get("camera_lever_arm", np.zeros(3)), float)
-    return np.array([r + rotmat(q) @ (pref + lever) for _, r, q in out[5]])
+    log, _ = vehicle_sim.simulate(description, plan, effects, seed=0, clocks=clocks, noise_scale=0.0)
+    return log.streams["pose"]["r_hill_m"]
 
 
 def null_agreement(description: dict, plan: list) -> dict:

@@ -84,7 +84,7 @@ def draw_spots(
     sig = np.hypot(psf_sigma_px, np.exp(rng.uniform(*np.log(led_sigma_range), size=n)))
     img = np.full((cm.HEIGHT, cm.WIDTH), scene.background_counts, float)
     for (u, v), f, s in zip(truth, flux, sig):
-        cm._gauss_patch(img, u, v, s, f)
+        cm.gauss_patch(img, u, v, s, f)
     if blur_sigma_px > 0:
         img = gaussian_filter(img, blur_sigma_px, mode="nearest")
     var = scene.read_noise_counts**2 + scene.shot_gain * np.maximum(img - scene.background_counts, 0.0)

@@ -21,13 +21,13 @@ import numpy as np
 from scipy.optimize import least_squares
 
 
-def _whiteners(cov):
+def whiteners(cov):
     """W_k with W_k^T W_k = cov_k^-1, so ||W_k r||^2 = r^T cov_k^-1 r."""
     info = np.linalg.inv(np.asarray(cov, float))
     return np.swapaxes(np.linalg.cholesky(info), 1, 2)
 
 
-def _grid_start(coarse, var, t, w_prior, sigma_w, n_grid):
+def grid_start(coarse, var, t, w_prior, sigma_w, n_grid):
     """Per mode, the frequency on a grid over +-3 sigma that best explains that
     mode's coarse series alone (cosine and sine solved linearly): a global
     start, since the modes are only weakly coupled through the covariance."""
@@ -47,7 +47,7 @@ def _grid_start(coarse, var, t, w_prior, sigma_w, n_grid):
     return w0
 
 
-def _relax_start(coarse, info, t, w_prior, sigma_w, w0, n_grid, cycles=3, amplitudes=None):
+def relax_start(coarse, info, t, w_prior, sigma_w, w0, n_grid, cycles=3, amplitudes=None):
     """Cyclic conditional search (RELAX, Li and Stoica 1996): mode by mode,
     the other modes held at their current fit, the frequency on the +-3 sigma
     grid that best explains what they leave, with the exact coupled weights
@@ -122,7 +122,7 @@ def fit(coarse, cov, t, w_prior, sigma_w, extra_starts=(), n_grid=201, reference
     if coarse.shape[0] < 3:
         raise ValueError("batch ML needs at least 3 images with a coarse estimate")
     m = coarse.shape[1]
-    wh = _whiteners(cov)
+    wh = whiteners(cov)
 
     residual, jacobian = _residual_and_jacobian(wh, coarse, t, w_prior, sigma_w)
 
@@ -141,13 +141,13 @@ def fit(coarse, cov, t, w_prior, sigma_w, extra_starts=(), n_grid=201, reference
         return sol
 
     var = np.diagonal(cov, axis1=1, axis2=2)
-    w_grid = _grid_start(coarse, var, t, w_prior, sigma_w, n_grid)
+    w_grid = grid_start(coarse, var, t, w_prior, sigma_w, n_grid)
     starts = [
         ("grid", w_grid),
         ("prior", w_prior),
         (
             "relax",
-            _relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, n_grid, amplitudes=linear_amplitudes),
+            relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, n_grid, amplitudes=linear_amplitudes),
         ),
     ]
     starts += [(name, np.asarray(w, float)) for name, w in extra_starts]

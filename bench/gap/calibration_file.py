@@ -50,7 +50,7 @@ def _expected_threshold(cal: dict, values: list) -> float:
         return log_null.frechet_threshold(values, float(cal["false_alarm_target_each"]))
     if "predictive" in method:  # a calibration made for a log, kept as its vehicle's
         return log_null.tail_threshold(values, float(cal["false_alarm_target_each"]))[0]
-    return null._threshold(np.asarray(values, float), float(cal["false_alarm_target_each"]))
+    return null.quantile_threshold(np.asarray(values, float), float(cal["false_alarm_target_each"]))
 
 
 def problem(cal) -> str | None:

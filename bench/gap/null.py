@@ -68,7 +68,10 @@ def run_statistics(seed, run_ctx):
     return {"seed": seed, **null_statistics(null_log(seed, duration_s, manoeuvres))}
 
 
-def _threshold(values: np.ndarray, fa: float) -> float:
+def quantile_threshold(values: np.ndarray, fa: float) -> float:
+    """The threshold a null value exceeds with probability ``fa``: midway
+    between the order statistics around the (1 - fa) quantile, or just beyond
+    the largest value when there are too few values for that quantile."""
     v = np.sort(np.asarray(values, float))
     k = int(np.floor((1.0 - fa) * v.size))
     if k >= v.size - 1:  # too few runs for that quantile: just beyond the largest
@@ -103,7 +106,7 @@ def calibrate(
         raise ValueError("no finished null runs")
     z = np.array([r["map_max_abs_z"] for r in rows])
     b = np.array([r["screen_logp"] for r in rows])
-    thr = {"map_max_abs_z": _threshold(z, FA_EACH), "screen_logp": _threshold(b, FA_EACH)}
+    thr = {"map_max_abs_z": quantile_threshold(z, FA_EACH), "screen_logp": quantile_threshold(b, FA_EACH)}
     fa = float(np.mean((z > thr["map_max_abs_z"]) | (b > thr["screen_logp"])))
     return {
         "thresholds": thr,

@@ -1,6 +1,6 @@
 """Timing of the modal frequency acquisition's search: the flight C++
 (ModalAcquisition through the bindings) beside the numpy RELAX it is checked
-against (bench/campaigns/modal_batch_ml.py: _grid_start, _relax_start with the joint
+against (bench/campaigns/modal_batch_ml.py: grid_start, relax_start with the joint
 amplitude re-solve), on the same simulated plate histories, in one run; and
 the flight replay of the joint filter over that history. Also says whether
 the two searches picked the same grid frequencies.
@@ -31,7 +31,8 @@ CASES = ((10, 80, 60.0), (50, 241, 20.0))
 def plate_history(n_modes, n_images, dt_s, seed=0):
     """Decomposition records of one simulated plate run, their times and the
     a priori frequencies (10 % error), as the campaign makes them."""
-    fb = mc._fb()
+    import fsw_bindings as fb
+
     rng = np.random.default_rng(seed)
     plate = st.Plate(n_modes=n_modes)
     sensor = st.plate_sensor(plate)
@@ -53,7 +54,7 @@ def numpy_relax(coarse, cov, t, w_prior, sigma_w, n_grid=201):
     """The numpy reference: per-mode grid start, then RELAX with the coupled
     weights and the joint amplitude re-solve after every mode."""
     m = coarse.shape[1]
-    wh = modal_batch_ml._whiteners(cov)
+    wh = modal_batch_ml.whiteners(cov)
 
     def amplitudes(w):
         basis = np.concatenate(
@@ -68,8 +69,8 @@ def numpy_relax(coarse, cov, t, w_prior, sigma_w, n_grid=201):
         return np.linalg.lstsq(a, y, rcond=None)[0]
 
     var = np.diagonal(cov, axis1=1, axis2=2)
-    w0 = modal_batch_ml._grid_start(coarse, var, t, w_prior, sigma_w, n_grid)
-    return modal_batch_ml._relax_start(
+    w0 = modal_batch_ml.grid_start(coarse, var, t, w_prior, sigma_w, n_grid)
+    return modal_batch_ml.relax_start(
         coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w0, n_grid, amplitudes=amplitudes
     )
 
@@ -84,7 +85,8 @@ def _median_s(fn, repeats):
 
 
 def time_case(n_modes, n_images, dt_s, repeats, numpy_repeats):
-    fb = mc._fb()
+    import fsw_bindings as fb
+
     recs, t, w_prior = plate_history(n_modes, n_images, dt_s)
     sigma_w = 0.1 * w_prior
     acq = getattr(fb, f"ModalAcquisition{n_modes}")(w_prior, sigma_w)

@@ -207,7 +207,7 @@ CONDITIONS = {
 }
 
 
-def _gauss_patch(img: np.ndarray, u: float, v: float, sigma: float, flux: float) -> None:
+def gauss_patch(img: np.ndarray, u: float, v: float, sigma: float, flux: float) -> None:
     """Adds a pixel-integrated Gaussian spot of total ``flux`` at (u, v)."""
     h = int(np.ceil(4.0 * sigma)) + 1
     c0, c1 = max(int(np.floor(u)) - h, 0), min(int(np.floor(u)) + h + 2, img.shape[1])
@@ -265,10 +265,10 @@ def render(
             continue
         flux = scene.led_flux_1m_counts * cos_view / rng_m**2
         sigma = np.hypot(scene.psf_sigma_px, 0.5 * cam.fx_px * scene.led_radius_m / rng_m)
-        _gauss_patch(img, px[i, 0], px[i, 1], sigma, flux)
+        gauss_patch(img, px[i, 0], px[i, 1], sigma, flux)
     H, W = img.shape
     for _ in range(scene.clutter_spots):
-        _gauss_patch(img, rng.uniform(0, W), rng.uniform(0, H), rng.uniform(0.6, 2.5), rng.uniform(150, 3000))
+        gauss_patch(img, rng.uniform(0, W), rng.uniform(0, H), rng.uniform(0.6, 2.5), rng.uniform(150, 3000))
     for _ in range(scene.clutter_lines):
         p0 = rng.uniform([0, 0], [W, H])
         p1 = p0 + rng.uniform(40, 250) * np.array([np.cos(a := rng.uniform(0, np.pi)), np.sin(a)])

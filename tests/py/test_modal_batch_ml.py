@@ -119,7 +119,7 @@ def test_analytic_jacobian_equals_finite_differences():
     from scipy.optimize._numdiff import approx_derivative
 
     t, w, truth, coarse, cov, amp = _synthetic(2, k=30)
-    wh = modal_batch_ml._whiteners(cov)
+    wh = modal_batch_ml.whiteners(cov)
     residual, jacobian = modal_batch_ml._residual_and_jacobian(wh, coarse, t, w, 0.1 * w)
     x = np.concatenate([w * 1.03, [0.3, -0.2, 0.5], [0.1, 0.4, -0.6]])
     # absolute steps: the frequency's default step (relative to max(1, |x|))
@@ -145,13 +145,13 @@ def test_relax_start_uses_the_coupled_weights_where_a_per_mode_grid_cannot():
     w_prior = w * np.array([1.08, 0.93, 1.06])
     sigma_w = 0.1 * w_prior
     var = np.diagonal(cov, axis1=1, axis2=2)
-    w_grid = modal_batch_ml._grid_start(coarse, var, t, w_prior, sigma_w, 201)
-    w_relax = modal_batch_ml._relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, 201)
+    w_grid = modal_batch_ml.grid_start(coarse, var, t, w_prior, sigma_w, 201)
+    w_relax = modal_batch_ml.relax_start(coarse, np.linalg.inv(cov), t, w_prior, sigma_w, w_grid, 201)
     assert np.max(np.abs(w_grid / w - 1)) > 0.02  # the per-mode grid is lost in the common component
     assert np.max(np.abs(w_relax / w - 1)) < 0.005  # one grid step is 0.3 % of the prior
     # the coupled weights are what does it: with the diagonal alone RELAX is as lost as the grid
     diag_info = np.broadcast_to(np.diag(1.0 / np.diag(cov1)), (k, 3, 3))
-    w_relax_diag = modal_batch_ml._relax_start(coarse, diag_info, t, w_prior, sigma_w, w_grid, 201)
+    w_relax_diag = modal_batch_ml.relax_start(coarse, diag_info, t, w_prior, sigma_w, w_grid, 201)
     assert np.max(np.abs(w_relax_diag / w - 1)) > 0.02
     ml = modal_batch_ml.fit(coarse, cov, t, w_prior, sigma_w, reference_starts=[("truth", w)])
     assert np.max(np.abs(ml["omega"] / w - 1)) < 1e-3
