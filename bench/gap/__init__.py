@@ -22,6 +22,8 @@ null calibrations
 the model
   detection   the two detection statistics under the nominal model
   select      several effects at once: forward selection and joint refit
+  alternatives  the sets the data cannot tell from the answer's: look-alikes, sets
+                that explain as well, hidden members
   attribute   screening of every candidate, confirmation by full fits, Bayes factors
   localise    the gap map: stream, axis, regime, frequency and lag
   quantify    train / held-out time blocks, deficit, shrink with bootstrap interval
