@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from bench.gap.plans import then_scripts
+from bench.sim.plans import then_scripts
 from bench.gap.validate import SCALES, blind, new_campaign, sized_and_diagnosed
 
 KINDS = ("pair", "triple", "in+out")
