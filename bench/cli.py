@@ -18,6 +18,7 @@ COMMAND_MODULES = [
     "bench.commands.thrusters",
     "bench.commands.pose",
     "bench.commands.diagnose",
+    "bench.commands.plan",
     "bench.commands.validate_gap",
     "bench.commands.simulate",
     "bench.commands.export",

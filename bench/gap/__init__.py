@@ -6,6 +6,7 @@ tests/py/test_architecture.py checks it):
 campaigns
   validate, validate_vehicle, validate_mixtures   blind campaigns (``proxops validate-gap``)
   detectable, separability, characterise          detection limits, what the data can tell apart
+  design      the test that separates: a valve plan for sets a log cannot tell apart
   bundled, perf_diagnose, results_tables          the bundled run, timing, tables for docs/
 the answer
   diagnose    the whole pipeline on one log (``proxops diagnose``): verdict, set, shares

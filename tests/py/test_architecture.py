@@ -15,7 +15,7 @@ grimp = pytest.importorskip("grimp")
 # bench/gap, top to bottom: a module may import its own layer or lower ones.
 GAP_LAYERS = (
     (
-        "campaigns: blind validation, detection limits, separability, the bundled run",
+        "campaigns: blind validation, detection limits, separability, the test that separates, the bundled run",
         {
             "validate",
             "validate_vehicle",
@@ -28,6 +28,7 @@ GAP_LAYERS = (
             "characterise",
             "separability",
             "detectable",
+            "design",
         },
     ),
     ("the answer: verdicts, words, report", {"diagnose", "answers", "report", "report_plots"}),

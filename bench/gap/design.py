@@ -1,0 +1,1017 @@
+"""Design the test that separates: a short open-loop valve plan, for the
+log's own described vehicle, that tells apart the sets of effects a
+diagnosis could not (docs/GAP.md, "Designing the test that separates").
+
+The hypotheses are sets of candidates at sizes fitted on the log: the
+answer's set and the sets it cannot be told from (``ambiguous_with``), each
+fitted jointly on the log's training rows inside its members' bounds; a set
+listed as a hidden member beside another (``add``, ``to``) carries that
+member at the share of the gap the listing gave it, in the direction the
+log hides best, its other members refitted (as bench/gap/alternatives.py
+builds it).
+
+The plan is made of elementary blocks, each flown from rest as a run of its
+own: the valves closed for LEAD_S (navigation initialises on the first
+poses), one valve open for a pulse of PULSES_S, then a coast of COASTS_S.
+The described vehicle flies every (valve, pulse) once, noise-free, on the
+bench's plant (bench/sim/vehicle_sim.py) with the longest coast; a block
+with a shorter coast is the start of that run (the replay and the whitening
+are causal). Every member's whitened Jacobian on that log (the nominal
+replay and the dynamics channel, every row) is split by block, and so is
+each hypothesis's signature s_A,k: the same flight with its effects less
+the flight without (exact where its linearisation J_A theta_A is not: a
+nozzle tilted 0.25 rad). A plan is w_k >= 0 repetitions of block k, each
+flown as a run of its own with its own noise, so its rows are block k's
+scaled by sqrt(w_k). For hypothesis A at its sizes and a set B,
+
+    d_AB(w) = min_{u in B's bounds} sum_k w_k |s_A,k - J_B,k u|^2
+
+is the squared distance, in noise standard deviations, between what A
+predicts and the nearest B can produce (bench/gap/separability.py; 10.8 =
+DELTA2_95 separates 95 % of the time). A direction counts unless B holds
+every member of A (B then reproduces A exactly: the pair is separated when
+the larger set's extra members show, the other direction). When B is A
+with one member c more, B's sizes are the one direction of c the log hid
+best; the effect may lie along any other, so the plan must also separate
+c along each of its directions alone at B's size
+(worst_case_directions): a plan made for B's sizes alone fired the one
+valve that direction tilts most and missed a real tilt of two others.
+
+d_AB is a minimum of functions linear in w, so it is concave: maximising
+the smallest counting d_AB over w, subject to linear limits (duration,
+delta-v), is a convex problem, solved by SLSQP on the epigraph form
+(maximise t, t <= d_AB(w) for every counting direction) with the exact
+gradient dd_AB/dw_k = |s_A,k - J_B,k u*|^2 (the envelope theorem at the
+bounded fit u*); then rounded to whole repetitions (_round) and
+re-evaluated. With a target distance instead, the shortest plan that
+reaches it (same constraints, duration the objective).
+
+The fixed plan: the characterisation, every valve alone for
+CHARACTERISATION_FIRE_S then CHARACTERISATION_COAST_S after LEAD_S closed
+(bench/sim/plans.py), one point of the same space (w = 1 on those blocks),
+evaluated the same way.
+
+Checked, not promised (flown_distances, check): the plan flown on the
+bench's plant with a hypothesis's effects and without them, common random
+numbers, and the distance measured on that flight.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.gap.alternatives import HIDDEN_SHARE
+from bench.gap.attribute import DELTA2_95
+from bench.sim.plans import CHARACTERISATION_COAST_S, CHARACTERISATION_FIRE_S, LEAD_S
+
+CYCLE_S = 0.1  # one valve command per control cycle, the valve held open through the pulse
+PULSES_S = (0.5, 1.0, 3.0)
+COASTS_S = (2.0, 5.0, 10.0, CHARACTERISATION_COAST_S)
+START_R_HILL_M = (0.2, -1.5, 0.1)  # each run from rest here, body axes on the Hill axes
+DEFAULT_MAX_DURATION_S = 120.0
+DEFAULT_MIN_ON_TIME_S = 0.1
+MAX_REPEATS = 50  # repetitions of one block
+
+
+@dataclass
+class Hypothesis:
+    """A set of candidates at the sizes fitted on the log."""
+
+    members: list
+    theta: dict  # {candidate: parameters, in the candidate's own units}
+    how: str = "fitted jointly on the log's training rows"
+
+    @property
+    def name(self) -> str:
+        return " + ".join(self.members) if self.members else "nothing in the library"
+
+
+@dataclass
+class Block:
+    """Valve ``valve`` open for ``pulse_s`` after LEAD_S, then ``coast_s``; flown from rest."""
+
+    valve: int
+    pulse_s: float
+    coast_s: float
+    delta_v_mps: float
+
+    @property
+    def duration_s(self) -> float:
+        return LEAD_S + self.pulse_s + self.coast_s
+
+
+def shortest_block_s(min_on_time_s: float) -> float:
+    """The shortest block the limits allow (its pulse at least the minimum on-time)."""
+    pulses = [p for p in PULSES_S if p >= min_on_time_s] or [min_on_time_s]
+    return LEAD_S + min(pulses) + min(COASTS_S)
+
+
+# --- the hypotheses, fitted on the log ----------------------------------------------------------
+
+
+def _log_problem(log):
+    """(ctx, e0, rows_ok) of the log's nominal model on its training rows."""
+    from bench.gap.attribute import training_residuals
+    from bench.gap.detection import context
+    from bench.gap.replay import prepare
+
+    ctx = context(prepare(log))
+    e0, rows_ok = training_residuals(ctx)
+    return ctx, e0, rows_ok
+
+
+def _scaled(ctx, jac: dict, names: list) -> tuple:
+    """(J, lo, hi, scales) of the names' stacked Jacobians in units of each candidate's scale."""
+    from bench.gap.attribute import candidate
+
+    cs = [candidate(ctx.d, n) for n in names]
+    J = np.hstack([jac[n] * c.scale for n, c in zip(names, cs)]) if names else np.zeros((0, 0))
+    lo = np.concatenate([np.full(jac[n].shape[1], c.lower / c.scale) for n, c in zip(names, cs)])
+    hi = np.concatenate([np.full(jac[n].shape[1], c.bound / c.scale) for n, c in zip(names, cs)])
+    sc = np.concatenate([np.full(jac[n].shape[1], c.scale) for n, c in zip(names, cs)])
+    return J, lo, hi, sc
+
+
+def _split(names: list, jac: dict, u: np.ndarray) -> dict:
+    edges = np.cumsum([0] + [jac[n].shape[1] for n in names])
+    return {n: u[a:b] for n, a, b in zip(names, edges[:-1], edges[1:])}
+
+
+def _fit_set(ctx, jac: dict, names: list, target: np.ndarray) -> tuple:
+    """(theta by name, in candidate units; the fitted signature J theta): the
+    bounded least-squares fit of the names' stacked Jacobians to ``target``."""
+    from bench.gap.select import bounded_lstsq
+
+    J, lo, hi, sc = _scaled(ctx, jac, names)
+    u = bounded_lstsq(J, target, lo, hi)
+    return _split(names, jac, u * sc), J @ u
+
+
+def _hidden_directions(J: np.ndarray, Jc: np.ndarray) -> list:
+    """The three directions of c's parameters (scaled units) whose signature
+    the set's columns J reproduce best per unit of signature."""
+    U, sv, _ = np.linalg.svd(J, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-10]
+    Uc, sc, Vct = np.linalg.svd(Jc, full_matrices=False)
+    keep = sc > sc[0] * 1e-8
+    Uc, sc, Vct = Uc[:, keep], sc[keep], Vct[keep]
+    perp = Uc - U @ (U.T @ Uc)
+    _, A = np.linalg.eigh(perp.T @ perp)
+    return [Vct.T @ (a / sc) for a in A.T[:3]]
+
+
+def hidden_hypothesis(ctx, jac: dict, e0: np.ndarray, base: list, c: str, share: float | None = None) -> Hypothesis:
+    """``base`` fitted on the log with candidate ``c`` beside it carrying
+    ``share`` noise variances of signature on the log's training rows
+    (default: HIDDEN_SHARE of the base's fitted signature, at least
+    DELTA2_95), in the direction the base's members, refitted, absorb best:
+    the set a listing "hidden member" stands for, at its sizes."""
+    from bench.gap.select import bounded_lstsq
+
+    _, sig = _fit_set(ctx, jac, base, -e0)
+    share = float(share) if share else max(DELTA2_95, HIDDEN_SHARE * float(sig @ sig))
+    J, lo, hi, sc = _scaled(ctx, jac, base)
+    Jc, lc, hc, scc = _scaled(ctx, jac, [c])
+    tries = [bounded_lstsq(Jc, sig, lc, hc)]
+    for v in _hidden_directions(J, Jc):
+        tries += [v, -v]
+    best = None
+    for v in tries:
+        v = np.clip(v, np.minimum(lc, 0), np.maximum(hc, 0))
+        size2 = float(np.sum((Jc @ v) ** 2))
+        if not size2 > 0:
+            continue
+        u_c = v * np.sqrt(share / size2)
+        if np.any(u_c < lc - 1e-12) or np.any(u_c > hc + 1e-12):
+            continue
+        rest = sig - Jc @ u_c
+        u = bounded_lstsq(J, rest, lo, hi)
+        r = rest - J @ u
+        d2 = float(r @ r)
+        if best is None or d2 < best[0]:
+            best = (d2, u, u_c)
+    if best is None:  # no direction carries the share inside the bounds: fitted jointly instead
+        theta, _ = _fit_set(ctx, jac, base + [c], -e0)
+        return Hypothesis(base + [c], theta)
+    d2, u, u_c = best
+    theta = {**_split(base, jac, u * sc), c: u_c * scc}
+    how = f"{c} carrying {share:.4g} noise variances of signature beside {' + '.join(base)} (log: distance {d2:.3g})"
+    return Hypothesis(base + [c], theta, how)
+
+
+def sets_of_diagnosis(out: dict) -> list:
+    """[(members, listing entry or None)]: the answer's set, then every set it
+    cannot be told from (bench/gap/answers.py listed_sets)."""
+    from bench.gap.answers import listed_sets
+
+    answer = [m["effect"] for m in out.get("effects") or []]
+    if not answer:
+        raise ValueError("the diagnosis names no effect: there is no answer to separate")
+    entries = out.get("ambiguous_with") or []
+    sets = [(answer, None)]
+    for members, entry in zip(listed_sets(out), entries):
+        sets.append((list(members), entry))
+    return sets
+
+
+def fit_hypotheses(log, sets: list) -> list:
+    """Every set [(members, listing entry or None)] at its sizes on ``log``:
+    jointly fitted; a hidden member of a listing (``add`` beside ``to``), or
+    a named set one member larger than another named set, carries its share
+    (hidden_hypothesis)."""
+    from bench.gap.attribute import signature
+    from bench.gap.candidates import candidates_of
+
+    ctx, e0, rows_ok = _log_problem(log)
+    known = candidates_of(ctx.d)
+    names = sorted({n for members, _ in sets for n in members})
+    bad = [n for n in names if n not in known]
+    if bad:
+        raise ValueError(f"hypothesis {bad[0]!r}: not a candidate of this log (known: {', '.join(sorted(known))})")
+    jac = {n: signature(ctx, n, rows_ok)[0] for n in names}
+    out = []
+    for members, entry in sets:
+        if entry is not None and "add" in entry and "to" in entry:
+            out.append(hidden_hypothesis(ctx, jac, e0, list(entry["to"]), entry["add"], entry.get("hidden_signature2")))
+            continue
+        theta, _ = _fit_set(ctx, jac, list(members), -e0)
+        h = Hypothesis(list(members), theta)
+        inner = [m for m, _ in sets if set(m) < set(members) and len(set(members) - set(m)) == 1]
+        if entry is None and inner:
+            # One member more than another named set: that member at least at
+            # a share worth naming (the joint fit where the data give it more).
+            base = inner[0]
+            (c,) = set(members) - set(base)
+            hidden = hidden_hypothesis(ctx, jac, e0, list(base), c)
+            if float(np.sum((jac[c] @ theta[c]) ** 2)) < float(np.sum((jac[c] @ hidden.theta[c]) ** 2)):
+                h = Hypothesis(hidden.members, hidden.theta, hidden.how)
+        out.append(h)
+    return out
+
+
+# --- the blocks, flown by the described vehicle -------------------------------------------------
+
+
+def description_of(log) -> dict:
+    """The log's described vehicle, sensors and orbit as a full description
+    (every default resolved, bench/sim/log_description.py), for flying plans."""
+    from bench.gap.replay import prepare
+
+    d = prepare(log)
+    r = d.desc
+    return {
+        "vehicle": {
+            "mass_kg": float(r.mass_kg),
+            "inertia_kgm2": np.asarray(r.inertia_kgm2, float).tolist(),
+            "com_b_m": np.asarray(r.com_b_m, float).tolist(),
+            "thrusters": [
+                {
+                    "position_b_m": np.asarray(t.position_b_m, float).tolist(),
+                    "direction_b": np.asarray(t.direction_b, float).tolist(),
+                    "thrust_n": float(t.thrust_n),
+                    "min_on_time_s": float(t.min_on_time_s),
+                }
+                for t in r.thrusters
+            ],
+            "envelope_m": float(r.envelope_m),
+        },
+        "imu": {
+            "rate_hz": float(r.imu_rate_hz or 1.0 / d.dt_s),
+            "q_body_imu": np.asarray(r.imu_q_body_imu, float).tolist(),
+            "position_b_m": np.asarray(r.imu_position_b_m, float).tolist(),
+            "accel_sigma_mps2": float(r.accel_sigma_mps2),
+            "gyro_sigma_rps": float(r.gyro_sigma_rps),
+        },
+        "pose_sensor": {
+            "reference_point_b_m": np.asarray(r.pose_reference_b_m, float).tolist(),
+            "time_offset_s": float(r.pose_time_offset_s),
+            "latency_s": float(r.pose_latency_s),
+        },
+        "orbit": {"radius_m": float(r.orbit_radius_m)},
+    }
+
+
+def _thrusts(description: dict) -> tuple:
+    from bench.sim.log_description import resolve
+
+    r = resolve(description)
+    return np.array([t.thrust_n for t in r.thrusters]), np.array([t.min_on_time_s for t in r.thrusters]), r.mass_kg
+
+
+def catalogue(description: dict, min_on_time_s: float) -> list:
+    """Every block the limits allow: each valve, each pulse at least the
+    minimum on-time (the user's and the valve's own), each coast."""
+    thrust, min_on, mass = _thrusts(description)
+    out = []
+    for i in range(thrust.size):
+        for p in PULSES_S:
+            if p < max(min_on_time_s, min_on[i]):
+                continue
+            out += [Block(i, p, c, float(thrust[i] * p / mass)) for c in COASTS_S]
+    return out
+
+
+def run_segment(valve: int, pulse_s: float, coast_s: float, n_valves: int, manoeuvre: str = "characterisation"):
+    """One run of the bench's vehicle simulator: closed for LEAD_S, valve
+    ``valve`` open for ``pulse_s`` (a command each control cycle), closed
+    for ``coast_s``."""
+    from bench.sim.vehicle_sim import PlanSegment
+
+    n = int(round(pulse_s / CYCLE_S))
+    on = np.zeros((n, n_valves))
+    on[:, valve] = CYCLE_S
+    return PlanSegment(
+        manoeuvre,
+        LEAD_S + pulse_s + coast_s,
+        np.array(START_R_HILL_M, float),
+        np.array([1.0, 0.0, 0.0, 0.0]),
+        LEAD_S + CYCLE_S * np.arange(n),
+        on,
+    )
+
+
+def all_rows(ctx):
+    """The context with every finite row counted (not only the training blocks)."""
+    ok = np.all(np.isfinite(ctx.nominal.white), axis=1)
+    train_dyn = np.ones(ctx.ch.rows, bool) if ctx.ch is not None else None
+    return dataclasses.replace(ctx, train_nav=ok, train_dyn=train_dyn)
+
+
+def row_times(ctx) -> np.ndarray:
+    """The time of every row of a Jacobian on all_rows(ctx): the pose updates (6 each), then the dynamics rows (3)."""
+    t_nav = np.repeat(ctx.d.pose_tc[ctx.train_nav], 6)
+    t_dyn = np.repeat(ctx.ch.t, 3) if ctx.ch is not None else np.zeros(0)
+    return np.concatenate([t_nav, t_dyn])
+
+
+def _segment_starts(d) -> np.ndarray:
+    return np.array([d.imu_t[d.imu_seg == s][0] - d.dt_s for s in np.unique(d.imu_seg)])
+
+
+def simulable(h: Hypothesis) -> bool:
+    """Whether the bench's vehicle simulator flies every member of ``h`` (not a drifting clock)."""
+    from bench.sim.vehicle_sim import KNOWN
+
+    return all(n in KNOWN for n in h.members)
+
+
+def effects_of(h: Hypothesis) -> dict:
+    """The hypothesis as the simulator's effects (the candidates' parameters are the effects')."""
+    return {n: np.asarray(v, float).ravel().tolist() for n, v in h.theta.items()}
+
+
+def whitened_rows(ctx, ok: np.ndarray) -> np.ndarray:
+    """Every row of a log's nominal model (the pose updates ``ok``, then the dynamics channel), whitened."""
+    return np.concatenate([np.nan_to_num(ctx.nominal.white[ok], nan=0.0).ravel(), ctx.ch.e0.ravel()])
+
+
+def block_jacobians(description: dict, blocks: list, hyps: list) -> tuple:
+    """({name: [J of block k]}, {hypothesis index: [its signature on block
+    k]}, rows per block, the flight's LogData): every member's whitened
+    Jacobian on each block's rows, from one noise-free flight of every
+    (valve, pulse) with the longest coast; and each hypothesis's exact
+    signature there, the same flight with its effects less the flight
+    without (sign as J theta: what its correction removes), where the
+    simulator flies all its members."""
+    from bench.gap.attribute import signature
+    from bench.gap.detection import context
+    from bench.gap.replay import prepare
+    from bench.sim.vehicle_sim import simulate
+
+    n_valves = _thrusts(description)[0].size
+    runs = sorted({(b.valve, b.pulse_s) for b in blocks})
+    coast = max(COASTS_S)
+    plan = [run_segment(v, p, coast, n_valves) for v, p in runs]
+    log, _ = simulate(description, plan, {}, seed=0, with_truth=False, noise_scale=0.0)
+    ctx = all_rows(context(prepare(log)))
+    ok = ctx.train_nav
+    t = row_times(ctx)
+    starts = _segment_starts(ctx.d)
+    seg = np.searchsorted(starts, t, side="right") - 1
+    since = t - starts[seg]
+    names = sorted({n for h in hyps for n in h.members})
+    jac = {n: signature(ctx, n, ok[ok])[0] for n in names}
+    masks = []
+    for b in blocks:
+        r = runs.index((b.valve, b.pulse_s))
+        masks.append((seg == r) & (since <= b.duration_s + 1e-9))
+    e0 = whitened_rows(ctx, ok)
+    sig = {}
+    for i, h in enumerate(hyps):
+        if not simulable(h) or not h.members:
+            continue
+        log_h, _ = simulate(description, plan, effects_of(h), seed=0, with_truth=False, noise_scale=0.0)
+        ctx_h = context(prepare(log_h))
+        if ctx_h.nominal.white.shape != ctx.nominal.white.shape or ctx_h.ch.e0.shape != ctx.ch.e0.shape:
+            continue  # the streams changed length: the linear signature instead
+        s = e0 - whitened_rows(ctx_h, ok)
+        sig[i] = [s[m] for m in masks]
+    return {n: [J[m] for m in masks] for n, J in jac.items()}, sig, [int(m.sum()) for m in masks], ctx.d
+
+
+# --- the distances and the design ---------------------------------------------------------------
+
+
+@dataclass
+class Direction:
+    """Hypothesis ``a`` at its sizes against set ``b`` (free inside its bounds), per block."""
+
+    a: int
+    b: int
+    s2: np.ndarray  # (n_blocks,) |J_A,k theta_A|^2
+    h: np.ndarray  # (n_blocks, p) J_B,k^T J_A,k theta_A (scaled units)
+    G: np.ndarray  # (n_blocks, p, p) J_B,k^T J_B,k
+    lo: np.ndarray
+    hi: np.ndarray
+    # A member of a family (worst_case_directions): {"member", "parameter", "theta"}.
+    family: dict | None = None
+
+    def distance(self, w: np.ndarray) -> tuple:
+        """(d_AB(w), its gradient in w, u*)."""
+        from scipy.optimize import lsq_linear
+
+        G = np.tensordot(w, self.G, 1)
+        h = w @ self.h
+        c = float(w @ self.s2)
+        lam, V = np.linalg.eigh(G)
+        keep = lam > max(lam.max(initial=0.0), 0.0) * 1e-12
+        if not keep.any():
+            return c, self.s2.copy(), np.zeros(self.lo.size)
+        R = np.sqrt(lam[keep])[:, None] * V[:, keep].T
+        y = (V[:, keep].T @ h) / np.sqrt(lam[keep])
+        u = V[:, keep] @ (y / np.sqrt(lam[keep]))
+        if np.any(u < self.lo) or np.any(u > self.hi):
+            u = lsq_linear(R, y, bounds=(self.lo, self.hi), method="bvls").x
+        d = max(c - 2.0 * float(h @ u) + float(u @ G @ u), 0.0)
+        grad = self.s2 - 2.0 * (self.h @ u) + np.einsum("i,kij,j->k", u, self.G, u)
+        return d, grad, u
+
+
+def directions(hyps: list, jac: dict, sig: dict, d) -> list:
+    """Every counting direction (A at its sizes against set B; not when B
+    holds every member of A). A's signature per block: ``sig[A]`` (flown
+    with its effects), else its linearisation J_A theta_A."""
+    out = []
+    n_blocks = len(next(iter(jac.values())))
+    for ia, A in enumerate(hyps):
+        if ia in sig:
+            sigs = sig[ia]
+        else:
+            sigs = [sum(jac[n][k] @ A.theta[n] for n in A.members) for k in range(n_blocks)]
+        for ib, B in enumerate(hyps):
+            if ia != ib and not set(A.members) <= set(B.members):
+                out.append(_direction(ia, ib, B, jac, d, sigs))
+    return out
+
+
+def _direction(ia: int, ib: int, B: Hypothesis, jac: dict, d, sigs: list, family: dict | None = None) -> Direction:
+    """Signature ``sigs[k]`` on each block against set B, free inside its bounds."""
+    from bench.gap.attribute import candidate
+
+    cs = [candidate(d, n) for n in B.members]
+    lo = np.concatenate([np.full(jac[n][0].shape[1], c.lower / c.scale) for n, c in zip(B.members, cs)])
+    hi = np.concatenate([np.full(jac[n][0].shape[1], c.bound / c.scale) for n, c in zip(B.members, cs)])
+    s2, h, G = [], [], []
+    for k, s in enumerate(sigs):
+        JB = np.hstack([jac[n][k] * c.scale for n, c in zip(B.members, cs)] + [np.zeros((s.size, 0))])
+        s2.append(float(s @ s))
+        h.append(JB.T @ s)
+        G.append(JB.T @ JB)
+    return Direction(ia, ib, np.array(s2), np.array(h), np.array(G), lo, hi, family)
+
+
+def worst_case_directions(hyps: list, jac: dict, d) -> list:
+    """For every hypothesis B that is another one, A, with one member c
+    more: B with c's parameters moved along each one of its directions
+    alone (each unit parameter, less its part no block sees, e.g. a nozzle
+    turned about its own thrust axis), at the size B gives c (the RMS over
+    the directions seen), against A. B's own sizes are the one direction
+    the log hid best; the effect may lie along any other, and a plan that
+    fires only the valves that direction tilts would not see it."""
+    from bench.gap.attribute import candidate
+
+    out = []
+    for ib, B in enumerate(hyps):
+        for ia, A in enumerate(hyps):
+            extra = set(B.members) - set(A.members)
+            if ia == ib or not set(A.members) < set(B.members) or len(extra) != 1:
+                continue
+            (c,) = extra
+            cand = candidate(d, c)
+            Jc = [J * cand.scale for J in jac[c]]
+            lam, V = np.linalg.eigh(sum(J.T @ J for J in Jc))
+            seen = V[:, lam > lam.max() * 1e-8]
+            P = seen @ seen.T
+            size = float(np.linalg.norm(P @ (np.asarray(B.theta[c]) / cand.scale)) / np.sqrt(max(seen.shape[1], 1)))
+            if not size > 0:
+                continue
+            for j, pname in enumerate(cand.params):
+                e = P[:, j]
+                if np.linalg.norm(e) < 0.3:
+                    continue
+                u = e / np.linalg.norm(e) * size
+                fam = {"member": c, "parameter": pname, "theta": (u * cand.scale).tolist(), "of": ib}
+                out.append(_direction(ib, ia, A, jac, d, [J @ u for J in Jc], fam))
+    return out
+
+
+def evaluate(dirs: list, w: np.ndarray) -> np.ndarray:
+    return np.array([dr.distance(np.asarray(w, float))[0] for dr in dirs])
+
+
+def _solve(dirs: list, T: np.ndarray, V: np.ndarray, max_t: float, max_v: float, target: float | None) -> tuple:
+    """(continuous repetitions w, the solver's report): the largest smallest
+    distance within the limits, or (``target``) the shortest plan whose
+    smallest distance reaches it."""
+    from scipy.optimize import minimize
+
+    n = T.size
+    scale = max(float(np.max([dr.distance(np.ones(n))[0] for dr in dirs])), 1.0) / n  # distance per repetition
+    w0 = np.full(n, 0.5 * min(max_t / T.sum(), max_v / max(V.sum(), 1e-12)))
+    if target is None:
+        x0 = np.concatenate([w0, [0.0]])
+        obj = (lambda x: -x[-1], lambda x: np.concatenate([np.zeros(n), [-1.0]]))
+        dist_cons = [
+            {
+                "type": "ineq",
+                "fun": (lambda x, dr=dr: dr.distance(x[:n])[0] / scale - x[-1]),
+                "jac": (lambda x, dr=dr: np.concatenate([dr.distance(x[:n])[1] / scale, [-1.0]])),
+            }
+            for dr in dirs
+        ]
+    else:
+        x0 = np.concatenate([w0 * 2.0, [0.0]])
+        obj = (lambda x: float(T @ x[:n]) / max_t, lambda x: np.concatenate([T / max_t, [0.0]]))
+        dist_cons = [
+            {
+                "type": "ineq",
+                "fun": (lambda x, dr=dr: (dr.distance(x[:n])[0] - target) / scale),
+                "jac": (lambda x, dr=dr: np.concatenate([dr.distance(x[:n])[1] / scale, [0.0]])),
+            }
+            for dr in dirs
+        ]
+    lin = [
+        {"type": "ineq", "fun": lambda x: 1.0 - float(T @ x[:n]) / max_t, "jac": lambda x: np.append(-T / max_t, 0.0)},
+        {
+            "type": "ineq",
+            "fun": lambda x: 1.0 - float(V @ x[:n]) / max_v,
+            "jac": lambda x: np.append(-V / max_v, 0.0),
+        },
+    ]
+    bounds = [(0.0, MAX_REPEATS)] * n + [(None, None)]
+    sol = minimize(
+        obj[0],
+        x0,
+        jac=obj[1],
+        constraints=dist_cons + lin,
+        bounds=bounds,
+        method="SLSQP",
+        options={"maxiter": 500, "ftol": 1e-9},
+    )
+    report = {"method": "SLSQP", "success": bool(sol.success), "message": str(sol.message), "iterations": int(sol.nit)}
+    return np.clip(sol.x[:n], 0.0, None), report
+
+
+def _round(dirs: list, w: np.ndarray, valve: np.ndarray, T, V, max_t, max_v, target: float | None) -> np.ndarray:
+    """Whole repetitions. With a target: the continuous plan rounded up
+    (the distances only grow with repetitions), then shortened (_shorten).
+    Without, or when that breaks a limit: rounded down, then one repetition at a time of the block that
+    adds most, per share of the limits it uses, to the distances capped at
+    the level (the continuous plan's smallest distance: adding to one pair
+    counts even when another is still the smallest); once all are there,
+    the one that raises the smallest most; then exchanges (_exchange),
+    and with a target reached, shortened."""
+    near = (valve[:, None] == valve[None, :]) | (w > 1e-3)[None, :]
+    if target is not None:
+        wi = _shorten(dirs, np.ceil(w - 1e-6), near, T, V, max_v, target)
+        if T @ wi <= max_t + 1e-9 and V @ wi <= max_v * (1 + 1e-9):
+            return wi
+    level = float(evaluate(dirs, w).min())
+    wi = np.floor(w + 1e-6)
+    cost = T / max_t + V / max_v
+
+    def score(x) -> tuple:
+        d = evaluate(dirs, x)
+        return float(np.minimum(d, level).sum()), float(d.min())
+
+    cur = score(wi)
+    while True:
+        best = None
+        for k in np.flatnonzero(T + T @ wi <= max_t + 1e-9):
+            if V[k] + V @ wi > max_v * (1 + 1e-9) or wi[k] >= MAX_REPEATS:
+                continue
+            trial = wi.copy()
+            trial[k] += 1
+            sc = score(trial)
+            gain = ((sc[0] - cur[0]) / cost[k], (sc[1] - cur[1]) / cost[k])
+            if best is None or gain > best[0]:
+                best = (gain, k, sc)
+        if best is None or best[0] <= (0.0, 0.0):
+            break
+        wi[best[1]] += 1
+        cur = best[2]
+    wi = _exchange(dirs, wi, near, T, V, max_t, max_v, level)
+    if target is not None and evaluate(dirs, wi).min() >= target:
+        wi = _shorten(dirs, wi, near, T, V, max_v, target)
+    return wi
+
+
+def _shorten(dirs: list, wi: np.ndarray, near: np.ndarray, T, V, max_v: float, target: float) -> np.ndarray:
+    """Repetitions taken away (the longest block first) or exchanged for a
+    shorter block's (``near``), while every distance stays at ``target``
+    and the delta-v within ``max_v`` (when it was)."""
+    wi = wi.copy()
+    while True:
+        best = None
+        for i in np.flatnonzero(wi > 0):
+            for j in [None, *np.flatnonzero(near[i] & (T < T[i]))]:
+                trial = wi.copy()
+                trial[i] -= 1
+                if j is not None:
+                    trial[j] += 1
+                if V @ trial > max(max_v, V @ wi) * (1 + 1e-9):
+                    continue
+                saved = T @ wi - T @ trial
+                if (best is None or saved > best[0]) and evaluate(dirs, trial).min() >= target:
+                    best = (saved, trial)
+        if best is None:
+            return wi
+        wi = best[1]
+
+
+def _exchange(dirs: list, wi: np.ndarray, near: np.ndarray, T, V, max_t, max_v, level: float, sweeps: int = 20):
+    """Whole repetitions improved by exchanges: one repetition of a block
+    given for one of a block ``near`` (the continuous plan's, or of the
+    same valve: ``near[i, j]``), while the limits hold and the smallest
+    distance rises (then the sum of distances capped at ``level``)."""
+
+    def score(x) -> tuple:
+        d = evaluate(dirs, x)
+        return float(d.min()), float(np.minimum(d, level).sum())
+
+    cur = score(wi)
+    for _ in range(sweeps):
+        best = None
+        for i in np.flatnonzero(wi > 0):
+            for j in np.flatnonzero(near[i]):
+                if j == i or wi[j] >= MAX_REPEATS:
+                    continue
+                trial = wi.copy()
+                trial[i] -= 1
+                trial[j] += 1
+                if T @ trial > max_t + 1e-9 or V @ trial > max_v * (1 + 1e-9):
+                    continue
+                sc = score(trial)
+                if sc > cur and (best is None or sc > best[0]):
+                    best = (sc, trial)
+        if best is None:
+            break
+        cur, wi = best
+    return wi
+
+
+def design(
+    hyps: list,
+    description: dict,
+    max_duration_s: float = DEFAULT_MAX_DURATION_S,
+    max_delta_v: float | None = None,
+    min_on_time_s: float = DEFAULT_MIN_ON_TIME_S,
+    target_delta2: float | None = None,
+    worst_case: bool = True,
+) -> dict:
+    """The designed plan and the fixed characterisation's, with the
+    distance of every counting pair direction for each (docstring above);
+    ``worst_case``: also every direction of a larger set's extra member
+    (worst_case_directions)."""
+    import time
+
+    t0 = time.perf_counter()
+    if len(hyps) < 2:
+        raise ValueError("give at least two hypotheses to separate")
+    blocks = catalogue(description, min_on_time_s)
+    if not blocks:
+        raise ValueError(f"--min-on-time-s {min_on_time_s:g}: longer than every pulse a block fires {PULSES_S}")
+    fixed_w = np.array(
+        [1.0 if (b.pulse_s, b.coast_s) == (CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S) else 0.0 for b in blocks]
+    )
+    fixed_blocks = [b for b, w in zip(blocks, fixed_w) if w]
+    T = np.array([b.duration_s for b in blocks])
+    V = np.array([b.delta_v_mps for b in blocks])
+    fixed_t, fixed_v = float(T @ fixed_w), float(V @ fixed_w)
+    max_v = float(max_delta_v) if max_delta_v is not None else fixed_v
+    if T.min() > max_duration_s:
+        raise ValueError(f"--max-duration-s {max_duration_s:g}: shorter than the shortest block ({T.min():g} s)")
+    jac, sig, n_rows, d = block_jacobians(description, blocks, hyps)
+    dirs = directions(hyps, jac, sig, d) + (worst_case_directions(hyps, jac, d) if worst_case else [])
+    if not dirs:
+        raise ValueError("every hypothesis holds another's members: nothing to separate")
+    w, solver = _solve(dirs, T, V, max_duration_s, max_v, target_delta2)
+    predicted_continuous = evaluate(dirs, w)
+    valve = np.array([b.valve for b in blocks])
+    wi = _round(dirs, w, valve, T, V, max_duration_s, max_v, target_delta2)
+    if not wi.any():
+        raise ValueError("no block fits the limits")
+    out = {
+        "objective": (
+            f"the shortest plan whose smallest pair distance reaches {target_delta2:g}"
+            if target_delta2 is not None
+            else "the largest smallest pair distance within the limits"
+        ),
+        "limits": {
+            "max_duration_s": float(max_duration_s),
+            "max_delta_v_mps": max_v,
+            "max_delta_v_source": "given" if max_delta_v is not None else "the fixed characterisation's",
+            "min_on_time_s": float(min_on_time_s),
+        },
+        "hypotheses": [
+            {"set": h.members, "how": h.how, "parameters": {n: np.asarray(v).tolist() for n, v in h.theta.items()}}
+            for h in hyps
+        ],
+        "delta2_95": DELTA2_95,
+        "blocks": [
+            {**dataclasses.asdict(b), "lead_s": LEAD_S, "duration_s": b.duration_s, "rows": n}
+            for b, n in zip(blocks, n_rows)
+        ],
+        "designed": _plan_summary(dirs, hyps, blocks, wi, T, V),
+        "designed_continuous": {"repeats": w.tolist(), "delta2": predicted_continuous.tolist(), "solver": solver},
+        "fixed": _plan_summary(dirs, hyps, blocks, fixed_w, T, V),
+        "fixed_plan": (
+            f"each valve alone for {CHARACTERISATION_FIRE_S:g} s, then {CHARACTERISATION_COAST_S:g} s without "
+            f"firing, after {LEAD_S:g} s closed ({len(fixed_blocks)} runs, {fixed_t:g} s, {fixed_v:.4g} m/s)"
+        ),
+        "elapsed_s": time.perf_counter() - t0,
+    }
+    if target_delta2 is not None:
+        out["target_reached"] = bool(out["designed"]["delta2_min"] >= target_delta2)
+    return out
+
+
+def pair_rows(dirs: list, hyps: list, d2: np.ndarray) -> list:
+    """One row per counting direction; a family (worst_case_directions) as
+    one row, its smallest distance and the direction that gives it."""
+    rows, fams = [], {}
+    for dr, x in zip(dirs, d2):
+        if dr.family is None:
+            rows.append({"a": hyps[dr.a].name, "b": hyps[dr.b].name, "delta2": float(x)})
+            continue
+        key = (dr.a, dr.b)
+        if key not in fams or x < fams[key]["delta2"]:
+            f = dr.family
+            size = float(np.linalg.norm(f["theta"]))
+            fams[key] = {
+                "a": f"{hyps[dr.a].name}, any one {f['member']} direction at {size:.3g}",
+                "b": hyps[dr.b].name,
+                "delta2": float(x),
+                "worst": {"parameter": f["parameter"], "theta": f["theta"], "member": f["member"], "of": f["of"]},
+            }
+    rows += list(fams.values())
+    return [dict(r, separated_95=bool(r["delta2"] >= DELTA2_95)) for r in rows]
+
+
+def _plan_summary(dirs: list, hyps: list, blocks: list, w: np.ndarray, T, V) -> dict:
+    d2 = evaluate(dirs, w)
+    return {
+        "duration_s": float(T @ w),
+        "delta_v_mps": float(V @ w),
+        "runs": int(w.sum()),
+        "repeats": {i: int(round(x)) for i, x in enumerate(w) if x > 0},
+        "delta2_min": float(d2.min()),
+        "pairs": pair_rows(dirs, hyps, d2),
+        "schedule": schedule(blocks, w),
+    }
+
+
+def schedule(blocks: list, w: np.ndarray) -> list:
+    """The plan run by run: each run from rest, its valve's open and close
+    times from the run's start."""
+    runs = []
+    for k in np.flatnonzero(w > 0):
+        b = blocks[k]
+        for _ in range(int(round(w[k]))):
+            runs.append(
+                {
+                    "run": len(runs),
+                    "duration_s": b.duration_s,
+                    "valves": {str(b.valve): [[LEAD_S, LEAD_S + b.pulse_s]]},
+                    "block": int(k),
+                }
+            )
+    return runs
+
+
+def plan_segments(plan: dict, n_valves: int) -> list:
+    """The designed plan's runs as the bench's vehicle simulator flies them."""
+    segs = []
+    for r in plan["schedule"]:
+        ((v, [[a, b]]),) = r["valves"].items()
+        segs.append(run_segment(int(v), b - a, r["duration_s"] - b, n_valves))
+    return segs
+
+
+# --- checked: the plan flown -------------------------------------------------------------------
+
+
+def flown_distances(description: dict, segments: list, hyps: list, truth: int, seed: int = 0) -> dict:
+    """The plan ``segments`` flown by the described vehicle on the bench's
+    plant with hypothesis ``truth``'s effects at its sizes and without them
+    (the same seed: common random numbers, as bench/gap/separability.py
+    twin_logs). On that flight, s the whitened difference of the two on
+    every row, and for every other hypothesis B not holding every member of
+    the truth: ``delta2`` = |(I - P_B) s|^2, what the design predicts; and
+    ``delta2_fitted`` = |(I - P_B) P_A s|^2, the true set's fit of s first
+    (separability.set_separability_of_logs), which leaves out the part of
+    s the true set's linearisation does not reach."""
+    from bench.gap.attribute import signature
+    from bench.gap.detection import context
+    from bench.gap.replay import prepare
+    from bench.sim.vehicle_sim import simulate
+
+    A = hyps[truth]
+    log1, _ = simulate(description, segments, effects_of(A), seed=seed, with_truth=False)
+    log0, _ = simulate(description, segments, {}, seed=seed, with_truth=False)
+    ctx0 = all_rows(context(prepare(log0)))
+    ctx1 = context(prepare(log1))
+    if ctx1.nominal.white.shape != ctx0.nominal.white.shape or ctx1.ch.e0.shape != ctx0.ch.e0.shape:
+        raise ValueError("the flights with and without the effects differ in their streams' lengths")
+    ok = ctx0.train_nav
+    s = whitened_rows(ctx0, ok) - whitened_rows(ctx1, ok)  # as J theta: what the correction removes
+    names = sorted({n for h in hyps for n in h.members})
+    jac = {n: signature(ctx0, n, ok[ok])[0] for n in names}
+    _, p = _fit_set(ctx0, jac, A.members, s)
+    out = {"truth": A.name, "seed": int(seed), "lambda": float(s @ s), "outside_truth2": float(np.sum((s - p) ** 2))}
+    out["pairs"] = []
+    for ib, B in enumerate(hyps):
+        if ib == truth or set(A.members) <= set(B.members):
+            continue
+        _, q = _fit_set(ctx0, jac, B.members, s)
+        _, qp = _fit_set(ctx0, jac, B.members, p)
+        out["pairs"].append(
+            {
+                "a": A.name,
+                "b": B.name,
+                "delta2": float(np.sum((s - q) ** 2)),
+                "delta2_fitted": float(np.sum((p - qp) ** 2)),
+            }
+        )
+    return out
+
+
+def parse_sets(hypotheses: str | None, hypothesis: list | None) -> list:
+    """Named sets: ``--hypotheses a,b+c`` and repeated ``--hypothesis a+b``."""
+    texts = [t for t in (hypotheses or "").split(",") if t.strip()] + list(hypothesis or [])
+    sets = []
+    for t in texts:
+        members = [m.strip() for m in t.split("+") if m.strip()]
+        if not members:
+            raise ValueError(f"hypothesis {t!r}: name one or more candidates joined by '+'")
+        if len(set(members)) != len(members):
+            raise ValueError(f"hypothesis {t!r}: a candidate named twice")
+        if any(set(members) == set(s) for s in sets):
+            raise ValueError(f"hypothesis {t!r}: named twice")
+        sets.append(members)
+    return sets
+
+
+def hypotheses_for(log, diagnosis: dict | None = None, named: list | None = None) -> tuple:
+    """(hypotheses at their sizes, where they came from): the named sets,
+    or the diagnosis's answer and the sets it lists (the given diagnosis,
+    else the log diagnosed now)."""
+    if named:
+        if len(named) < 2:
+            raise ValueError("name at least two hypotheses to separate")
+        return fit_hypotheses(log, [(list(s), None) for s in named]), "named"
+    if diagnosis is None:
+        from bench.gap.diagnose import diagnose, public
+
+        diagnosis = public(diagnose(log))
+    sets = sets_of_diagnosis(diagnosis)
+    if len(sets) < 2:
+        raise ValueError(
+            f"the diagnosis ({diagnosis.get('verdict')}) lists no set it cannot tell from its answer: nothing to "
+            "separate (name the sets with --hypotheses)"
+        )
+    return fit_hypotheses(log, sets), f"diagnosis ({diagnosis.get('verdict')})"
+
+
+def plot(result: dict, path) -> None:
+    """Distance per pair, designed against fixed, and both schedules."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(3, 1, figsize=(10, 10), gridspec_kw={"height_ratios": [1.2, 1, 1]})
+    ax = axes[0]
+    des, fix = result["designed"]["pairs"], result["fixed"]["pairs"]
+    labels = [f"{p['a']}\nvs {p['b']}" for p in des]
+    x = np.arange(len(des))
+    ax.bar(x - 0.2, [p["delta2"] for p in des], 0.4, label=f"designed ({result['designed']['duration_s']:.0f} s)")
+    ax.bar(
+        x + 0.2,
+        [p["delta2"] for p in fix],
+        0.4,
+        label=f"fixed characterisation ({result['fixed']['duration_s']:.0f} s)",
+    )
+    if result.get("flown"):
+        for k, (key, dx) in enumerate((("designed", -0.2), ("fixed", 0.2))):
+            fl = {(p["a"], p["b"]): p["delta2"] for f in result["flown"][key] for p in f["pairs"]}
+            ys = [fl.get((p["a"], p["b"]), np.nan) for p in des]
+            ax.plot(x + dx, ys, "kx", ms=9, label="flown" if k == 0 else None)
+    ax.axhline(result["delta2_95"], color="r", ls="--", label="10.8: separated 95 % of the time")
+    ax.set_yscale("log")
+    ax.set_xlim(-0.8, len(des) - 0.2)
+    ax.set_xticks(x, labels, fontsize=8)
+    ax.set_ylabel("distance delta2 [noise variances]")
+    ax.legend(fontsize=8)
+    ax.set_title("predicted distance per pair (hypothesis at its sizes vs the other set)")
+    for ax, key in zip(axes[1:], ("designed", "fixed")):
+        t0 = 0.0
+        for r in result[key]["schedule"]:
+            for v, spans in r["valves"].items():
+                for a, b in spans:
+                    ax.barh(int(v), b - a, left=t0 + a, height=0.6, color="C0")
+            ax.axvline(t0, color="0.8", lw=0.5)
+            t0 += r["duration_s"]
+        n = len(result["hypotheses"][0]["parameters"].get("thrust_loss", [])) or None
+        ax.set_ylabel("valve")
+        if n:
+            ax.set_ylim(-0.5, n - 0.5)
+        p = result[key]
+        ax.set_title(f"{key}: {p['runs']} runs from rest, {p['duration_s']:.0f} s, delta-v {p['delta_v_mps']:.3g} m/s")
+    axes[-1].set_xlabel("time, runs end to end [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# What each field of the plan's JSON holds.
+FIELDS = {
+    "objective": "what was maximised or minimised",
+    "limits": "the user's limits: plan duration [s], delta-v [m/s], shortest valve opening [s]",
+    "hypotheses": "the sets to separate, each at its sizes on the log (parameters in the candidates' units)",
+    "delta2_95": "the distance at which two hypotheses are told apart 95 % of the time [noise variances]",
+    "blocks": "the elementary blocks: valve, pulse_s, coast_s after lead_s closed, delta_v_mps, duration_s",
+    "designed": "the designed plan: duration_s, delta_v_mps, runs, repeats per block, predicted distance "
+    "per pair (a at its sizes vs set b), and schedule: each run from rest, every valve's [open, close] "
+    "times [s] from the run's start",
+    "designed_continuous": "the optimiser's repetitions before rounding, and their distances",
+    "fixed": "the fixed characterisation plan, evaluated the same way",
+    "description": "the described vehicle the plan is for (the log's own, every default resolved)",
+    "flown": "with --check: the plans flown on the bench's plant with each hypothesis's effects and without "
+    "(common random numbers), the distance measured on the flight",
+}
+
+
+def check(result: dict, hyps: list, description: dict, seed: int = 0) -> dict:
+    """Both plans flown (flown_distances) with each hypothesis that has a
+    pair to separate as the truth, and with each family's worst direction
+    in the designed plan (worst_case_directions): {"designed": [...],
+    "fixed": [...]}."""
+    n_valves = len(description["vehicle"]["thrusters"])
+    truths = [i for i, A in enumerate(hyps) if any(not set(A.members) <= set(B.members) for B in hyps if B is not A)]
+    out = {}
+    for key in ("designed", "fixed"):
+        segs = plan_segments(result[key], n_valves)
+        out[key] = [flown_distances(description, segs, hyps, i, seed) for i in truths]
+        for row in result["designed"]["pairs"]:
+            if "worst" not in row:
+                continue
+            w = row["worst"]
+            B = hyps[w["of"]]
+            theta = {**B.theta, w["member"]: np.asarray(w["theta"])}
+            A = next(h for h in hyps if h.name == row["b"])
+            variant = Hypothesis(B.members, theta, f"{w['member']} along {w['parameter']} alone")
+            f = flown_distances(description, segs, [variant, A], 0, seed)
+            f["truth"] = row["a"] + f" (worst: {w['parameter']})"
+            for p in f["pairs"]:
+                p["a"] = row["a"]
+            out[key].append(f)
+    return out
+
+
+def separate(
+    log,
+    diagnosis: dict | None = None,
+    named: tuple = (None, None),
+    max_duration_s: float = DEFAULT_MAX_DURATION_S,
+    max_delta_v: float | None = None,
+    min_on_time_s: float = DEFAULT_MIN_ON_TIME_S,
+    target_delta2: float | None = None,
+    check_seed: int | None = None,
+) -> dict:
+    """`proxops plan LOG --separate`: the hypotheses (``named``: the
+    ``--hypotheses`` text and the ``--hypothesis`` list; else the given or a
+    fresh diagnosis), the designed and the fixed plan for the log's
+    described vehicle, and with ``check_seed`` both flown (check)."""
+    hyps, source = hypotheses_for(log, diagnosis, parse_sets(*named))
+    description = description_of(log)
+    res = design(hyps, description, max_duration_s, max_delta_v, min_on_time_s, target_delta2)
+    res["hypotheses_from"] = source
+    res["description"] = description
+    if check_seed is not None:
+        res["flown"] = check(res, hyps, description, check_seed)
+    res["fields"] = FIELDS
+    return res
