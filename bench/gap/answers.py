@@ -65,7 +65,12 @@ def which_text(out: dict) -> str | None:
         return None
     v = out["verdict"]
     if v == "unexplained":
-        return "unexplained: no effect in the library accounts for the gap on held-out data"
+        sets = listed_sets(out)
+        parts = "; ".join(" + ".join(s) for s in sets[:SHOWN_SETS])
+        more = f"; {len(sets) - SHOWN_SETS} more sets in the JSON" if len(sets) > SHOWN_SETS else ""
+        return "unexplained: no effect in the library accounts for the gap on held-out data" + (
+            f"; in the library, part of it could be: {parts}{more}" if sets else ""
+        )
     if v == "partly_explained":
         names = " + ".join(m["effect"] for m in out.get("effects") or [])
         return (

@@ -497,7 +497,24 @@ def _set_answer(
         if effect_set is not None and effect_set["partly_explains"]:
             verdict = "partly_explained"
             ambiguous_with = _partial_alternatives(ctx, fits, [m["effect"] for m in effect_set["members"]], thr_glr)
+        elif effect_set is not None:
+            ambiguous_with = _possible_parts(ctx, fits, effect_set, thr_glr)
     return verdict, effect_set, ambiguous_with
+
+
+def _possible_parts(ctx: Context, fits: list, effect_set: dict, thr_glr: float) -> list:
+    """What an unexplained answer lists: the selected members that each gain
+    more than HELDOUT_DLL_MIN on the held-out data while the set fails
+    another test (it contradicts a channel, or shrinks too little of the
+    deficit), as the in-library part that may sit beside what the library
+    lacks, and the sets the data cannot tell from it (_listed). The verdict
+    stays "unexplained": none of them is confirmed."""
+    part = [m["effect"] for m in effect_set["members"] if m["adds_dll_heldout"] > HELDOUT_DLL_MIN]
+    if not part:
+        return []
+    cands = candidates_of(ctx.d)
+    first = {"set": part, "part_of_gap": True, "separate_by": "; ".join(cands[n].separate_by for n in part)}
+    return _listed(ctx, fits, part, thr_glr, [first])
 
 
 def _listed(ctx: Context, fits: list, names: list, thr_glr: float, listed: list) -> list:

@@ -84,6 +84,12 @@ def _not_told_apart_lines(result: dict, best) -> list:
                 f"{a['signature_distance2']:.1f}: separate with: {a['separate_by']}"
             )
             continue
+        if "part_of_gap" in a:  # an unexplained answer's in-library part
+            lines.append(
+                f"- {' + '.join(a['set'])}: gains on the held-out data, but the set fails another held-out "
+                f"test; it may sit beside what the library lacks: separate with: {a['separate_by']}"
+            )
+            continue
         if "drop" in a:  # a partial answer without one member
             lines.append(
                 f"- {' + '.join(a['set']) or 'none'}: {a['drop']}'s fit may be the remainder's shadow in the library: "

@@ -28,8 +28,8 @@ import time
 
 import numpy as np
 
-from bench.sim.plans import then_scripts
 from bench.gap.validate import SCALES, blind, new_campaign, sized_and_diagnosed
+from bench.sim.plans import then_scripts
 
 KINDS = ("pair", "triple", "in+out")
 
