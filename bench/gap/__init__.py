@@ -16,7 +16,6 @@ the answer
 null calibrations
   null        the committed thresholds (seeded Monte Carlo of simulated-on-simulated logs)
   log_null    a calibration made for a log (parametric bootstrap of its own flight)
-  plans       bench/sim/plans.py's manoeuvre plans named again, for validate_mixtures
   simlogs     simulated logs of the docking scenario (runs go through bench/runner)
   calibration_file  what a --calibration file must hold before its thresholds are trusted
   validity    the envelope the diagnosis is validated on; a log outside it, named

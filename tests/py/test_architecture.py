@@ -34,7 +34,7 @@ GAP_LAYERS = (
     ("the answer: verdicts, words, report", {"diagnose", "answers", "report", "report_plots"}),
     (
         "null calibrations and the flights they simulate",
-        {"null", "log_null", "plans", "simlogs", "calibration_file", "validity"},
+        {"null", "log_null", "simlogs", "calibration_file", "validity"},
     ),
     (
         "the model: replay, dynamics channel, candidates, screening, selection, detection",
