@@ -119,6 +119,30 @@ def _not_told_apart_lines(result: dict, best) -> list:
     return lines
 
 
+# A candidate with more parameters than this shows in the ranking table only
+# those beyond 2 sigma (the largest first); all of them are listed below it.
+TABLE_PARAMETERS = 4
+
+
+def _parameter_text(k: str, v: dict) -> str:
+    return f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" if v.get("value") is not None else f"{k}: not identifiable"
+
+
+def _parameters_cell(params: dict) -> str:
+    """A ranking-table cell: every parameter, or for a long list the ones
+    beyond 2 sigma, the most significant first."""
+    if len(params) <= TABLE_PARAMETERS:
+        return "; ".join(_parameter_text(k, v) for k, v in params.items())
+    big = [
+        (abs(v["value"]) / v["sigma"], k, v)
+        for k, v in params.items()
+        if v.get("value") is not None and v.get("sigma") and abs(v["value"]) > 2 * v["sigma"]
+    ]
+    big.sort(key=lambda x: -x[0])
+    shown = "; ".join(_parameter_text(k, v) for _, k, v in big[:TABLE_PARAMETERS])
+    return f"{len(big)} of {len(params)} beyond 2 sigma" + (f": {shown}" if shown else "") + " (all below)"
+
+
 def _ranking_lines(result: dict) -> list:
     """The ranking table and the screening line."""
     lines = [
@@ -127,17 +151,20 @@ def _ranking_lines(result: dict) -> list:
         "| effect | kind | ln Bayes factor | BIC | dLL train | dLL held-out | shrink held-out [95 % CI] | explains | parameters |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+    long = []
     for r in result["attribution"]:
         sh = r["shrink_heldout"]
-        pars = "; ".join(
-            f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" if v.get("value") is not None else f"{k}: not identifiable"
-            for k, v in r["parameters"].items()
-        )
+        pars = _parameters_cell(r["parameters"])
+        if len(r["parameters"]) > TABLE_PARAMETERS:
+            long.append(r)
         lines.append(
             f"| {r['effect']} | {r['kind']} | {r['evidence']['ln_bf']:.1f} | {r['evidence']['bic']:.1f} | {r['evidence']['dll_train']:.1f} | "
             f"{r['evidence']['dll_heldout']:.1f} | {_shrink_cell(sh)} | "
             f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |"
         )
+    for r in long:
+        lines += ["", f"{r['effect']}, every parameter:", ""]
+        lines += [f"- {_parameter_text(k, v)}" for k, v in r["parameters"].items()]
     lines += [
         "",
         "Screening (linearised GLR, every candidate, -log10 p against chi-square(rank)): "
