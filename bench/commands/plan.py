@@ -60,6 +60,12 @@ def register(sub):
         "separates 95 %% of the time) instead of the largest distance within the limits",
     )
     p.add_argument(
+        "--as-listed",
+        action="store_true",
+        help="separate the sets at their listed sizes only, not also a larger set's extra member along each "
+        "of its directions at that size",
+    )
+    p.add_argument(
         "--check", action="store_true", help="fly both plans on the bench's plant with each hypothesis and measure"
     )
     p.add_argument("--seed", type=seed, default=0, help="noise of the --check flights, any integer >= 0")
@@ -94,6 +100,7 @@ def main(args):
         args.min_on_time_s,
         args.target_delta2,
         args.seed if args.check else None,
+        worst_case=not args.as_listed,
     )
     res = {"command": _command(args), **res}
     write_json(args.json, res, strict=True)
@@ -111,6 +118,8 @@ def _command(args) -> str:
         if v is not None:
             parts += [f"--{opt.replace('_', '-')}", f"{v:g}" if isinstance(v, float) else str(v)]
     parts += [f"--hypothesis {h}" for h in args.hypothesis]
+    if args.as_listed:
+        parts += ["--as-listed"]
     if args.check:
         parts += ["--check", "--seed", str(args.seed)]
     return " ".join(parts + ["--json", args.json])

@@ -898,6 +898,8 @@ def hypotheses_for(log, diagnosis: dict | None = None, named: list | None = None
 
 def plot(result: dict, path) -> None:
     """Distance per pair, designed against fixed, and both schedules."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -906,7 +908,7 @@ def plot(result: dict, path) -> None:
     fig, axes = plt.subplots(3, 1, figsize=(10, 10), gridspec_kw={"height_ratios": [1.2, 1, 1]})
     ax = axes[0]
     des, fix = result["designed"]["pairs"], result["fixed"]["pairs"]
-    labels = [f"{p['a']}\nvs {p['b']}" for p in des]
+    labels = ["\n".join(textwrap.wrap(f"{p['a']} vs {p['b']}", 40)) for p in des]
     x = np.arange(len(des))
     ax.bar(x - 0.2, [p["delta2"] for p in des], 0.4, label=f"designed ({result['designed']['duration_s']:.0f} s)")
     ax.bar(
@@ -923,7 +925,7 @@ def plot(result: dict, path) -> None:
     ax.axhline(result["delta2_95"], color="r", ls="--", label="10.8: separated 95 % of the time")
     ax.set_yscale("log")
     ax.set_xlim(-0.8, len(des) - 0.2)
-    ax.set_xticks(x, labels, fontsize=8)
+    ax.set_xticks(x, labels, fontsize=7)
     ax.set_ylabel("distance delta2 [noise variances]")
     ax.legend(fontsize=8)
     ax.set_title("predicted distance per pair (hypothesis at its sizes vs the other set)")
@@ -1001,6 +1003,7 @@ def separate(
     min_on_time_s: float = DEFAULT_MIN_ON_TIME_S,
     target_delta2: float | None = None,
     check_seed: int | None = None,
+    worst_case: bool = True,
 ) -> dict:
     """`proxops plan LOG --separate`: the hypotheses (``named``: the
     ``--hypotheses`` text and the ``--hypothesis`` list; else the given or a
@@ -1008,10 +1011,59 @@ def separate(
     described vehicle, and with ``check_seed`` both flown (check)."""
     hyps, source = hypotheses_for(log, diagnosis, parse_sets(*named))
     description = description_of(log)
-    res = design(hyps, description, max_duration_s, max_delta_v, min_on_time_s, target_delta2)
+    res = design(hyps, description, max_duration_s, max_delta_v, min_on_time_s, target_delta2, worst_case)
     res["hypotheses_from"] = source
     res["description"] = description
     if check_seed is not None:
         res["flown"] = check(res, hyps, description, check_seed)
     res["fields"] = FIELDS
     return res
+
+
+def docking_tilt(seed: int = 5, tilt_rad: float = 0.03) -> dict:
+    """A docking log (bench/sim/reality.py) with thrust losses of 0.06 and
+    0.04 on valves 3 and 6 and nozzle tilts of ``tilt_rad`` on the same
+    valves, diagnosed; the plans designed from its answer for every
+    direction and for the listed sizes alone; the true effects flown on
+    each and on the fixed characterisation (docs/GAP.md)."""
+    from bench.gap.diagnose import diagnose, public
+    from bench.sim.reality import simulate_log_with_key
+
+    loss = [0.0, 0.0, 0.0, 0.06, 0.0, 0.0, 0.04, 0.0]
+    phi = np.zeros((8, 3))
+    phi[3], phi[6] = [tilt_rad, 0.0, 0.0], [0.0, tilt_rad, 0.0]
+    effects = {"thrust_loss": loss, "thruster_misalignment": phi.ravel().tolist()}
+    log, _ = simulate_log_with_key(seed, effects, 120.0, with_truth=False)
+    out = public(diagnose(log))
+    sets = sets_of_diagnosis(out)
+    hyps = fit_hypotheses(log, sets)
+    description = description_of(log)
+    truth = Hypothesis(sets[-1][0], {k: np.asarray(v) for k, v in effects.items()}, "the true effects")
+    rows = {"answer": {"verdict": out["verdict"], "sets": [s for s, _ in sets]}}
+    for name, worst in (("every direction", True), ("listed sizes", False)):
+        res = design(hyps, description, worst_case=worst)
+        for key in ("designed", "fixed") if worst else ("designed",):
+            segs = plan_segments(res[key], len(description["vehicle"]["thrusters"]))
+            (pair,) = flown_distances(description, segs, [truth, hyps[0]], 0, seed)["pairs"]
+            rows[f"{key} ({name})" if key == "designed" else key] = {
+                "duration_s": res[key]["duration_s"],
+                "delta_v_mps": res[key]["delta_v_mps"],
+                "predicted_delta2_min": res[key]["delta2_min"],
+                "true_effects_delta2": pair["delta2"],
+            }
+    return rows
+
+
+def main(argv=None) -> None:
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description="the designed plan on a docking log with a tilt beside a loss")
+    ap.add_argument("--seed", type=int, default=5)
+    ap.add_argument("--tilt", type=float, default=0.03, help="nozzle tilt of valves 3 and 6 [rad]")
+    a = ap.parse_args(argv)
+    print(json.dumps(docking_tilt(a.seed, a.tilt), indent=1))
+
+
+if __name__ == "__main__":
+    main()
