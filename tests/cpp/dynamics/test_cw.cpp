@@ -146,3 +146,21 @@ TEST(CwTest, AlongTrackOffsetIsEquilibrium) {
   s(1) = 10.0;
   EXPECT_LE((cw_stm(n, 5000.0) * s - s).norm(), 1e-12);
 }
+
+// The propagator keeps the closed-form matrices of its step, reports its
+// orbit rate and step, and a step without thrust is the free CW motion.
+TEST(CwTest, PropagatorKeepsItsMatricesAndCoastsWithoutThrust) {
+  const double n = orbit_rate(kRadius500km);
+  const CwPropagator<double> prop(n, 0.1);
+  EXPECT_EQ(prop.orbit_rate_radps(), n);
+  EXPECT_EQ(prop.dt_s(), 0.1);
+  EXPECT_EQ(prop.stm(), cw_stm(n, 0.1));
+  EXPECT_EQ(prop.accel_response(), cw_accel_response(n, 0.1));
+  Vec6<double> s;
+  s << 0.5, -0.3, 0.1, 0.01, -0.02, 0.005;
+  EXPECT_EQ(prop.step(s), prop.step(s, Eigen::Vector3d::Zero()));
+  Vec6<double> x = s;
+  for (int k = 0; k < 1000; ++k) x = prop.step(x);
+  const Vec6<double> expected = cw_stm(n, 100.0) * s;
+  EXPECT_LE((x - expected).norm() / expected.norm(), 1e-11);
+}

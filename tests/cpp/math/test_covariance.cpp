@@ -116,3 +116,57 @@ TYPED_TEST(CovarianceTest, FactorFromRowsMatchesCholeskyAndKeepsSmallDirections)
   rank1.col(1) = S(2) * rank1.col(0);
   EXPECT_FALSE(cholesky_from_rows(rank1, Lw));
 }
+
+// The hygiene after every step: a variance below its floor is raised to it,
+// one above its ceiling is brought down to it with its row and column (the
+// correlations kept), the result is symmetric; a variance that is not
+// positive or not finite is a breakdown, refused rather than floored.
+TYPED_TEST(CovarianceTest, ConditioningBoundsTheVariancesAndKeepsCorrelations) {
+  using S = TypeParam;
+  using M3 = Eigen::Matrix<S, 3, 3>;
+  using V3 = Eigen::Matrix<S, 3, 1>;
+  M3 P;
+  P << S(1e-12), S(0), S(0),    //
+      S(0), S(4), S(3.0001),    // row 1 not yet symmetric
+      S(0), S(2.9999), S(9e6);  // variance above its ceiling
+  const V3 var_min(S(1e-6), S(1e-6), S(1e-6));
+  const V3 var_max(S(1e3), S(1e3), S(1e2));
+  const double corr12 = 3.0 / std::sqrt(4.0 * 9e6);
+  ASSERT_TRUE(condition_covariance(P, var_min, var_max));
+  EXPECT_EQ(P(0, 0), var_min(0));  // raised to the floor
+  EXPECT_EQ(P(1, 1), S(4));        // inside its bounds: untouched
+  EXPECT_EQ(P(2, 2), var_max(2));  // scaled down to the ceiling
+  EXPECT_TRUE((P - P.transpose()).isZero(S(0)));
+  EXPECT_NEAR(double(P(1, 2)) / std::sqrt(double(P(1, 1)) * double(P(2, 2))), corr12, 1e-5);
+  M3 L;
+  EXPECT_TRUE(cholesky_lower(P, L));
+
+  for (const S bad : {S(0), S(-1), std::numeric_limits<S>::quiet_NaN(), std::numeric_limits<S>::infinity()}) {
+    M3 Q = M3::Identity();
+    Q(1, 1) = bad;
+    EXPECT_FALSE(condition_covariance(Q, var_min, var_max)) << double(bad);
+  }
+}
+
+// The factor's helpers: (L L^T)^-1 X by two triangular solves, and log det
+// from a factor or from Eigen's LLT, against the determinant.
+TYPED_TEST(CovarianceTest, SolveAndLogDetFromTheFactor) {
+  using S = TypeParam;
+  Eigen::Matrix<S, 3, 3> A;
+  A << S(4), S(1), S(0.5), S(1), S(3), S(0.2), S(0.5), S(0.2), S(2);
+  Eigen::LLT<Eigen::Matrix<S, 3, 3>> llt;
+  ASSERT_TRUE(factor(A, llt));
+  Eigen::Matrix<S, 3, 3> L;
+  ASSERT_TRUE(cholesky_lower(A, L));
+  Eigen::Matrix<S, 3, 2> X;
+  X << S(1), S(-2), S(0.5), S(3), S(-1), S(0.25);
+  const Eigen::Matrix<S, 3, 2> B = X;
+  solve_lower_llt(L, X);
+  EXPECT_LT((A * X - B).cwiseAbs().maxCoeff(), S(64) * std::numeric_limits<S>::epsilon());
+  const double logdet = std::log(double(A.determinant()));
+  EXPECT_NEAR(double(log_det(llt)), logdet, 1e-5);
+  EXPECT_NEAR(double(log_det_lower(L)), logdet, 1e-5);
+  // factor() refuses a non-finite matrix (Eigen's LLT alone lets NaN through).
+  A(2, 2) = std::numeric_limits<S>::quiet_NaN();
+  EXPECT_FALSE(factor(A, llt));
+}

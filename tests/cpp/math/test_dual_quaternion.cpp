@@ -2,6 +2,7 @@
 // against an independent rotation-matrix (SE(3)) computation.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -177,4 +178,30 @@ TYPED_TEST(DualQuatTest, WxyzBoundaryIsScalarFirst) {
   EXPECT_EQ(v(0), S(0.5));
   const DualQuat<S> back = from_wxyz8(v);
   EXPECT_EQ((to_wxyz8(back) - v).norm(), S(0));
+}
+
+// -Q is the same motion as Q: normalized() returns the representative with a
+// non-negative scalar part and the same translation; all_finite() sees a NaN
+// in either part.
+TYPED_TEST(DualQuatTest, NormalizedTakesTheNonNegativeScalarHemisphere) {
+  using S = TypeParam;
+  for (const auto& m : sample_motions(13, 12)) {
+    const DualQuat<S> Q = dq<S>(m);
+    DualQuat<S> neg = Q;
+    neg.real.coeffs() = -neg.real.coeffs();
+    neg.dual.coeffs() = -neg.dual.coeffs();
+    if (Q.real.w() == S(0)) continue;  // both representatives on the boundary
+    const DualQuat<S> N = normalized(neg);
+    EXPECT_GT(N.real.w(), S(0));
+    EXPECT_LE((N.real.coeffs() - Q.real.coeffs()).norm(), 10 * tol<S>());
+    EXPECT_LE((N.translation() - m.t.template cast<S>()).norm(), S(200) * tol<S>() * (1 + S(m.t.norm())));
+    EXPECT_TRUE(N.all_finite());
+  }
+  DualQuat<S> bad = DualQuat<S>::identity();
+  EXPECT_TRUE(bad.all_finite());
+  bad.dual.x() = std::numeric_limits<S>::quiet_NaN();
+  EXPECT_FALSE(bad.all_finite());
+  bad = DualQuat<S>::identity();
+  bad.real.w() = std::numeric_limits<S>::infinity();
+  EXPECT_FALSE(bad.all_finite());
 }
