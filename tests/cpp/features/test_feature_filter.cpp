@@ -6,6 +6,7 @@
 
 #include <limits>
 #include <memory>
+#include <vector>
 
 #include "feature_scenario.hpp"
 #include "fsw/dynamics/cw.hpp"
@@ -253,4 +254,201 @@ TEST(FeatureFilterTest, RejectsBetaBelowAlphaSquared) {
   Ukf<double> f(cfg, features<double>());
   EXPECT_FALSE(f.config_ok());
   EXPECT_STREQ(f.config_invalid_field(), "beta");
+}
+
+// Every setting and feature the filters check is refused naming it, and a
+// filter so configured refuses every step with BadConfig; both filters,
+// both scalar builds.
+template <typename S, typename F>
+void each_invalid_setting_is_refused_by_name() {
+  using C = FeatureFilterConfig<S>;
+  using Fs = typename F::Features;
+  const S nan = std::numeric_limits<S>::quiet_NaN();
+  const S inf = std::numeric_limits<S>::infinity();
+  struct Case {
+    const char* field;
+    C cfg;
+    Fs fs;
+  };
+  std::vector<Case> cases;
+  auto add = [&](const char* field, auto change) {
+    Case k{field, config<S>(), features<S>()};
+    change(k.cfg, k.fs);
+    cases.push_back(k);
+  };
+  add("leader", [&](C& c, Fs&) { c.leader.e = S(1); });
+  add("leader", [&](C& c, Fs&) { c.leader.a_m = nan; });
+  add("inertia_f_kgm2", [&](C& c, Fs&) { c.inertia_f_kgm2.y() = S(0); });
+  add("inertia_f_kgm2", [&](C& c, Fs&) { c.inertia_f_kgm2.z() = inf; });
+  add("camera.focal_m", [&](C& c, Fs&) { c.camera.focal_m = S(-0.5); });
+  add("camera.camera_offset_f_m", [&](C& c, Fs&) { c.camera.camera_offset_f_m.x() = nan; });
+  add("camera.feature_origin_l_m", [&](C& c, Fs&) { c.camera.feature_origin_l_m.z() = inf; });
+  add("camera.min_depth_m", [&](C& c, Fs&) { c.camera.min_depth_m = S(0); });
+  add("image_sigma_m", [&](C& c, Fs&) { c.image_sigma_m = S(0); });
+  add("substeps", [&](C& c, Fs&) { c.substeps = 0; });
+  add("substeps", [&](C& c, Fs&) { c.substeps = 1001; });
+  add("max_dt_s", [&](C& c, Fs&) { c.max_dt_s = 0.0; });
+  add("q_att", [&](C& c, Fs&) { c.q_att = S(-1e-8); });
+  add("q_rate", [&](C& c, Fs&) { c.q_rate = nan; });
+  add("q_pos", [&](C& c, Fs&) { c.q_pos = inf; });
+  add("q_vel", [&](C& c, Fs&) { c.q_vel = S(-1); });
+  add("q_phi", [&](C& c, Fs&) { c.q_phi = nan; });
+  add("gate_chi2", [&](C& c, Fs&) { c.gate_chi2 = inf; });
+  add("alpha", [&](C& c, Fs&) { c.alpha = S(0); });
+  add("beta", [&](C& c, Fs&) { c.beta = S(-1); });
+  add("kappa", [&](C& c, Fs&) { c.kappa = nan; });
+  add("max_alpha_halvings", [&](C& c, Fs&) { c.max_alpha_halvings = -1; });
+  add("max_alpha_halvings", [&](C& c, Fs&) { c.max_alpha_halvings = 31; });
+  add("var_min", [&](C& c, Fs&) { c.var_min = S(0); });
+  add("att_var_max_rad2", [&](C& c, Fs&) { c.att_var_max_rad2 = c.var_min; });
+  add("rate_var_max", [&](C& c, Fs&) { c.rate_var_max = inf; });
+  add("pos_var_max_m2", [&](C& c, Fs&) { c.pos_var_max_m2 = S(0); });
+  add("vel_var_max", [&](C& c, Fs&) { c.vel_var_max = inf; });
+  add("phi_var_max_rad2", [&](C& c, Fs&) { c.phi_var_max_rad2 = nan; });
+  add("features.n_points", [&](C&, Fs& f) { f.n_points = 5; });
+  add("features.n_lines", [&](C&, Fs& f) { f.n_lines = -1; });
+  add("features.n_circles", [&](C&, Fs& f) { f.n_circles = 3; });
+  add("features.point_lp_m", [&](C&, Fs& f) { f.point_lp_m[3].x() = nan; });
+  add("features.line", [&](C&, Fs& f) { f.line_moment_lp_m[1].y() = inf; });
+  add("features.line", [&](C&, Fs& f) { f.line_moment_lp_m[0] = Vec3<S>(S(1), S(0), S(0)); });  // not normal to l
+  add("features.circle", [&](C&, Fs& f) { f.circle_start_lp_m[1].z() = nan; });
+  add("features.circle", [&](C&, Fs& f) { f.circle_axis_lp[0] = Vec3<S>(S(0), S(1), S(1)); });      // not unit
+  add("features.circle", [&](C&, Fs& f) { f.circle_moment_lp_m[1] = Vec3<S>(S(2), S(0), S(0)); });  // along l
+  for (const Case& k : cases) {
+    auto f = std::make_unique<F>(k.cfg, k.fs);
+    EXPECT_FALSE(f->config_ok()) << k.field;
+    ASSERT_NE(f->config_invalid_field(), nullptr) << k.field;
+    EXPECT_STREQ(f->config_invalid_field(), k.field);
+    const auto init = f->init(0.0, S(0), truth0<S>(), P0<S>());
+    EXPECT_EQ(init.status, StepStatus::BadInput) << k.field;
+    EXPECT_EQ(init.detail, StepDetail::BadConfig) << k.field;
+    EXPECT_EQ(f->predict(1.0).detail, StepDetail::BadConfig) << k.field;
+    EXPECT_EQ(f->update(F::MeasVec::Zero()).detail, StepDetail::BadConfig) << k.field;
+  }
+  auto good = std::make_unique<F>(config<S>(), features<S>());
+  EXPECT_TRUE(good->config_ok());
+  EXPECT_EQ(good->config_invalid_field(), nullptr);
+}
+
+TEST(FeatureFilterTest, EachInvalidSettingIsRefusedByNameEkfDouble) {
+  each_invalid_setting_is_refused_by_name<double, Ekf<double>>();
+}
+TEST(FeatureFilterTest, EachInvalidSettingIsRefusedByNameUkfFloat) {
+  each_invalid_setting_is_refused_by_name<float, Ukf<float>>();
+}
+
+// What an initialised filter reports: its settings and features, time, true
+// anomaly, pose and configured slots, and a predicted measurement equal to
+// the models' at its state.
+TEST(FeatureFilterTest, InitialisedFilterReportsItsStateAndPredictsTheModelsMeasurement) {
+  const auto fs = features<double>(1);  // points only
+  Ukf<double> f(config<double>(), fs);
+  EXPECT_FALSE(f.initialized());
+  EXPECT_EQ(f.configured_slots(), 0xFu);  // the four point slots
+  EXPECT_EQ(f.features().n_points, 4);
+  EXPECT_EQ(f.features().n_lines, 0);
+  EXPECT_EQ(f.config().image_sigma_m, config<double>().image_sigma_m);
+  const auto x0 = truth0<double>();
+  ASSERT_TRUE(f.init(2.5, 0.25, x0, P0<double>()).ok());
+  EXPECT_TRUE(f.initialized());
+  EXPECT_EQ(f.t_s(), 2.5);
+  EXPECT_EQ(f.nu_rad(), 0.25);
+  EXPECT_LT((f.pose_lf().translation() - x0.r_l_m).norm(), 1e-12);
+  Ukf<double>::MeasVec z, want = Ukf<double>::MeasVec::Zero();
+  ASSERT_TRUE(f.predict_measurement(z));
+  Vec2<double> zz;
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_TRUE(
+        point_model(x0.pose_lf(), config<double>().camera, fs.point_lp_m[i], zz, static_cast<Mat26<double>*>(nullptr)));
+    want.segment<2>(2 * i) = zz;
+  }
+  EXPECT_LT((z.head<8>() - want.head<8>()).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_EQ(z.tail<Ukf<double>::kMeas - 8>().cwiseAbs().maxCoeff(), 0.0);  // unconfigured slots stay zero
+  ASSERT_TRUE(f.update(z).ok());  // the predicted image itself: fused at the configured spread, no halving
+  EXPECT_EQ(f.last_alpha(), config<double>().alpha);
+}
+
+// init refuses a non-finite time or state, a non-unit attitude and a prior
+// that is not positive definite, and leaves the filter uninitialised;
+// predict refuses before init and a step longer than max_dt_s.
+TEST(FeatureFilterTest, RefusedInitAndPredictLeaveTheFilterAsItWas) {
+  Ekf<double> f(config<double>(), features<double>());
+  EXPECT_EQ(f.predict(1.0).detail, StepDetail::NotInitialized);
+  const auto x0 = guess1<double>();
+  EXPECT_EQ(f.init(std::numeric_limits<double>::quiet_NaN(), 0.0, x0, P0<double>()).detail, StepDetail::NonFinite);
+  auto bad = x0;
+  bad.q_lf.coeffs() *= 1.01;
+  EXPECT_EQ(f.init(0.0, 0.0, bad, P0<double>()).detail, StepDetail::NonUnitQuaternion);
+  auto P = P0<double>();
+  P(6, 7) = P(7, 6) = 1e6;  // correlation far beyond 1
+  const auto rec = f.init(0.0, 0.0, x0, P);
+  EXPECT_EQ(rec.status, StepStatus::NotPosDef);
+  EXPECT_EQ(rec.detail, StepDetail::PriorCholesky);
+  EXPECT_FALSE(f.initialized());
+  ASSERT_TRUE(f.init(0.0, 0.0, x0, P0<double>()).ok());
+  const auto before = f.covariance();
+  const auto long_step = f.predict(config<double>().max_dt_s + 1.0);
+  EXPECT_EQ(long_step.status, StepStatus::BadInput);
+  EXPECT_EQ(long_step.detail, StepDetail::StepTooLong);
+  EXPECT_EQ(f.t_s(), 0.0);
+  EXPECT_EQ((f.covariance() - before).norm(), 0.0);
+}
+
+// With a gate, an image 1 mm off in every coordinate (100 sigma) is gated by
+// both filters and changes nothing; without one it would be fused.
+template <typename F>
+void gate_rejects_an_outlier_image() {
+  auto cfg = config<double>();
+  cfg.gate_chi2 = 100.0;
+  F f(cfg, features<double>());
+  ASSERT_TRUE(f.init(0.0, 0.0, truth0<double>(), P0<double>(0.01, 1e-3)).ok());
+  std::mt19937 rng(5);
+  typename F::MeasVec z = measure<double>(truth0<double>(), features<double>(), rng);
+  z.array() += 1e-3;
+  const auto x = f.state().r_l_m;
+  const auto P = f.covariance();
+  const auto rec = f.update(z);
+  EXPECT_EQ(rec.status, StepStatus::Gated);
+  EXPECT_FALSE(rec.fused);
+  EXPECT_GT(rec.nis, 100.0);
+  EXPECT_EQ((f.state().r_l_m - x).norm(), 0.0);
+  EXPECT_EQ((f.covariance() - P).norm(), 0.0);
+  F open(config<double>(), features<double>());
+  ASSERT_TRUE(open.init(0.0, 0.0, truth0<double>(), P0<double>(0.01, 1e-3)).ok());
+  EXPECT_TRUE(open.update(z).ok());
+}
+
+TEST(FeatureFilterTest, GateRejectsAnOutlierImageEkf) { gate_rejects_an_outlier_image<Ekf<double>>(); }
+TEST(FeatureFilterTest, GateRejectsAnOutlierImageUkf) { gate_rejects_an_outlier_image<Ukf<double>>(); }
+
+// A circle that cannot be imaged (here every feature is behind the camera
+// and the filter sees circles only) refuses the update as the points and
+// lines do: BadInput, FeatureNotImageable, nothing changed.
+TEST(FeatureFilterTest, RejectsACircleBehindTheCamera) {
+  Ukf<double> f(config<double>(), features<double>(4));
+  auto x = guess1<double>();
+  x.q_lf = x.q_lf * fsw::exp(Vec3<double>(M_PI, 0, 0));  // looking away
+  ASSERT_TRUE(f.init(0.0, 0.0, x, P0<double>()).ok());
+  const auto P = f.covariance();
+  const auto rec = f.update(Ukf<double>::MeasVec::Zero());
+  EXPECT_EQ(rec.status, StepStatus::BadInput);
+  EXPECT_EQ(rec.detail, StepDetail::FeatureNotImageable);
+  EXPECT_EQ((f.covariance() - P).norm(), 0.0);
+}
+
+// A relative rate so large (finite, but its square overflows) that the
+// propagated state is not finite: the predict is refused (NotPosDef,
+// PriorCholesky) and the filter keeps its state, covariance and time.
+TEST(FeatureFilterTest, PredictThatOverflowsIsRefusedAndLeavesTheFilter) {
+  Ekf<double> f(config<double>(), features<double>());
+  auto x = guess1<double>();
+  x.w_fl_f_rps = Vec3<double>(1e200, -1e200, 1e200);
+  ASSERT_TRUE(f.init(0.0, 0.0, x, P0<double>()).ok());
+  const auto P = f.covariance();
+  const auto rec = f.predict(1.0);
+  EXPECT_EQ(rec.status, StepStatus::NotPosDef);
+  EXPECT_EQ(rec.detail, StepDetail::PriorCholesky);
+  EXPECT_EQ(f.t_s(), 0.0);
+  EXPECT_EQ(f.state().w_fl_f_rps, x.w_fl_f_rps);
+  EXPECT_EQ((f.covariance() - P).norm(), 0.0);
 }
