@@ -230,3 +230,40 @@ TYPED_TEST(ModalDecompositionTest, ResetStartsANewImage) {
   ASSERT_EQ(fresh.solve(r2), ModalStatus::Ok);
   EXPECT_EQ(r1.a_coarse, r2.a_coarse);
 }
+
+// A new configuration applies from the next solve; the running counts
+// follow the points entered.
+TYPED_TEST(ModalDecompositionTest, SetConfigAppliesToTheNextSolveAndCountsFollowThePoints) {
+  using S = TypeParam;
+  auto c = make_case<S>(30, 6);
+  c.z_s[3] = std::numeric_limits<S>::quiet_NaN();
+  ModalDecomposition<S, kM> d;
+  d.add_points(c.phi_rm.data(), c.z_s.data(), nullptr, 30);
+  EXPECT_EQ(d.n_used(), 29);
+  EXPECT_EQ(d.n_nonfinite(), 1);
+  ModalDecompositionConfig<S> cfg;
+  cfg.min_points = 30;
+  d.set_config(cfg);
+  EXPECT_EQ(d.config().min_points, 30);
+  ModalDecompositionRecord<S, kM> r;
+  EXPECT_EQ(d.solve(r), ModalStatus::TooFewPoints);
+  d.set_config(ModalDecompositionConfig<S>());
+  EXPECT_EQ(d.solve(r), ModalStatus::Ok);
+  EXPECT_EQ(r.n_used, 29);
+}
+
+// Deflections at the largest finite value (each one accepted) overflow the
+// accumulated sums: the solution is not finite, and the image is refused as
+// ill-conditioned with no estimate rather than passed on.
+TYPED_TEST(ModalDecompositionTest, OverflowingDeflectionsAreIllConditionedWithNoEstimate) {
+  using S = TypeParam;
+  auto c = make_case<S>(40, 7);
+  for (auto& z : c.z_s) z = std::numeric_limits<S>::max();
+  ModalDecomposition<S, kM> d;
+  ASSERT_EQ(d.add_points(c.phi_rm.data(), c.z_s.data(), nullptr, 40), 40);
+  ModalDecompositionRecord<S, kM> r;
+  EXPECT_EQ(d.solve(r), ModalStatus::IllConditioned);
+  EXPECT_EQ(r.a_coarse, (Eigen::Matrix<S, kM, 1>::Zero()));
+  EXPECT_EQ(r.cov_a, (Eigen::Matrix<S, kM, kM>::Zero()));
+  EXPECT_FALSE(r.ok());
+}

@@ -216,3 +216,60 @@ TEST(ModalTrackerTest, InvalidConfigNamesTheFieldAndChangesNothing) {
   EXPECT_TRUE(tr.configure(c));
   EXPECT_DOUBLE_EQ(tr.acquisition().config().grid_sigmas, 4.0);
 }
+
+// An image stays open until its last segment or a segment of another image
+// (then counted incomplete); a segment of the same image does not close it.
+TEST(ModalTrackerTest, ImageStaysOpenUntilItsLastSegmentOrAnotherImagesSegment) {
+  ModalTracker<double, kM> tr;
+  PlateScene scene(3);
+  std::vector<Vec3<double>> p;
+  std::vector<double> sig;
+  scene.image(0.0, p, sig);
+  ModalPoint<double> points[24];
+  for (int k = 0; k < 24; ++k) {
+    points[k].p_m = p[std::size_t(k)];
+    points[k].sigma_m = sig[std::size_t(k)];
+  }
+  ModalSegment<double> seg;
+  seg.image_id = 7;
+  seg.points = points;
+  seg.n_points = 24;
+  ModalTracker<double, kM>::Report rep;
+  EXPECT_FALSE(tr.image_open());
+  EXPECT_FALSE(tr.add(seg, 0.0, rep));
+  EXPECT_TRUE(tr.image_open());
+  EXPECT_FALSE(tr.close_other(7, rep));  // the same image: still open
+  EXPECT_TRUE(tr.image_open());
+  EXPECT_TRUE(tr.close_other(8, rep));  // another image's segment closes it
+  EXPECT_FALSE(tr.image_open());
+  EXPECT_EQ(rep.image_id, 7u);
+  EXPECT_EQ(tr.counters().images, 1u);
+  EXPECT_EQ(tr.counters().images_incomplete, 1u);
+  EXPECT_FALSE(tr.close_other(9, rep));  // nothing open
+}
+
+// The fractions the configuration check bounds, each named when out of range.
+TEST(ModalTrackerTest, EveryFractionOutOfRangeIsNamed) {
+  const struct {
+    const char* field;
+    double ModalTrackerConfig::*member;
+    double value;
+  } cases[] = {
+      {"prior_omega_frac", &ModalTrackerConfig::prior_omega_frac, 1.0},
+      {"prior_rate_frac", &ModalTrackerConfig::prior_rate_frac, 0.0},
+      {"prior_rate_frac", &ModalTrackerConfig::prior_rate_frac, INFINITY},
+      {"acquire_omega_frac", &ModalTrackerConfig::acquire_omega_frac, 1.0},
+      {"acquire_span_frac", &ModalTrackerConfig::acquire_span_frac, 0.0},
+      {"acquire_span_frac", &ModalTrackerConfig::acquire_span_frac, 1.5},
+      {"acquire_span_frac", &ModalTrackerConfig::acquire_span_frac, NAN},
+  };
+  for (const auto& k : cases) {
+    ModalTrackerConfig c;
+    c.*k.member = k.value;
+    EXPECT_STREQ(modal_tracker_config_invalid_field(c), k.field) << k.value;
+    ModalTracker<float, kM> tr;
+    EXPECT_FALSE(tr.configure(c)) << k.field;
+    EXPECT_EQ(tr.config().*k.member, ModalTrackerConfig().*k.member);
+  }
+  EXPECT_EQ(modal_tracker_config_invalid_field(ModalTrackerConfig()), nullptr);
+}

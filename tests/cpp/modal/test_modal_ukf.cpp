@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 
@@ -288,4 +289,79 @@ TYPED_TEST(ModalUkfTest, ShapeAtNonFinitePointIsNanAndCounted) {
   EXPECT_TRUE(std::isnan(z[0]));
   EXPECT_EQ(z[1], S(3));
   EXPECT_EQ(var[1], S(3));
+}
+
+// The bank reports each mode's amplitude and its configuration; an image
+// whose amplitude variance makes an innovation variance non-positive is
+// refused before any mode changes (NotPosDef, InnovationCholesky).
+TYPED_TEST(ModalUkfTest, BankRefusesANonPositiveInnovationVarianceBeforeAnyModeChanges) {
+  using S = TypeParam;
+  const auto cfg = pendulum_config<S, 2>();
+  ModalUkfBank<S, 2> bank(cfg);
+  EXPECT_EQ(bank.config().mode[1].omega_radps, cfg.mode[1].omega_radps);
+  run_pendulum(bank, 8, 10);
+  Eigen::Matrix<S, 2, 1> a;
+  bank.amplitudes(a);
+  EXPECT_EQ(a(0), bank.mode_state(0)(0));
+  EXPECT_EQ(a(1), bank.mode_state(1)(0));
+  ASSERT_EQ(bank.predict(S(kDt)), StepStatus::Ok);
+  std::mt19937 rng(10);
+  auto m = coarse<S>(11 * kDt, rng);
+  m.cov_a(1, 1) = -(bank.mode_cov(1)(0, 0) + S(1));  // mode 1's innovation variance -1
+  const auto x0 = bank.mode_state(0);
+  const auto P0 = bank.mode_cov(0);
+  typename ModalUkfBank<S, 2>::Record rec;
+  EXPECT_EQ(bank.update(m, rec), StepStatus::NotPosDef);
+  EXPECT_EQ(rec.detail, StepDetail::InnovationCholesky);
+  EXPECT_FALSE(rec.fused);
+  EXPECT_EQ(bank.mode_state(0), x0);  // mode 0, checked first and fine, is not updated either
+  EXPECT_EQ(bank.mode_cov(0), P0);
+}
+
+// The joint filter refuses an image with a non-finite amplitude covariance
+// (BadInput, NonFinite) and keeps its state; it reports its configuration.
+TYPED_TEST(ModalUkfTest, JointRefusesANonFiniteAmplitudeCovariance) {
+  using S = TypeParam;
+  auto cfg = pendulum_config<S, 2>();
+  cfg.mode[0].q_a = S(2e-8);
+  ModalUkfJoint<S, 2> joint(cfg);
+  EXPECT_EQ(joint.config().mode[0].q_a, S(2e-8));
+  run_pendulum(joint, 11, 10);
+  std::mt19937 rng(12);
+  auto m = coarse<S>(11 * kDt, rng);
+  m.cov_a(0, 1) = std::numeric_limits<S>::infinity();
+  const auto x = joint.mode_state(1);
+  typename ModalUkfJoint<S, 2>::Record rec;
+  EXPECT_EQ(joint.update(m, rec), StepStatus::BadInput);
+  EXPECT_EQ(rec.detail, StepDetail::NonFinite);
+  EXPECT_EQ(joint.mode_state(1), x);
+}
+
+// A filter whose covariance does not factor (here initialised from an
+// image with a negative amplitude variance, which initialise() takes as
+// given) refuses the next step at its predict: NotPosDef with detail
+// PriorCholesky, nothing fused, the state as it was.
+template <typename Filter>
+void step_with_a_prior_that_does_not_factor() {
+  using S = typename Filter::VecM::Scalar;
+  Filter f(pendulum_config<S, 2>());
+  std::mt19937 rng(13);
+  auto m = coarse<S>(0.0, rng);
+  m.cov_a(0, 0) = S(-1);
+  typename Filter::Record rec;
+  ASSERT_EQ(f.step(S(kDt), m, rec), StepStatus::Ok);  // initialises
+  const auto x = f.mode_state(0);
+  const auto m1 = coarse<S>(kDt, rng);
+  EXPECT_EQ(f.step(S(kDt), m1, rec), StepStatus::NotPosDef);
+  EXPECT_EQ(rec.detail, StepDetail::PriorCholesky);
+  EXPECT_EQ(rec.decomposition, ModalStatus::Ok);
+  EXPECT_FALSE(rec.fused);
+  EXPECT_EQ(f.mode_state(0), x);
+}
+
+TYPED_TEST(ModalUkfTest, BankStepWithAPriorThatDoesNotFactorIsNotPosDef) {
+  step_with_a_prior_that_does_not_factor<ModalUkfBank<TypeParam, 2>>();
+}
+TYPED_TEST(ModalUkfTest, JointStepWithAPriorThatDoesNotFactorIsNotPosDef) {
+  step_with_a_prior_that_does_not_factor<ModalUkfJoint<TypeParam, 2>>();
 }
