@@ -137,6 +137,76 @@ TEST(FlightAppTest, ConfigWithUnknownParameterIsCountedAsRejected) {
   up.add(Apid::CmdConfig, m, 0.0);
   app->on_bytes(up.bytes.data(), up.bytes.size());
   EXPECT_EQ(app->counters().configs_rejected, 1u);
+
+  // Each known parameter: a value out of its range is refused and counted
+  // and changes nothing; one in range is taken, not counted, and the
+  // filter's and the modal estimator's settings apply at the next reset.
+  struct Case {
+    ConfigParam id;
+    double bad, good;
+  };
+  const Case cases[] = {
+      {ConfigParam::PosePosFraction, 0.0, 0.02},
+      {ConfigParam::PoseAttSigmaRad, -0.01, 0.02},
+      {ConfigParam::HousekeepingEvery, 100001.0, 5.0},
+      {ConfigParam::NavAccelSigma, -1.0, 2e-3},
+      {ConfigParam::NavGyroSigma, -1.0, 6e-3},
+      {ConfigParam::NavMaxDelay, 10.0, 0.4},  // beyond the filter's history
+      {ConfigParam::NavOrbitRate, 0.0, 1.2e-3},
+      {ConfigParam::NavDtImu, -0.1, 0.1},
+      {ConfigParam::ReacquireAfterPoses, 1001.0, 3.0},
+      {ConfigParam::ReacquireLostPosSigma, -1.0, 20.0},
+      {ConfigParam::ReacquireLostAttSigma, -1.0, 0.4},
+      {ConfigParam::ModalPlateLx, -1.0, 1500.0},
+      {ConfigParam::ModalPlateLy, 0.0, 1200.0},
+      {ConfigParam::ModalPeriod1, -5.0, 2000.0},
+      {ConfigParam::ModalPeak1, 0.0, 20.0},
+      {ConfigParam::ModalPriorOmegaFrac, 1.5, 0.15},
+      {ConfigParam::ModalAcquireAfterPeriods, -1.0, 3.0},
+  };
+  std::uint32_t rejected = app->counters().configs_rejected;
+  Uplink& cmd = up;  // one sequence count per APID across the commands
+  for (const Case& c : cases) {
+    cmd.bytes.clear();
+    cmd.config(0.0, c.id, c.bad);
+    app->on_bytes(cmd.bytes.data(), cmd.bytes.size());
+    EXPECT_EQ(app->counters().configs_rejected, ++rejected) << static_cast<int>(c.id);
+    cmd.bytes.clear();
+    cmd.config(0.0, c.id, c.good);
+    app->on_bytes(cmd.bytes.data(), cmd.bytes.size());
+    EXPECT_EQ(app->counters().configs_rejected, rejected) << static_cast<int>(c.id);
+  }
+  cmd.bytes.clear();
+  cmd.config(0.0, ConfigParam::NavGateChi2, 30.0);
+  CmdResetMsg<double> r;
+  r.target_mask = 0x5;  // filter and modal estimator
+  r.r_hill_m = kR0;
+  r.v_hill_mps = kV0;
+  r.q_hb = kQ0;
+  r.pos_sigma_m = 0.05;
+  r.vel_sigma_mps = 0.01;
+  r.att_sigma_rad = 0.05;
+  cmd.add(Apid::CmdReset, r, 1.0);
+  for (int k = 1; k <= 5; ++k) cmd.imu(1.0 + 0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(cmd.bytes.data(), cmd.bytes.size());
+  Telemetry tm;
+  tm.drain(*app);
+  EXPECT_EQ(app->counters().configs_rejected, rejected);
+  const NavConfig<double>& nav = app->nav().config();
+  EXPECT_EQ(nav.accel_sigma_mps2, 2e-3);
+  EXPECT_EQ(nav.gyro_sigma_rps, 6e-3);
+  EXPECT_EQ(nav.max_delay_s, 0.4);
+  EXPECT_EQ(nav.n_radps, 1.2e-3);
+  EXPECT_EQ(nav.dt_imu_s, 0.1);
+  EXPECT_EQ(nav.gate_chi2, 30.0);
+  const ModalTrackerConfig& modal = app->modal().config();
+  EXPECT_EQ(modal.plate.lx_m, 1500.0);
+  EXPECT_EQ(modal.plate.ly_m, 1200.0);
+  EXPECT_EQ(modal.plate.period1_s, 2000.0);
+  EXPECT_EQ(modal.plate.peak1_m, 20.0);
+  EXPECT_EQ(modal.prior_omega_frac, 0.15);
+  EXPECT_EQ(modal.acquire_after_periods, 3.0);
+  EXPECT_EQ(tm.housekeeping.size(), 1u);  // every fifth IMU sample now
 }
 
 TEST(FlightAppTest, PoseBeforeItsImuTickWaitsAndIsFusedAfterIt) {
@@ -240,6 +310,35 @@ TEST(FlightAppTest, LearnerSkipsAnIntervalWhoseOpeningImuSampleWasLost) {
   EXPECT_EQ(app->counters().valves, 3u);
   EXPECT_EQ(app->counters().learner_samples, 1u);
   EXPECT_EQ(tm.learner.size(), 1u);
+
+  // Valves for [0.5, 0.6) whose closing sample is lost: the 0.7 s sample,
+  // past that interval, drops it unlearned; the next interval is learned.
+  Uplink more = up;
+  more.bytes.clear();
+  more.imu(0.5, Vec3<double>::Zero(), Vec3<double>(0, 0, 0.02));
+  more.valves(0.5, 0.1, 9);
+  more.imu(0.7, Vec3<double>(2e-3, 0, 0), Vec3<double>(0, 0, 0.03));  // 0.6 s lost
+  more.valves(0.7, 0.1, 9);
+  more.imu(0.8, Vec3<double>(2e-3, 0, 0), Vec3<double>(0, 0, 0.04));
+  app->on_bytes(more.bytes.data(), more.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(app->counters().valves, 5u);
+  EXPECT_EQ(app->counters().learner_samples, 2u);
+  ASSERT_EQ(tm.learner.size(), 2u);
+  EXPECT_EQ(app->learner().count(), 2);
+
+  // A reset of the learner (bit 1) empties it; with bit 3 the link counters
+  // start again from the reset.
+  ASSERT_GT(app->link().packets_accepted, 0u);
+  CmdResetMsg<double> r;
+  r.target_mask = 0x2 | 0x8;
+  Uplink reset = more;
+  reset.bytes.clear();
+  reset.add(Apid::CmdReset, r, 1.0);
+  app->on_bytes(reset.bytes.data(), reset.bytes.size());
+  EXPECT_EQ(app->learner().count(), 0);
+  EXPECT_EQ(app->link().packets_accepted, 0u);
+  EXPECT_EQ(app->counters().resets, 2u);
 }
 
 // ------------------------------------------------------------ hostile inputs
@@ -386,6 +485,15 @@ TEST(FlightAppTest, TelemetryDropsAreInHousekeeping) {
   EXPECT_EQ(tm.housekeeping.back().tx_dropped, dropped);
   EXPECT_EQ(app->counters().tx_dropped, dropped);
   EXPECT_EQ(tm.housekeeping.back().cycle_count, 210u);
+  // The platform's step times: the last one and the longest so far.
+  app->note_step_cpu(2e-3);
+  app->note_step_cpu(5e-4);
+  more.bytes.clear();
+  for (int k = 211; k <= 220; ++k) more.imu(0.1 * k, Vec3<double>::Zero(), Vec3<double>::Zero());
+  app->on_bytes(more.bytes.data(), more.bytes.size());
+  tm.drain(*app);
+  EXPECT_EQ(tm.housekeeping.back().last_step_cpu_s, 5e-4);
+  EXPECT_EQ(tm.housekeeping.back().max_step_cpu_s, 2e-3);
 }
 
 TEST(FlightAppTest, FloatBuildRefusesAResetWhoseSquareOverflowsFloat) {

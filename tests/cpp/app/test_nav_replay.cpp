@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -120,4 +121,117 @@ TEST(NavReplayTest, BadConfigurationRefused) {
   const Log<double> log;
   Result<double> got(log);
   EXPECT_EQ(rep.run(log.view(), got.view()).detail, StepDetail::BadConfig);
+}
+
+// Every setting the filter checks is refused naming that field (the replay
+// reports the filter's verdict), in both scalar builds: not finite, not
+// positive, below its floor or inconsistent with another setting.
+template <typename S>
+void each_invalid_field_is_named() {
+  using C = NavConfig<S>;
+  struct Case {
+    const char* field;
+    void (*set)(C&);
+  };
+  const Case cases[] = {
+      {"n_radps", [](C& c) { c.n_radps = S(0); }},
+      {"n_radps", [](C& c) { c.n_radps = std::numeric_limits<S>::quiet_NaN(); }},
+      {"dt_imu_s", [](C& c) { c.dt_imu_s = -0.1; }},
+      {"max_gap_s", [](C& c) { c.max_gap_s = 0.0; }},
+      {"max_gap_s", [](C& c) { c.max_gap_s = 1e5; }},  // more than 1e5 ticks
+      {"accel_sigma_mps2", [](C& c) { c.accel_sigma_mps2 = S(-1e-3); }},
+      {"gyro_sigma_rps", [](C& c) { c.gyro_sigma_rps = std::numeric_limits<S>::infinity(); }},
+      {"gap_accel_sigma_mps2", [](C& c) { c.gap_accel_sigma_mps2 = S(-1); }},
+      {"gap_gyro_sigma_rps", [](C& c) { c.gap_gyro_sigma_rps = std::numeric_limits<S>::quiet_NaN(); }},
+      {"gyro_bias_walk", [](C& c) { c.gyro_bias_walk = S(-1e-5); }},
+      {"accel_bias_walk", [](C& c) { c.accel_bias_walk = std::numeric_limits<S>::infinity(); }},
+      {"gate_chi2", [](C& c) { c.gate_chi2 = std::numeric_limits<S>::quiet_NaN(); }},
+      {"max_delay_s", [](C& c) { c.max_delay_s = -0.5; }},
+      {"time_tol_s", [](C& c) { c.time_tol_s = 0.0; }},
+      {"time_tol_s", [](C& c) { c.time_tol_s = 0.05; }},  // half the IMU period
+      {"max_dt_s", [](C& c) { c.max_dt_s = 0.0; }},
+      {"alpha", [](C& c) { c.alpha = S(0); }},
+      {"beta", [](C& c) { c.beta = S(-1); }},
+      {"kappa", [](C& c) { c.kappa = std::numeric_limits<S>::quiet_NaN(); }},
+      {"kappa", [](C& c) { c.kappa = S(-9); }},  // alpha^2 (n + kappa) = 0
+      {"var_min", [](C& c) { c.var_min = S(0); }},
+      {"pos_var_max_m2", [](C& c) { c.pos_var_max_m2 = S(0); }},
+      {"pos_var_max_m2", [](C& c) { c.pos_var_max_m2 = c.var_min; }},
+      {"vel_var_max_m2ps2", [](C& c) { c.vel_var_max_m2ps2 = std::numeric_limits<S>::infinity(); }},
+      {"att_var_max_rad2", [](C& c) { c.att_var_max_rad2 = c.var_min; }},
+      {"gyro_bias_var_max", [](C& c) { c.gyro_bias_var_max = S(-1); }},
+      {"accel_bias_var_max", [](C& c) { c.accel_bias_var_max = S(0); }},
+      {"quat_unit_tol", [](C& c) { c.quat_unit_tol = S(0); }},
+      {"max_delay_s", [](C& c) { c.max_delay_s = 2.0; }},  // beyond the history's 16 ticks
+  };
+  const Log<S> log;
+  for (const Case& k : cases) {
+    C cfg;
+    k.set(cfg);
+    NavReplay<S> rep(cfg);
+    EXPECT_FALSE(rep.config_ok()) << k.field;
+    ASSERT_NE(rep.config_invalid_field(), nullptr) << k.field;
+    EXPECT_STREQ(rep.config_invalid_field(), k.field);
+    Result<S> got(log);
+    const NavReplaySummary s = rep.run(log.view(), got.view());
+    EXPECT_EQ(s.status, StepStatus::BadInput) << k.field;
+    EXPECT_EQ(s.detail, StepDetail::BadConfig) << k.field;
+  }
+  NavReplay<S> good{C()};
+  EXPECT_TRUE(good.config_ok());
+  EXPECT_EQ(good.config_invalid_field(), nullptr);
+}
+
+TEST(NavReplayTest, EachInvalidSettingIsRefusedByNameDouble) { each_invalid_field_is_named<double>(); }
+TEST(NavReplayTest, EachInvalidSettingIsRefusedByNameFloat) { each_invalid_field_is_named<float>(); }
+
+// A log without poses cannot start the filter (BadInput, NotInitialized);
+// an IMU sample whose time does not advance is counted as a rejected
+// predict and the replay goes on.
+TEST(NavReplayTest, NoPoseIsNotInitialisedAndARepeatedImuTimeIsCounted) {
+  Log<double> log;
+  Result<double> got(log);
+  NavReplay<double> rep{NavConfig<double>()};
+  NavReplayLog<double> none = log.view();
+  none.n_pose = 0;
+  const NavReplaySummary s0 = rep.run(none, got.view());
+  EXPECT_EQ(s0.status, StepStatus::BadInput);
+  EXPECT_EQ(s0.detail, StepDetail::NotInitialized);
+  const NavReplaySummary whole = rep.run(log.view(), got.view());
+  ASSERT_TRUE(whole.ok());
+  EXPECT_EQ(whole.predicts_rejected, 0);
+  log.t[40] = log.t[39];  // sample 40 repeats 39's time (4.1 s; the next tick bridges the gap)
+  Result<double> got2(log);
+  const NavReplaySummary s = rep.run(log.view(), got2.view());
+  EXPECT_TRUE(s.ok());
+  EXPECT_EQ(s.predicts_rejected, 1);
+  EXPECT_EQ(s.poses_fused, whole.poses_fused);
+}
+
+// A run-start pose whose quaternion is not of unit norm cannot initialise
+// the filter: the replay stops there and names that pose and the reason.
+TEST(NavReplayTest, NonUnitRunStartQuaternionStopsAndNamesThePose) {
+  Log<float> log;
+  for (int c = 0; c < 4; ++c) log.q[4 * 5 + c] *= 1.1f;  // run start 5
+  Result<float> got(log);
+  NavReplay<float> rep{NavConfig<float>()};
+  const NavReplaySummary s = rep.run(log.view(), got.view());
+  EXPECT_EQ(s.status, StepStatus::BadInput);
+  EXPECT_EQ(s.detail, StepDetail::NonUnitQuaternion);
+  EXPECT_EQ(s.failed_pose, 5);
+}
+
+// A gyro sample so large (finite, but the attitude step overflows) that the
+// propagated state is not finite: that predict is refused and counted, the
+// filter keeps its state, and the next sample bridges the gap.
+TEST(NavReplayTest, ImuSampleThatOverflowsThePropagationIsRefusedAndCounted) {
+  Log<double> log;
+  for (int c = 0; c < 3; ++c) log.gyr[3 * 40 + c] = 1e200;
+  Result<double> got(log);
+  NavReplay<double> rep{NavConfig<double>()};
+  const NavReplaySummary s = rep.run(log.view(), got.view());
+  EXPECT_TRUE(s.ok());
+  EXPECT_EQ(s.predicts_rejected, 1);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(got.states[10 * 40 + i], got.states[10 * 39 + i]) << i;
+  for (double v : got.states) EXPECT_TRUE(std::isfinite(v));
 }

@@ -408,3 +408,40 @@ TEST(BlrDouble, TracksThirtyPercentThrusterDropWithinOneWindow) {
   EXPECT_LT(after, 1.2 * before);
   EXPECT_LT(run_after, 1.05 * run_before);
 }
+
+// A negative or NaN prior precision is taken as 0 and a negative, NaN or
+// infinite noise variance as 1; the window's sums are reported as entered
+// (B = sum x y^T), full() once W samples are in, and the shadow
+// accumulator's refreshes are counted as samples leave the window.
+TYPED_TEST(BlrTyped, ConfigurationIsSanitisedAndTheWindowSumsAreReported) {
+  using S = TypeParam;
+  BlrConfig<S, 6> bad;
+  bad.prior_precision = S(-1);
+  bad.noise_var << S(-1), std::numeric_limits<S>::quiet_NaN(), std::numeric_limits<S>::infinity(), S(0), S(2), S(3);
+  const Blr9<S> sane(bad);
+  EXPECT_EQ(sane.config().prior_precision, S(0));
+  EXPECT_EQ(sane.config().noise_var, (Eigen::Matrix<S, 6, 1>() << 1, 1, 1, 0, 2, 3).finished());
+  EXPECT_EQ(sane.noise_var(), sane.config().noise_var);  // before any refresh: the configured ones
+  bad.prior_precision = std::numeric_limits<S>::quiet_NaN();
+  EXPECT_EQ(Blr9<S>(bad).config().prior_precision, S(0));
+
+  Blr9<S> blr;
+  typename Blr9<S>::MatB B = Blr9<S>::MatB::Zero();
+  for (int k = 0; k < 30; ++k) {
+    EXPECT_FALSE(blr.full());
+    const auto x = ValveFeatures<S>::from_mask(std::uint8_t(k * 37 + 1));
+    const Eigen::Matrix<S, 6, 1> y = Eigen::Matrix<S, 6, 1>::Constant(S(k % 5));
+    ASSERT_TRUE(blr.add(x, y).entered);
+    B += x * y.transpose();
+  }
+  EXPECT_TRUE(blr.full());
+  EXPECT_EQ(blr.information_vectors(), B);  // small integers: exact
+  EXPECT_EQ(blr.refresh_count(), 0u);
+  for (int k = 0; k < 60; ++k) blr.add(ValveFeatures<S>::from_mask(std::uint8_t(k)), Eigen::Matrix<S, 6, 1>::Ones());
+  // Every sample older than an epoch leaves within one window: two windows
+  // of adds after the first fill give at least one refresh.
+  EXPECT_GE(blr.refresh_count(), 1u);
+  EXPECT_EQ(blr.count(), 30);
+  ASSERT_EQ(blr.refresh_posterior(), BlrStatus::Ok);
+  EXPECT_TRUE((blr.noise_var().array() >= S(0)).all());
+}
