@@ -11,7 +11,7 @@ from bench.commands.args import HelpFormatter, number, one_line_errors, seed
 
 
 def register(sub):
-    from bench.gap.design import DEFAULT_MAX_DURATION_S, DEFAULT_MIN_ON_TIME_S
+    from bench.gap.design import DEFAULT_MAX_DURATION_S, DEFAULT_MIN_ON_TIME_S, DEFAULT_PASSES
 
     p = sub.add_parser(
         "plan",
@@ -66,6 +66,13 @@ def register(sub):
         "of its directions at that size",
     )
     p.add_argument(
+        "--passes",
+        type=number(int, 1, 4),
+        default=DEFAULT_PASSES,
+        help="fly the designed schedule this many times over (1 to 4): the diagnosis trains on alternate time "
+        "blocks and scores on the others, so each firing must fall in both halves",
+    )
+    p.add_argument(
         "--check", action="store_true", help="fly both plans on the bench's plant with each hypothesis and measure"
     )
     p.add_argument("--seed", type=seed, default=0, help="noise of the --check flights, any integer >= 0")
@@ -81,9 +88,13 @@ def main(args):
 
     if not args.separate:
         raise ValueError("give --separate: the plan that separates hypotheses is the one this command designs")
-    shortest = shortest_block_s(args.min_on_time_s)
+    shortest = shortest_block_s(args.min_on_time_s, args.passes)
     if args.max_duration_s < shortest:
-        raise ValueError(f"--max-duration-s {args.max_duration_s:g}: shorter than the shortest block ({shortest:g} s)")
+        raise ValueError(
+            f"--max-duration-s {args.max_duration_s:g}: shorter than the shortest block times --passes ({shortest:g} s)"
+        )
+    if Path(args.json).is_dir():
+        raise ValueError(f"--json {args.json}: is a folder; give a file name")
     if (args.hypotheses or args.hypothesis) and args.diagnosis:
         raise ValueError("give --diagnosis or name the hypotheses, not both")
     diagnosis = None
@@ -101,6 +112,7 @@ def main(args):
         args.target_delta2,
         args.seed if args.check else None,
         worst_case=not args.as_listed,
+        passes=args.passes,
     )
     res = {"command": _command(args), **res}
     write_json(args.json, res, strict=True)
@@ -120,6 +132,7 @@ def _command(args) -> str:
     parts += [f"--hypothesis {h}" for h in args.hypothesis]
     if args.as_listed:
         parts += ["--as-listed"]
+    parts += ["--passes", str(args.passes)]
     if args.check:
         parts += ["--check", "--seed", str(args.seed)]
     return " ".join(parts + ["--json", args.json])

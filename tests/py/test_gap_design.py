@@ -141,6 +141,9 @@ def test_plan_command_writes_a_documented_plan_and_figure(tmp_path, capsys):
             "thrust_loss,thrust_loss+thruster_misalignment",
             "--target-delta2",
             "21.6",
+            "--passes",
+            "2",
+            "--as-listed",
             "--json",
             str(out),
         ]
@@ -154,6 +157,10 @@ def test_plan_command_writes_a_documented_plan_and_figure(tmp_path, capsys):
         for spans in run["valves"].values():
             for a, b in spans:
                 assert 0.0 <= a < b <= run["duration_s"] and b - a >= res["limits"]["min_on_time_s"]
+    # Two passes of one schedule: every firing in both halves of the diagnosis's split.
+    runs = res["designed"]["schedule"]
+    first = [r["block"] for r in runs if r["pass"] == 0]
+    assert first and first == [r["block"] for r in runs if r["pass"] == 1]
     assert (tmp_path / "plan.png").stat().st_size > 0
     assert "delta2, predicted" in capsys.readouterr().out
 
