@@ -181,6 +181,13 @@ def _gap_map_lines(loc: dict) -> list:
         "",
         "![gap map](gap_map.png)",
         "",
+        "How to read the gyro rows: their regime columns (coasting, firing, slewing) test the raw "
+        "sample-to-sample differences, where a torque error shows in the interval it is made; the "
+        "'all' columns test the whitened rows, which add every earlier interval's error to each row. "
+        "A torque error too small per interval to stand out of the gyro's noise in the firing rows "
+        "alone can be large in 'all': the answer's 'acts mostly while' comes from the effect's own "
+        "signature, per row, not from these columns.",
+        "",
         "Top cells (family-wise p-values against the null's largest |z|):",
         "",
     ]

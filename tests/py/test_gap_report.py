@@ -26,3 +26,12 @@ def test_a_long_parameter_list_shows_the_significant_ones_first():
     assert cell == "2 of 24 beyond 2 sigma: a_17 [rad] = -0.009 +/- 0.001; a_5 [rad] = 0.004 +/- 0.001 (all below)"
     none = _parameters_cell({f"a_{i}": _p(0.0, 1.0) for i in range(8)})
     assert none == "0 of 8 beyond 2 sigma (all below)"
+
+
+def test_the_gap_map_says_how_its_gyro_regime_columns_differ():
+    """The firing columns of a thrust loss's gyro rows read near zero while
+    the answer says the effect acts while firing: the page says why."""
+    from bench.gap.report import _gap_map_lines
+
+    text = " ".join(_gap_map_lines({"top_cells": []}))
+    assert "raw sample-to-sample differences" in text and "'all' columns test the whitened rows" in text
