@@ -45,6 +45,17 @@ COMMA := ,
 TEST_SANITIZE ?= $(if $(CI),address$(COMMA)undefined)
 TIDY_BUILD := build/tidy
 COV_BUILD  := build/cov
+# TEST_COVERAGE=1 makes `make test` end with the coverage target, which
+# fails under the core's floors. Off by default, in CI too: a fresh clone
+# compiles build/cov cold (ccache cannot share objects with gcov counters
+# between clones), about 8 to 16 min on the 2-core machine, which with the
+# run would take CI past 20 to 30 min (docs/ASSURANCE.md, "Coverage").
+TEST_COVERAGE ?=
+# The two soak tests (a simulated day of the navigation filter, ten million
+# BLR add/remove pairs) make the same calls as the shorter tests of those
+# filters and took over half of the suite's time at -O0: the coverage run
+# leaves them out (the main suite runs them).
+COV_CTEST_EXCLUDE := CovarianceStaysPositiveDefiniteOver24Hours|ExactAfterTenMillionAddRemovePairs
 # ccache, when installed (paths relative to here, so another clone of the
 # repository shares the cache).
 CCACHE     := $(shell command -v ccache 2>/dev/null)
@@ -67,7 +78,7 @@ LINK_PY_TESTS := tests/py/test_fsw_node_link.py tests/py/test_fsw_node_args.py t
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
 
-test: test-cpp test-py test-asan check-cppcheck
+test: test-cpp test-py test-asan check-cppcheck $(if $(TEST_COVERAGE),coverage)
 
 setup: $(STAMPS)/install $(STAMPS)/cpp-configure
 
@@ -173,9 +184,10 @@ check-static: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/venv
 	$(VPY) tests/static/check_static.py --build $(TIDY_BUILD) --jobs 2
 
 # Line and branch coverage of fsw/ (CMakePresets.json "coverage", -O0 with
-# gcov counters): the ctest suite, then the link tests against its fsw_node;
-# gcovr reports the core, vision and platform apart and fails when the core
-# is under its floors (tests/static/coverage.py).
+# gcov counters): the ctest suite (without the soaks), then the link tests
+# against its fsw_node; gcovr reports the core, vision and platform apart
+# and fails when the core is under its floors or an exclusion is stale
+# (tests/static/coverage.py, tests/static/coverage_exclusions.txt).
 $(STAMPS)/cov-configure: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/venv $(CMAKE_SRC) CMakePresets.json Makefile
 	$(VENV)/bin/cmake --preset coverage -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) $(CCACHE_LAUNCHER) >/dev/null
 	@touch $@
@@ -187,7 +199,7 @@ $(STAMPS)/gcovr: $(STAMPS)/venv
 coverage: $(STAMPS)/cov-configure $(STAMPS)/install $(STAMPS)/gcovr
 	$(VENV)/bin/cmake --build --preset coverage
 	find $(COV_BUILD) -name '*.gcda' -delete
-	cd $(COV_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2
+	cd $(COV_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2 -E '$(COV_CTEST_EXCLUDE)'
 	PROXOPS_FSW_NODE=$(abspath $(COV_BUILD))/fsw_node $(VPY) -m pytest -q -n $(PYTEST_WORKERS) $(LINK_PY_TESTS)
 	$(VPY) tests/static/coverage.py --build $(COV_BUILD) --gcovr $(VENV)/bin/gcovr --json $(COV_BUILD)/coverage.json
 
