@@ -68,7 +68,7 @@ from bench.gap.attribute import DELTA2_95
 from bench.sim.plans import CHARACTERISATION_COAST_S, CHARACTERISATION_FIRE_S, LEAD_S
 
 CYCLE_S = 0.1  # one valve command per control cycle, the valve held open through the pulse
-PULSES_S = (0.5, 1.0, 3.0)
+PULSES_S = (0.5, 1.0, 2.0, 3.0)
 COASTS_S = (2.0, 5.0, 10.0, CHARACTERISATION_COAST_S)
 START_R_HILL_M = (0.2, -1.5, 0.1)  # each run from rest here, body axes on the Hill axes
 DEFAULT_MAX_DURATION_S = 120.0
@@ -583,28 +583,33 @@ def _solve(dirs: list, T: np.ndarray, V: np.ndarray, max_t: float, max_v: float,
     return np.clip(sol.x[:n], 0.0, None), report
 
 
-def _round(dirs: list, w: np.ndarray, valve: np.ndarray, T, V, max_t, max_v, target: float | None) -> np.ndarray:
+def _round(
+    dirs: list, w: np.ndarray, valve: np.ndarray, pulse_coast: list, T, V, max_t, max_v, target: float | None
+) -> np.ndarray:
     """Whole repetitions. With a target: the continuous plan rounded up
     (the distances only grow with repetitions), then shortened (_shorten).
     Without, or when that breaks a limit: rounded down, then filled one
     repetition at a time (_greedy: towards the continuous plan's smallest
-    distance, by the capped distances or by _spread), then exchanges
-    (_exchange); the better of the two, and with a target reached,
-    shortened."""
+    distance, by the capped distances or by _spread), or every valve the
+    continuous plan fires once with one pulse and coast, as often as the
+    limits allow (_uniform_plans, the fixed characterisation's shape);
+    the best two improved by exchanges (_exchange), and with a target
+    reached, shortened."""
     near = (valve[:, None] == valve[None, :]) | (w > 1e-3)[None, :]
     if target is not None:
         wi = _shorten(dirs, np.ceil(w - 1e-6), near, T, V, max_v, target)
         if T @ wi <= max_t + 1e-9 and V @ wi <= max_v * (1 + 1e-9):
             return wi
     level = float(evaluate(dirs, w).min())
-    tries = []
-    for spread in (False, True):
-        wi = _exchange(
-            dirs, _greedy(dirs, np.floor(w + 1e-6), T, V, max_t, max_v, level, spread), near, T, V, max_t, max_v, level
-        )
-        d = evaluate(dirs, wi)
-        tries.append(((float(d.min()), _spread(d, level)), wi))
-    wi = max(tries, key=lambda t: t[0])[1]
+    starts = [_greedy(dirs, np.floor(w + 1e-6), T, V, max_t, max_v, level, spread) for spread in (False, True)]
+    starts += _uniform_plans(w, valve, pulse_coast, T, V, max_t, max_v)
+
+    def score(x) -> tuple:
+        d = evaluate(dirs, x)
+        return float(d.min()), _spread(d, level)
+
+    best = sorted(starts, key=score, reverse=True)[:2]
+    wi = max((_exchange(dirs, x, near, T, V, max_t, max_v, level) for x in best), key=score)
     if target is not None and evaluate(dirs, wi).min() >= target:
         wi = _shorten(dirs, wi, near, T, V, max_v, target)
     return wi
@@ -631,6 +636,21 @@ def _shorten(dirs: list, wi: np.ndarray, near: np.ndarray, T, V, max_v: float, t
         if best is None:
             return wi
         wi = best[1]
+
+
+def _uniform_plans(w: np.ndarray, valve: np.ndarray, pulse_coast: list, T, V, max_t, max_v) -> list:
+    """Every valve the continuous plan ``w`` fires, each once with the same
+    pulse and coast, repeated as often as the limits allow: one plan per
+    pulse and coast that fits."""
+    used = set(valve[w > 1e-3].tolist())
+    out = []
+    for pc in sorted(set(pulse_coast)):
+        base = np.array([1.0 if (v in used and q == pc) else 0.0 for v, q in zip(valve, pulse_coast)])
+        t, dv = float(T @ base), float(V @ base)
+        r = int(min(max_t / t if t > 0 else 0, max_v / dv if dv > 0 else MAX_REPEATS, MAX_REPEATS) + 1e-9)
+        if r >= 1:
+            out.append(base * r)
+    return out
 
 
 def _greedy(dirs: list, wi: np.ndarray, T, V, max_t, max_v, level: float, spread: bool) -> np.ndarray:
@@ -702,6 +722,13 @@ def _exchange(dirs: list, wi: np.ndarray, near: np.ndarray, T, V, max_t, max_v, 
     return wi
 
 
+def fixed_weights(blocks: list) -> np.ndarray:
+    """The fixed characterisation as repetitions of the blocks: every valve
+    alone for CHARACTERISATION_FIRE_S, then CHARACTERISATION_COAST_S, once."""
+    fixed = (CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S)
+    return np.array([1.0 if (b.pulse_s, b.coast_s) == fixed else 0.0 for b in blocks])
+
+
 def design(
     hyps: list,
     description: dict,
@@ -725,10 +752,7 @@ def design(
     blocks = catalogue(description, min_on_time_s)
     if not blocks:
         raise ValueError(f"--min-on-time-s {min_on_time_s:g}: longer than every pulse a block fires {PULSES_S}")
-    fixed_w = np.array(
-        [1.0 if (b.pulse_s, b.coast_s) == (CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S) else 0.0 for b in blocks]
-    )
-    fixed_blocks = [b for b, w in zip(blocks, fixed_w) if w]
+    fixed_w = fixed_weights(blocks)
     T = np.array([b.duration_s for b in blocks])
     V = np.array([b.delta_v_mps for b in blocks])
     fixed_t, fixed_v = float(T @ fixed_w), float(V @ fixed_w)
@@ -745,7 +769,8 @@ def design(
     w, solver = _solve(dirs, T, V, max_duration_s / passes, max_v / passes, per_pass)
     predicted_continuous = evaluate(dirs, w)
     valve = np.array([b.valve for b in blocks])
-    wi = _round(dirs, w, valve, T, V, max_duration_s / passes, max_v / passes, per_pass)
+    pulse_coast = [(b.pulse_s, b.coast_s) for b in blocks]
+    wi = _round(dirs, w, valve, pulse_coast, T, V, max_duration_s / passes, max_v / passes, per_pass)
     if not wi.any():
         raise ValueError("no block fits the limits")
     out = {
@@ -775,7 +800,7 @@ def design(
         "fixed": _plan_summary(dirs, hyps, blocks, fixed_w, T, V),
         "fixed_plan": (
             f"each valve alone for {CHARACTERISATION_FIRE_S:g} s, then {CHARACTERISATION_COAST_S:g} s without "
-            f"firing, after {LEAD_S:g} s closed ({len(fixed_blocks)} runs, {fixed_t:g} s, {fixed_v:.4g} m/s)"
+            f"firing, after {LEAD_S:g} s closed ({int(fixed_w.sum())} runs, {fixed_t:g} s, {fixed_v:.4g} m/s)"
         ),
         "elapsed_s": time.perf_counter() - t0,
     }
