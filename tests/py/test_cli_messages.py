@@ -12,7 +12,12 @@ from bench import cli
 
 COMMANDS = sorted(cli.build_parser().commands)
 SEEDED = [c for c in COMMANDS if "--seed" in cli.build_parser().commands[c].format_help()]
-REQUIRED = {"modal": ["--scenario", "structure"], "pose": ["--experiment", "images"], "simulate": ["--out", "x.h5"]}
+REQUIRED = {
+    "modal": ["--scenario", "structure"],
+    "pose": ["--experiment", "images"],
+    "simulate": ["--out", "x.h5"],
+    "plan": ["log.h5", "--json", "plan.json"],
+}
 
 
 def _help(cmd: str) -> str:
