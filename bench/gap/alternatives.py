@@ -108,35 +108,48 @@ def _hiding_directions(J: np.ndarray, Jc: np.ndarray, sig: np.ndarray) -> list:
     return [Vct.T @ (a / sc) for a in A.T[:3]]
 
 
+def hiding_fits(J, lo, hi, Jc, lc, hc, sig: np.ndarray, share: float) -> list:
+    """[(d2, u, u_c)]: candidate c (columns Jc, bounds lc..hc) carrying
+    ``share`` noise variances of signature beside a set (columns J, bounds
+    lo..hi) whose fitted signature is ``sig``: c's parameters u_c, the
+    set's refitted u, and d2 = |sig - Jc u_c - J u|^2, the part the set
+    cannot absorb. Tried along c's bounded fit to ``sig`` and the three
+    directions that hide best (_hiding_directions), each sign, clipped to
+    c's bounds and scaled to the share; a direction that leaves the bounds
+    at that size is not kept. All in scaled units."""
+    tries = [bounded_lstsq(Jc, sig, lc, hc)]
+    for v in _hiding_directions(J, Jc, sig):
+        tries += [v, -v]
+    out = []
+    for v in tries:
+        v = np.clip(v, np.minimum(lc, 0), np.maximum(hc, 0))
+        size2 = float(np.sum((Jc @ v) ** 2))
+        if not size2 > 0:
+            continue
+        u_c = v * np.sqrt(share / size2)
+        if np.any(u_c < lc - 1e-12) or np.any(u_c > hc + 1e-12):
+            continue
+        rest = sig - Jc @ u_c
+        u = bounded_lstsq(J, rest, lo, hi)
+        r = rest - J @ u
+        out.append((float(r @ r), u, u_c))
+    return out
+
+
 def _hides(ctx: Context, fits_by: dict, names: list, c: str, e0: np.ndarray, delta2: float) -> dict | None:
     """Whether candidate ``c`` can sit beside ``names`` carrying a share of
     the gap worth naming (HIDDEN_SHARE of the set's fitted signature, at
     least ``delta2``) while the set's members, refitted inside their
     bounds, reproduce the set's fitted signature less c's part to within
-    ``delta2``. Tried along c's fit to the set's signature and the three
-    directions that hide best (_hiding_directions), each sign, clipped to
-    c's bounds and scaled to the share.
+    ``delta2`` (hiding_fits, the best of its directions).
     {"add", "hidden_signature2", "signature_distance2"} or None."""
     J, lo, hi = stacked(ctx, fits_by, names)
     sig = J @ bounded_lstsq(J, -e0, lo, hi)
     share = max(delta2, HIDDEN_SHARE * float(sig @ sig))
     Jc, lc, hc = stacked(ctx, fits_by, [c])
-    tries = [bounded_lstsq(Jc, sig, lc, hc)]
-    for v in _hiding_directions(J, Jc, sig):
-        tries += [np.clip(v, np.minimum(lc, 0), np.maximum(hc, 0)), np.clip(-v, np.minimum(lc, 0), np.maximum(hc, 0))]
-    for v in tries:
-        size2 = float(np.sum((Jc @ v) ** 2))
-        if not size2 > 0:
-            continue
-        u_c = v * np.sqrt(share / size2)
-        if np.any(u_c < lc) or np.any(u_c > hc):
-            continue
-        rest = sig - Jc @ u_c
-        r = rest - J @ bounded_lstsq(J, rest, lo, hi)
-        d2 = float(r @ r)
-        if d2 < delta2:
-            return {"add": c, "hidden_signature2": share, "signature_distance2": d2}
-    return None
+    fits = hiding_fits(J, lo, hi, Jc, lc, hc, sig, share)
+    d2 = min((f[0] for f in fits), default=np.inf)
+    return {"add": c, "hidden_signature2": share, "signature_distance2": d2} if d2 < delta2 else None
 
 
 def hidden_members(ctx: Context, fits: list, names: list, threshold_logp: float, delta2: float = DELTA2_95) -> list:

@@ -63,7 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.gap.alternatives import HIDDEN_SHARE
+from bench.gap.alternatives import HIDDEN_SHARE, hiding_fits
 from bench.gap.attribute import DELTA2_95
 from bench.sim.plans import CHARACTERISATION_COAST_S, CHARACTERISATION_FIRE_S, LEAD_S
 
@@ -158,49 +158,18 @@ def _fit_set(ctx, jac: dict, names: list, target: np.ndarray) -> tuple:
     return _split(names, jac, u * sc), J @ u
 
 
-def _hidden_directions(J: np.ndarray, Jc: np.ndarray) -> list:
-    """The three directions of c's parameters (scaled units) whose signature
-    the set's columns J reproduce best per unit of signature."""
-    U, sv, _ = np.linalg.svd(J, full_matrices=False)
-    U = U[:, sv > sv[0] * 1e-10]
-    Uc, sc, Vct = np.linalg.svd(Jc, full_matrices=False)
-    keep = sc > sc[0] * 1e-8
-    Uc, sc, Vct = Uc[:, keep], sc[keep], Vct[keep]
-    perp = Uc - U @ (U.T @ Uc)
-    _, A = np.linalg.eigh(perp.T @ perp)
-    return [Vct.T @ (a / sc) for a in A.T[:3]]
-
-
 def hidden_hypothesis(ctx, jac: dict, e0: np.ndarray, base: list, c: str, share: float | None = None) -> Hypothesis:
     """``base`` fitted on the log with candidate ``c`` beside it carrying
     ``share`` noise variances of signature on the log's training rows
     (default: HIDDEN_SHARE of the base's fitted signature, at least
     DELTA2_95), in the direction the base's members, refitted, absorb best:
-    the set a listing "hidden member" stands for, at its sizes."""
-    from bench.gap.select import bounded_lstsq
-
+    the set a listing "hidden member" stands for, at its sizes
+    (alternatives.hiding_fits, the best of its directions)."""
     _, sig = _fit_set(ctx, jac, base, -e0)
     share = float(share) if share else max(DELTA2_95, HIDDEN_SHARE * float(sig @ sig))
     J, lo, hi, sc = _scaled(ctx, jac, base)
     Jc, lc, hc, scc = _scaled(ctx, jac, [c])
-    tries = [bounded_lstsq(Jc, sig, lc, hc)]
-    for v in _hidden_directions(J, Jc):
-        tries += [v, -v]
-    best = None
-    for v in tries:
-        v = np.clip(v, np.minimum(lc, 0), np.maximum(hc, 0))
-        size2 = float(np.sum((Jc @ v) ** 2))
-        if not size2 > 0:
-            continue
-        u_c = v * np.sqrt(share / size2)
-        if np.any(u_c < lc - 1e-12) or np.any(u_c > hc + 1e-12):
-            continue
-        rest = sig - Jc @ u_c
-        u = bounded_lstsq(J, rest, lo, hi)
-        r = rest - J @ u
-        d2 = float(r @ r)
-        if best is None or d2 < best[0]:
-            best = (d2, u, u_c)
+    best = min(hiding_fits(J, lo, hi, Jc, lc, hc, sig, share), key=lambda f: f[0], default=None)
     if best is None:  # no direction carries the share inside the bounds: fitted jointly instead
         theta, _ = _fit_set(ctx, jac, base + [c], -e0)
         return Hypothesis(base + [c], theta)
