@@ -92,7 +92,15 @@ TYPED_TEST(FlightAppReacquireTest, AfterAnHourWithoutPosesTheFirstPoseReacquires
   }
   EXPECT_EQ(app->counters().reacquisitions, 1u);
   EXPECT_EQ(count_kind(tm, StepKind::Reacquire, StepStatus::Ok), 1);
-  EXPECT_EQ(app->counters().pose_fused, 299u);
+  // Every pose after the first fuses but for the NIS gate's own false
+  // rejections: it refuses a consistent pose with probability 0.001 (chi2, 6
+  // dof, at 22.46), so over 299 poses none with probability 0.74 and more
+  // than 3 with probability 2e-4 (binomial). Which poses it refuses follows
+  // the noise draws, and those follow the platform's libm
+  // (std::normal_distribution calls log): one of 299 under qemu-aarch64.
+  const int gated = count_kind(tm, StepKind::PoseUpdate, StepStatus::Gated);
+  EXPECT_LE(gated, 3);
+  EXPECT_EQ(app->counters().pose_fused + unsigned(gated), 299u);
   EXPECT_EQ(count_kind(tm, StepKind::PoseUpdate, StepStatus::NotPosDef), 0);
   EXPECT_LT(double(app->nav().state().r_hill_m.norm()), 0.05);
   EXPECT_LT(boxminus(q_true(n, 3900.0), app->nav().state().q_hb.template cast<double>()).norm(), 0.02);
