@@ -7,12 +7,12 @@ problem), every parameter inside its physical bounds:
 
 - look-alikes: one member swapped for a candidate that reproduces the
   set's fitted signature to within DELTA2_95 noise variances
-  (look_alike_sets);
-- sets that explain as well (explaining_sets): any set of at most
+  (_look_alikes);
+- sets that explain as well (_explaining): any set of at most
   MAX_EFFECTS candidates beside which the answer's members pass no
   screening threshold (where forward selection stops), and that has no
   smaller such set inside it;
-- hidden members (hidden_members): one more candidate that can sit beside
+- hidden members (_hides): one more candidate that can sit beside
   the answer, or beside one of those sets, carrying a share of the gap
   worth naming while the set's members, refitted, absorb it.
 
@@ -66,24 +66,25 @@ def _reduced(fits_by: dict, e0: np.ndarray) -> tuple:
     return {n: _Columns(R[:, a:b]) for n, a, b in zip(names, edges[:-1], edges[1:])}, R[:, -1]
 
 
-def look_alike_sets(ctx: Context, fits: list, names: list, delta2: float = DELTA2_95) -> list:
+def _fitted(ctx: Context, red: dict, names: list, z: np.ndarray) -> tuple:
+    """(J, lo, hi, sig): the names' stacked reduced columns, their bounds,
+    and the signature of their bounded fit to the reduced residual z."""
+    J, lo, hi = stacked(ctx, red, names)
+    return J, lo, hi, J @ bounded_lstsq(J, -z, lo, hi)
+
+
+def _look_alikes(ctx: Context, red: dict, z: np.ndarray, names: list, delta2: float) -> list:
     """The sets that differ from ``names`` by one member and reproduce the
-    set's fitted signature on the training rows to within ``delta2`` noise
-    variances (inside their physical bounds): sets the data cannot tell
-    from the chosen one. [{"replace", "with", "signature_distance2"}]."""
-    fits_by = screened(fits)
-    if not all(n in fits_by for n in names):
-        return []
-    e0, _ = training_residuals(ctx)
-    J, lo, hi = stacked(ctx, fits_by, names)
-    sig = J @ bounded_lstsq(J, -e0, lo, hi)
+    set's fitted signature to within ``delta2`` noise variances (inside
+    their physical bounds). [{"replace", "with", "signature_distance2"}]."""
+    _, _, _, sig = _fitted(ctx, red, names, z)
     out = []
     for m in names:
-        for c in fits_by:
+        for c in red:
             if c in names:
                 continue
             alt = [c if n == m else n for n in names]
-            Ja, la, ha = stacked(ctx, fits_by, alt)
+            Ja, la, ha = stacked(ctx, red, alt)
             r = sig - Ja @ bounded_lstsq(Ja, sig, la, ha)
             d2 = float(r @ r)
             if d2 < delta2:
@@ -91,13 +92,13 @@ def look_alike_sets(ctx: Context, fits: list, names: list, delta2: float = DELTA
     return sorted(out, key=lambda a: a["signature_distance2"])
 
 
-def _hiding_directions(J: np.ndarray, Jc: np.ndarray, sig: np.ndarray) -> list:
-    """Directions of c's parameters whose signature the set's columns J
-    reproduce best against its size: c's bounded fit to the set's fitted
-    signature ``sig``, then the principal directions between c's column
-    space and the set's (the eigenvectors of Uc^T (I - P_S) Uc with the
-    smallest eigenvalues, Uc an orthonormal basis of c's signatures: the
-    part the set cannot reproduce, per unit of signature)."""
+def _hiding_directions(J: np.ndarray, Jc: np.ndarray) -> list:
+    """The three directions of c's parameters whose signature the set's
+    columns J reproduce best against its size: the principal directions
+    between c's column space and the set's (the eigenvectors of
+    Uc^T (I - P_S) Uc with the smallest eigenvalues, Uc an orthonormal
+    basis of c's signatures: the part the set cannot reproduce, per unit
+    of signature)."""
     U, sv, _ = np.linalg.svd(J, full_matrices=False)
     U = U[:, sv > sv[0] * 1e-10]
     Uc, sc, Vct = np.linalg.svd(Jc, full_matrices=False)
@@ -118,7 +119,7 @@ def hiding_fits(J, lo, hi, Jc, lc, hc, sig: np.ndarray, share: float) -> list:
     c's bounds and scaled to the share; a direction that leaves the bounds
     at that size is not kept. All in scaled units."""
     tries = [bounded_lstsq(Jc, sig, lc, hc)]
-    for v in _hiding_directions(J, Jc, sig):
+    for v in _hiding_directions(J, Jc):
         tries += [v, -v]
     out = []
     for v in tries:
@@ -136,49 +137,24 @@ def hiding_fits(J, lo, hi, Jc, lc, hc, sig: np.ndarray, share: float) -> list:
     return out
 
 
-def _hides(ctx: Context, fits_by: dict, names: list, c: str, e0: np.ndarray, delta2: float) -> dict | None:
-    """Whether candidate ``c`` can sit beside ``names`` carrying a share of
-    the gap worth naming (HIDDEN_SHARE of the set's fitted signature, at
-    least ``delta2``) while the set's members, refitted inside their
-    bounds, reproduce the set's fitted signature less c's part to within
-    ``delta2`` (hiding_fits, the best of its directions).
+def _hides(ctx: Context, red: dict, base: tuple, c: str, delta2: float) -> dict | None:
+    """Whether candidate ``c`` can sit beside a set (``base``: _fitted)
+    carrying a share of the gap worth naming (HIDDEN_SHARE of the set's
+    fitted signature, at least ``delta2``) while the set's members,
+    refitted inside their bounds, reproduce the set's fitted signature less
+    c's part to within ``delta2`` (hiding_fits, the best of its
+    directions). A nozzle tilt beside a thrust loss on a docking approach
+    is the usual one: the loss of the same valves absorbs it.
     {"add", "hidden_signature2", "signature_distance2"} or None."""
-    J, lo, hi = stacked(ctx, fits_by, names)
-    sig = J @ bounded_lstsq(J, -e0, lo, hi)
+    J, lo, hi, sig = base
     share = max(delta2, HIDDEN_SHARE * float(sig @ sig))
-    Jc, lc, hc = stacked(ctx, fits_by, [c])
-    fits = hiding_fits(J, lo, hi, Jc, lc, hc, sig, share)
-    d2 = min((f[0] for f in fits), default=np.inf)
+    Jc, lc, hc = stacked(ctx, red, [c])
+    d2 = min((f[0] for f in hiding_fits(J, lo, hi, Jc, lc, hc, sig, share)), default=np.inf)
     return {"add": c, "hidden_signature2": share, "signature_distance2": d2} if d2 < delta2 else None
 
 
-def hidden_members(ctx: Context, fits: list, names: list, threshold_logp: float, delta2: float = DELTA2_95) -> list:
-    """Candidates that could be present beside ``names`` without the data
-    showing it: each fits the gap on its own (its screen passes
-    ``threshold_logp``) and can carry a share of the gap worth naming
-    beside the set, the set's members absorbing it (_hides). A nozzle tilt
-    beside a thrust loss on a docking approach is the usual one: the loss
-    of the same valves absorbs it. [{"add", "hidden_signature2",
-    "signature_distance2"}]."""
-    fits_by = screened(fits)
-    if not names or not all(n in fits_by for n in names):
-        return []
-    e0, _ = training_residuals(ctx)
-    red, z = _reduced(fits_by, e0)
-    out = []
-    for c, f in fits_by.items():
-        if c in names or not f.screen_logp > threshold_logp:
-            continue
-        h = _hides(ctx, red, names, c, z, delta2)
-        if h is not None:
-            out.append(h)
-    return sorted(out, key=lambda a: a["signature_distance2"])
-
-
-def explaining_sets(
-    ctx: Context, fits: list, names: list, threshold_logp: float, max_effects: int = MAX_EFFECTS
-) -> list:
-    """The sets of at most ``max_effects`` candidates forward selection
+def _explaining(ctx: Context, red: dict, z: np.ndarray, names: list, threshold_logp: float) -> list:
+    """The sets of at most MAX_EFFECTS candidates forward selection
     could have stopped at instead of the answer ``names``: the answer's
     members not in a set B, fitted beside B, pass no screening threshold
     (their conditional statistic, -log10 p of their gain in 2 dLL against
@@ -190,11 +166,6 @@ def explaining_sets(
     two steps from the answer (one member swapped and one dropped), which
     look-alikes do not. [{"set", "logp_beside"}], the best explaining
     first."""
-    fits_by = screened(fits)
-    if not names or not all(n in fits_by for n in names):
-        return []
-    e0, _ = training_residuals(ctx)
-    red, z = _reduced(fits_by, e0)
     memo = {}
 
     def dll(ns) -> tuple:
@@ -204,7 +175,7 @@ def explaining_sets(
         return memo[k]
 
     found = {frozenset(names): 0.0}
-    for k in range(1, max_effects + 1):
+    for k in range(1, MAX_EFFECTS + 1):
         for B in combinations(sorted(red), k):
             if any(S < set(B) for S in found):
                 continue
@@ -240,18 +211,19 @@ def alternative_sets(ctx: Context, fits: list, names: list, threshold_logp: floa
             seen.add(frozenset(entry["set"]))
             out.append(entry)
 
-    for a in look_alike_sets(ctx, fits, names):
+    for a in _look_alikes(ctx, red, z, names, DELTA2_95):
         keep({"set": [a["with"] if n == a["replace"] else n for n in names], **a})
-    explaining = explaining_sets(ctx, fits, names, threshold_logp)
+    explaining = _explaining(ctx, red, z, names, threshold_logp)
     for a in explaining:
         keep(a)
     for base in [list(names)] + [a["set"] for a in explaining]:
         if len(base) > MAX_EFFECTS:
             continue
+        fitted = _fitted(ctx, red, base, z)
         for c, f in fits_by.items():
             if c in base or not f.screen_logp > threshold_logp or frozenset(base + [c]) in seen:
                 continue
-            h = _hides(ctx, red, base, c, z, DELTA2_95)
+            h = _hides(ctx, red, fitted, c, DELTA2_95)
             if h is not None:
                 keep({"set": base + [c], "to": base, **h})
     return out
