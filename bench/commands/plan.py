@@ -101,7 +101,10 @@ def main(args):
     if args.diagnosis:
         if not Path(args.diagnosis).is_file():
             raise FileNotFoundError(f"--diagnosis {args.diagnosis}: no such file")
-        diagnosis = json.loads(Path(args.diagnosis).read_text())
+        try:
+            diagnosis = json.loads(Path(args.diagnosis).read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"--diagnosis {args.diagnosis}: not a JSON file ({exc})") from None
     res = separate(
         read_flight_log(args.log, relative_time=True),
         diagnosis,

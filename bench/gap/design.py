@@ -179,18 +179,47 @@ def hidden_hypothesis(ctx, jac: dict, e0: np.ndarray, base: list, c: str, share:
     return Hypothesis(base + [c], theta, how)
 
 
+def _names(value, field: str) -> list:
+    """A list of effect names read back from a diagnosis file, or a one-line
+    error naming the field."""
+    if not isinstance(value, list) or not value or not all(isinstance(n, str) for n in value):
+        raise ValueError(f"diagnosis {field}: {value!r} is not a list of effect names")
+    if len(set(value)) != len(value):
+        raise ValueError(f"diagnosis {field}: {value!r} names an effect twice")
+    return list(value)
+
+
 def sets_of_diagnosis(out: dict) -> list:
     """[(members, listing entry or None)]: the answer's set, then every set it
-    cannot be told from (bench/gap/answers.py listed_sets)."""
-    from bench.gap.answers import listed_sets
+    cannot be told from (bench/gap/answers.py listed_sets). The diagnosis is
+    a file read back (proxops diagnose --json): every field used is checked
+    and a wrong one refused with its name; the effect names are checked
+    against the log's candidates when the sets are fitted."""
+    import math
 
-    answer = [m["effect"] for m in out.get("effects") or []]
+    if not isinstance(out, dict):
+        raise ValueError("the diagnosis is not a JSON object")
+    effects = out.get("effects") or []
+    if not isinstance(effects, list) or not all(isinstance(m, dict) for m in effects):
+        raise ValueError("diagnosis effects: not a list of objects")
+    answer = _names([m.get("effect") for m in effects], "effects[].effect") if effects else []
     if not answer:
         raise ValueError("the diagnosis names no effect: there is no answer to separate")
     entries = out.get("ambiguous_with") or []
+    if not isinstance(entries, list) or not all(isinstance(a, dict) for a in entries):
+        raise ValueError("diagnosis ambiguous_with: not a list of objects")
     sets = [(answer, None)]
-    for members, entry in zip(listed_sets(out), entries):
-        sets.append((list(members), entry))
+    for i, a in enumerate(entries):
+        field = f"ambiguous_with[{i}]"
+        members = _names(a["set"] if "set" in a else [a.get("effect")], f"{field}.set")
+        if "add" in a:
+            to = _names(a.get("to"), f"{field}.to")
+            if a["add"] not in members or sorted(to + [a["add"]]) != sorted(members):
+                raise ValueError(f"diagnosis {field}: add {a['add']!r} beside {to} is not the set {members}")
+            share = a.get("hidden_signature2")
+            if share is not None and not (isinstance(share, (int, float)) and math.isfinite(share) and share > 0):
+                raise ValueError(f"diagnosis {field}.hidden_signature2: {share!r} is not a positive number")
+        sets.append((members, a))
     return sets
 
 

@@ -187,6 +187,50 @@ def test_bad_limits_one_line_and_exit_2(tmp_path, capsys, extra, words):
     assert not out.exists()
 
 
+_HIDDEN = {"set": ["thrust_loss", "thruster_misalignment"], "add": "thruster_misalignment", "to": ["thrust_loss"]}
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("[]", "not a JSON object"),
+        ("not json", "not a JSON file"),
+        ('{"effects": "thrust_loss"}', "diagnosis effects"),
+        ('{"effects": [{"effect": 3}]}', "effects[].effect"),
+        ('{"effects": [{"effect": "thrust_loss"}], "ambiguous_with": [{"set": [3]}]}', "ambiguous_with[0].set"),
+        ('{"effects": [{"effect": "thrust_loss"}], "ambiguous_with": [{"set": ["gyro_bias", "gyro_bias"]}]}', "twice"),
+        ('{"effects": [{"effect": "thrust_loss"}], "ambiguous_with": [{"set": ["warp_drive"]}]}', "warp_drive"),
+        (
+            json.dumps({"effects": [{"effect": "thrust_loss"}], "ambiguous_with": [{**_HIDDEN, "to": ["gyro_bias"]}]}),
+            "is not the set",
+        ),
+        (
+            json.dumps(
+                {
+                    "effects": [{"effect": "thrust_loss"}],
+                    "ambiguous_with": [{**_HIDDEN, "hidden_signature2": float("nan")}],
+                }
+            ),
+            "hidden_signature2",
+        ),
+        (
+            json.dumps(
+                {"effects": [{"effect": "thrust_loss"}], "ambiguous_with": [{**_HIDDEN, "hidden_signature2": -4.0}]}
+            ),
+            "hidden_signature2",
+        ),
+    ],
+)
+def test_a_tampered_diagnosis_file_is_refused_in_one_line(tmp_path, capsys, text, words):
+    """A saved diagnosis is read back: a wrong field is named, never believed."""
+    diag, out = tmp_path / "diagnosis.json", tmp_path / "plan.json"
+    diag.write_text(text)
+    rc = cli.main(["plan", str(bundled.LOG), "--separate", "--diagnosis", str(diag), "--json", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and words in err, err
+    assert "Traceback" not in err and not out.exists()
+
+
 def test_without_separate_one_line_and_exit_2(tmp_path, capsys):
     rc = cli.main(["plan", str(bundled.LOG), "--json", str(tmp_path / "p.json")])
     err = capsys.readouterr().err
