@@ -103,7 +103,7 @@ def main(args):
         from bench.sim.vehicle_sim import KNOWN as known
     effects = check_effects(read_effects(args.effects), desc, known)
     if args.clocks == "as-real-logs":
-        from bench.gap.validate_vehicle import clocks_for
+        from bench.campaigns.gap.validate_vehicle import clocks_for
 
         clocks = clocks_for(args.seed)
     else:

@@ -68,7 +68,7 @@ def _campaign(args):
             args, "validate-gap", {"runs": args.runs, "seed": args.seed, "vehicle": "random", "engine": args.engine}
         )
     if args.vehicle == "12kg" or args.engine == "basilisk":
-        from bench.gap.validate_vehicle import load_calibration
+        from bench.campaigns.gap.validate_vehicle import load_calibration
 
         # The engine keys the store too: Basilisk's runs are not the bench plant's.
         cal, kind = (
@@ -97,7 +97,7 @@ def main(args):
     campaign = _campaign(args)
     where = campaign.where()
     if args.mixtures:
-        from bench.gap import validate_mixtures
+        from bench.campaigns.gap import validate_mixtures
 
         res = validate_mixtures.run_campaign(
             args.runs, args.seed, args.json, duration_s=args.duration, campaign=campaign, manoeuvres=args.manoeuvres
@@ -113,7 +113,7 @@ def main(args):
     if args.json:
         from pathlib import Path
 
-        from bench.gap.validate import runs_table
+        from bench.campaigns.gap.validate import runs_table
 
         write_json(args.json, res, strict=True)
         Path(str(args.json) + ".runs.csv").write_text(runs_table(res))
@@ -172,20 +172,20 @@ def score_lines(res: dict) -> list:
 
 def _single_effects(args, campaign) -> dict:
     """The single-effect campaign the arguments name."""
-    from bench.gap.validate import run_campaign
+    from bench.campaigns.gap.validate import run_campaign
 
     if args.vehicle == "random":
-        from bench.gap import validate_random
+        from bench.campaigns.gap import validate_random
 
         res = validate_random.run_campaign(args.runs, args.seed, args.json, engine=args.engine, campaign=campaign)
         res["manoeuvres"] = f"characterisation (random vehicles, {args.engine} logs)"
     elif args.engine == "basilisk":
-        from bench.gap import validate_basilisk
+        from bench.campaigns.gap import validate_basilisk
 
         res = validate_basilisk.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
         res["manoeuvres"] = f"characterisation (12 kg, Basilisk {res['basilisk_version']})"
     elif args.vehicle == "12kg":
-        from bench.gap import validate_vehicle
+        from bench.campaigns.gap import validate_vehicle
 
         res = validate_vehicle.run_campaign(args.runs, args.seed, args.json, campaign=campaign)
         res["manoeuvres"] = "characterisation (12 kg)"

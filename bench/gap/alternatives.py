@@ -16,7 +16,7 @@ problem), every parameter inside its physical bounds:
   the answer, or beside one of those sets, carrying a share of the gap
   worth naming while the set's members, refitted, absorb it.
 
-DELTA2_95 (10.8 noise variances, bench/gap/separability.py) is the
+DELTA2_95 (10.8 noise variances, bench/campaigns/gap/separability.py) is the
 distance at which two hypotheses are told apart from one run with 95 %
 probability.
 """

@@ -11,7 +11,7 @@ line naming the field. Two kinds are accepted:
   threshold of its null values (``log_null.unusable``); the fingerprint is
   then checked against the log (``log_null.check_supplied``);
 - a committed calibration of the bench's (bench/gap/null.py, or the Frechet
-  tail of bench/gap/validate_vehicle.py): each threshold the one its null
+  tail of bench/campaigns/gap/validate_vehicle.py): each threshold the one its null
   values give by the file's method, and the vehicle checked against the log.
 """
 

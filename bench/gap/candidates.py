@@ -154,7 +154,7 @@ CANDIDATES = {
             tuple(f"loss_{i} [1]" for i in range(8)),
             0.1,
             "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a loss changes the rate "
-            "along the valve's torque, a tilt across it (python -m bench.gap.characterise)",
+            "along the valve's torque, a tilt across it (python -m bench.campaigns.gap.characterise)",
             bound=0.9,
             nav=False,
             nonnegative=True,
@@ -165,7 +165,7 @@ CANDIDATES = {
             tuple(f"phi_{i}{a} [rad]" for i in range(8) for a in "xyz"),
             0.05,
             "each valve alone for 3 s, then 20 s without firing, valve by valve (200 s): a tilt changes the rate "
-            "across the valve's torque, a loss along it (python -m bench.gap.characterise)",
+            "across the valve's torque, a loss along it (python -m bench.campaigns.gap.characterise)",
             bound=0.5,
             nav=False,
         ),

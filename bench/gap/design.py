@@ -27,7 +27,7 @@ scaled by sqrt(w_k). For hypothesis A at its sizes and a set B,
     d_AB(w) = min_{u in B's bounds} sum_k w_k |s_A,k - J_B,k u|^2
 
 is the squared distance, in noise standard deviations, between what A
-predicts and the nearest B can produce (bench/gap/separability.py; 10.8 =
+predicts and the nearest B can produce (bench/campaigns/gap/separability.py; 10.8 =
 DELTA2_95 separates 95 % of the time). A direction counts unless B holds
 every member of A (B then reproduces A exactly: the pair is separated when
 the larger set's extra members show, the other direction). When B is A
@@ -881,7 +881,7 @@ def plan_segments(plan: dict, n_valves: int) -> list:
 def flown_distances(description: dict, segments: list, hyps: list, truth: int, seed: int = 0) -> dict:
     """The plan ``segments`` flown by the described vehicle on the bench's
     plant with hypothesis ``truth``'s effects at its sizes and without them
-    (the same seed: common random numbers, as bench/gap/separability.py
+    (the same seed: common random numbers, as bench/campaigns/gap/separability.py
     twin_logs). On that flight, s the whitened difference of the two on
     every row, and for every other hypothesis B not holding every member of
     the truth: ``delta2`` = |(I - P_B) s|^2, what the design predicts; and

@@ -106,7 +106,7 @@ def signature_distance(a, b, cands: dict | None = None) -> float:
     """|J_a theta_a - J_b theta_b*|^2 on the training rows (screen Jacobians),
     theta_b* the closest fit inside b's physical bounds: how far, in noise
     standard deviations squared, candidate a's fitted signature lies from
-    anything candidate b can produce (bench/gap/separability.py)."""
+    anything candidate b can produce (bench/campaigns/gap/separability.py)."""
     Ja, Jb = getattr(a, "J_u", None), getattr(b, "J_u", None)
     if Ja is None or Jb is None or Ja.shape[0] != Jb.shape[0]:
         return float("inf")

@@ -100,7 +100,7 @@ def tail_threshold(values, fa: float = FA_EACH) -> tuple:
 def frechet_threshold(values, fa: float = FA_EACH) -> float:
     """The (1 - fa) quantile of a Gumbel fitted by moments to log(values):
     the tail model before ``tail_threshold`` (kept for the committed 12 kg
-    calibration, bench/gap/validate_vehicle.py, and for comparison). Small
+    calibration, bench/campaigns/gap/validate_vehicle.py, and for comparison). Small
     values pull it up: it is fitted to all of them on a log scale."""
     v = np.log(np.maximum(np.asarray(values, float), 1e-12))
     beta = float(np.std(v, ddof=1)) * np.sqrt(6.0) / np.pi

@@ -45,7 +45,7 @@ def _indexed(arg):
 
 
 def _null_run(seed):
-    from bench.gap.null import run_statistics
+    from bench.campaigns.gap.null_calibration import run_statistics
 
     return run_statistics(int(seed), (120.0, "docking"))
 

@@ -138,7 +138,7 @@ _FIXED_PARAMS = {"host_eccentricity": (1,), "flex_mode": (0,), "led_occlusion": 
 LENS_K1_MIN_DETECTABLE = 0.029
 # Clock drift: no gap statistic of a docking run shows it up to 0.05; the
 # diagnoser's screen with its clock candidate does on docking-then-
-# characterisation logs (bench/gap/detectable.py, docs/EFFECTS.md).
+# characterisation logs (bench/campaigns/gap/detectable.py, docs/EFFECTS.md).
 CLOCK_DRIFT_MIN_DETECTABLE = 0.0025
 EFFECTS: dict[str, EffectSpec] = {
     s.name: s

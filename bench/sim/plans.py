@@ -24,7 +24,7 @@ from bench.so3 import qexp, qnormalize
 # docking runs then the thruster characterisation the diagnoser names to
 # separate a nozzle tilt from a thrust loss (each valve alone
 # CHARACTERISATION_FIRE_S, then CHARACTERISATION_COAST_S without firing;
-# python -m bench.gap.characterise compares the two on it).
+# python -m bench.campaigns.gap.characterise compares the two on it).
 MANOEUVRES = ("docking", "docking+characterisation")
 CHARACTERISATION_FIRE_S, CHARACTERISATION_COAST_S = 3.0, 20.0
 DT_S = 0.1  # control interval of the docking scenario (bench/sim/scenario_docking.py)

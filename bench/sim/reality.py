@@ -56,7 +56,7 @@ def simulate_runs(
     ``scripts`` (each run's valve configurations, from an earlier call) the
     runs replay those valves open loop, so the chain splits where it did.
     ``then_scripts``: after the docking runs, one run per valve script, open
-    loop (a thruster characterisation, bench/gap/characterise.py); with
+    loop (a thruster characterisation, bench/campaigns/gap/characterise.py); with
     ``scripts`` they are the last len(then_scripts) of the replayed runs."""
     eff = EffectSet(effects or {})
     then = [list(sc) for sc in then_scripts or []]

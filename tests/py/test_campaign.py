@@ -91,7 +91,7 @@ def test_store_resumes_keeps_failures_and_summarises(tmp_path, capsys):
 
 
 def test_null_calibration_is_identical_on_one_and_two_workers_and_resumed(tmp_path):
-    from bench.gap import null
+    from bench.campaigns.gap import null_calibration as null
 
     seeds = [int(s) for s in np.random.default_rng(11).integers(0, 2**31, 4)]
     one = null.calibrate(

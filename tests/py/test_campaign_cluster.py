@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.gap import validate
+from bench.campaigns.gap import validate
 from bench.runner import records
 from bench.runner.runner import Campaign
 from bench.runner.store import RunStore

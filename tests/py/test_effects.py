@@ -63,7 +63,7 @@ def test_library_membership_and_lens_distortion_joined_with_the_image_pipeline()
 
 
 def test_campaign_draws_only_effects_the_synthetic_pose_logs_can_carry():
-    from bench.gap.validate import draw_campaign
+    from bench.campaigns.gap.validate import draw_campaign
 
     drawn = {k["effect"] for k in draw_campaign(200, seed=3)} - {None}
     assert "lens_distortion" not in drawn and drawn == (LIBRARY | OUT_OF_LIBRARY) - {"lens_distortion"}

@@ -4,10 +4,10 @@ calibration, attribution, held-out shrink, and a CI-sized blind campaign."""
 import numpy as np
 import pytest
 
+from bench.campaigns.gap.validate import blind, run_campaign
 from bench.gap import null as nullmod
 from bench.gap.diagnose import diagnose, public
 from bench.gap.replay import prepare, reference
-from bench.gap.validate import blind, run_campaign
 
 reality = pytest.importorskip("bench.sim.reality")
 
@@ -95,7 +95,7 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
     # The campaign records' tables (docs/results/) render from the full JSON.
     import json
 
-    from bench.gap import results_tables
+    from bench.campaigns.gap import results_tables
     from bench.report import write_json
 
     write_json(str(out), res, strict=True)  # what validate-gap writes: strict JSON
@@ -109,7 +109,7 @@ def test_ci_sized_blind_campaign_runs_end_to_end(tmp_path, capsys):
 def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
     from scipy.stats import chi2
 
-    from bench.gap.detectable import required_noncentrality
+    from bench.campaigns.gap.detectable import required_noncentrality
 
     rng = np.random.default_rng(5)
     for k in (1, 3, 16):
@@ -123,7 +123,7 @@ def test_required_noncentrality_gives_the_power_in_a_seeded_draw():
 
 
 def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(calibration):
-    from bench.gap.detectable import min_detectable_size
+    from bench.campaigns.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS
 
     spec = EFFECTS["accel_bias"]
@@ -143,7 +143,7 @@ def test_min_detectable_size_puts_the_signature_at_the_required_noncentrality(ca
 
 
 def test_an_effect_no_sensible_size_shows_is_reported_not_detectable(calibration):
-    from bench.gap.detectable import min_detectable_size
+    from bench.campaigns.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS
 
     # A 0.75 m docking at mm/s holds range nearly still: host eccentricity up to
@@ -218,7 +218,7 @@ def test_proxops_run_ends_with_the_three_answers_then_the_sealed_key(tmp_path, c
 
 
 def test_a_nozzle_tilt_in_a_docking_run_is_not_separable_from_thrust_loss():
-    from bench.gap.separability import DELTA2_95, separability
+    from bench.campaigns.gap.separability import DELTA2_95, separability
 
     # Fixed couples: the gyro sees a small tilt's torque as a valve's lost torque.
     tilt = np.zeros(24)
@@ -232,8 +232,8 @@ def test_a_nozzle_tilt_in_a_docking_run_is_not_separable_from_thrust_loss():
 
 
 def test_single_valve_characterisation_separates_thrust_loss_that_docking_cannot():
-    from bench.gap.characterise import compare
-    from bench.gap.separability import DELTA2_95
+    from bench.campaigns.gap.characterise import compare
+    from bench.campaigns.gap.separability import DELTA2_95
     from bench.sim.plans import single_valve_scripts
 
     scripts = single_valve_scripts(fire_s=3.0, coast_s=20.0)
@@ -397,7 +397,7 @@ def test_a_characterisation_flown_after_docking_is_replayed_run_for_run():
 
 
 def test_a_campaign_with_the_characterisation_records_it_in_every_key():
-    from bench.gap.validate import draw_campaign, key_hash, then_scripts
+    from bench.campaigns.gap.validate import draw_campaign, key_hash, then_scripts
 
     dock, char = draw_campaign(20, 5), draw_campaign(20, 5, "docking+characterisation")
     assert all("manoeuvres" not in k and then_scripts(k) is None for k in dock)
@@ -444,8 +444,8 @@ def test_each_kind_of_log_has_a_null_calibration_made_on_its_own_manoeuvres():
 def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
     # Each single-valve run ends spinning; the next starts at rest. The
     # candidate must turn a run's last pose by that run's rate.
+    from bench.campaigns.gap.detectable import residuals_of
     from bench.gap.attribute import signature
-    from bench.gap.detectable import residuals_of
     from bench.sim.plans import single_valve_scripts
 
     then = single_valve_scripts(fire_s=3.0, coast_s=6.0)
@@ -466,7 +466,7 @@ def test_the_latency_candidate_reproduces_latency_through_spins_and_run_ends():
 
 
 def test_bootstrap_interval_of_a_median_narrows_with_more_runs_and_holds_the_median():
-    from bench.gap.results_tables import median_interval
+    from bench.campaigns.gap.results_tables import median_interval
 
     rng = np.random.default_rng(3)
     small, large = rng.normal(0.8, 0.3, 40), rng.normal(0.8, 0.3, 1000)
@@ -483,9 +483,9 @@ def test_the_clock_candidate_undoes_a_drifting_flight_clock():
     dynamics channel away, and the diagnosis names clock_drift alone with eps inside its
     interval; the same valves flown without the drift give no gap and an
     eps fit within its noise."""
+    from bench.campaigns.gap.detectable import _bench_simulate
     from bench.gap import dyn
     from bench.gap.attribute import candidate
-    from bench.gap.detectable import _bench_simulate
     from bench.sim.plans import then_scripts
 
     key = {"manoeuvres": "docking+characterisation"}

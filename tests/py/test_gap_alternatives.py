@@ -5,10 +5,10 @@ their set (docs/results)."""
 import numpy as np
 import pytest
 
+from bench.campaigns.gap.validate import blind
 from bench.gap import null as nullmod
 from bench.gap.answers import answer_lines, listed_sets
 from bench.gap.diagnose import diagnose, public
-from bench.gap.validate import blind
 from bench.sim import reality
 
 # Run 26 of the seed-2060 mixture campaign: a gyro scale factor, a thrust

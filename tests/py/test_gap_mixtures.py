@@ -5,9 +5,9 @@ stays one."""
 import numpy as np
 import pytest
 
+from bench.campaigns.gap.validate import blind
 from bench.gap import null as nullmod
 from bench.gap.diagnose import diagnose, public
-from bench.gap.validate import blind
 
 reality = pytest.importorskip("bench.sim.reality")
 
@@ -126,7 +126,7 @@ def test_set_separability_tells_a_separable_pair_from_a_look_alike():
     """Two effects whose signatures differ are separable from every set one
     step away; replacing the tilt by a thrust loss reproduces a docking
     log's tilt, so that pair is not (docs/GAP.md)."""
-    from bench.gap.separability import set_separability
+    from bench.campaigns.gap.separability import set_separability
 
     sep = set_separability(
         7,
@@ -151,7 +151,7 @@ def test_set_separability_tells_a_separable_pair_from_a_look_alike():
 
 
 def test_mixture_scores_split_by_separability_and_kind():
-    from bench.gap.validate_mixtures import score_mixtures, summary_lines
+    from bench.campaigns.gap.validate_mixtures import score_mixtures, summary_lines
 
     def key(run, kind, scale, members):
         return {"run": run, "kind": kind, "scale": scale, "members": members, "detectable": True}

@@ -6,7 +6,7 @@ answer for in-library effects and "unexplained" for one outside the library."""
 import numpy as np
 import pytest
 
-from bench.gap import validate_vehicle as vv
+from bench.campaigns.gap import validate_vehicle as vv
 from bench.gap.diagnose import diagnose, public
 
 TL = np.zeros(12)

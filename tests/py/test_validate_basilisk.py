@@ -1,5 +1,5 @@
 """Flying one effect's runs of a finished Basilisk campaign again
-(bench/gap/validate_basilisk.py refly), on the stored answers of the seed
+(bench/campaigns/gap/validate_basilisk.py refly), on the stored answers of the seed
 2050 campaign with the diagnosis of each run stood in for: which runs are
 flown, and the answers before and after counted run by run."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.gap import validate_basilisk
+from bench.campaigns.gap import validate_basilisk
 
 STORED = Path(__file__).resolve().parents[2] / "docs/results/data/validate_gap_basilisk_8_seed2050.full.json.gz"
 

@@ -6,7 +6,7 @@ scored. The mechanics, not the scores (docs/results/ records those)."""
 
 import numpy as np
 
-from bench.gap import validate_random as vr
+from bench.campaigns.gap import validate_random as vr
 from bench.sim.log_description import resolve
 
 
@@ -44,7 +44,8 @@ def test_the_detection_limit_is_measured_on_the_engine_that_flies_the_run(monkey
     """A Basilisk run is sized on Basilisk's flights of it (its slosh and
     hinged panel move a vehicle otherwise than the bench's), calibrated on
     Basilisk's effect-free flight."""
-    from bench.gap import detectable, log_null
+    from bench.campaigns.gap import detectable
+    from bench.gap import log_null
 
     key = next(k for k in vr.draw_campaign(10, 3403, "basilisk") if k["effect"] is not None)
     flown = []

@@ -2,7 +2,7 @@
 (its characterisation flown again and again, time stamps as real logs have
 them), with the committed calibration of its flight family:
 
-    python -m bench.gap.perf_diagnose [--minutes 10] [--repeats 3] [--effects JSON]
+    python -m bench.campaigns.gap.perf_diagnose [--minutes 10] [--repeats 3] [--effects JSON]
 
 ``--effects`` flies the log with effects (bench/sim/effects.py names and
 parameters), so the timing covers the attribution and, with two or more,
@@ -19,7 +19,7 @@ import numpy as np
 
 
 def long_log(minutes: float, seed: int = 5, effects: dict | None = None):
-    from bench.gap import validate_vehicle as vv
+    from bench.campaigns.gap import validate_vehicle as vv
     from bench.sim.plans import characterisation_plan
     from bench.sim.vehicle_sim import simulate
 
@@ -43,7 +43,7 @@ def main(argv=None):
     import json
 
     effects = json.loads(a.effects)
-    from bench.gap import validate_vehicle as vv
+    from bench.campaigns.gap import validate_vehicle as vv
     from bench.gap.diagnose import diagnose
 
     log = long_log(a.minutes, effects=effects)

@@ -1,7 +1,7 @@
 """Blind validation on logs from Basilisk: ``proxops validate-gap --engine
 basilisk``.
 
-The campaign of ``--vehicle 12kg`` (bench/gap/validate_vehicle.py: the 12 kg
+The campaign of ``--vehicle 12kg`` (bench/campaigns/gap/validate_vehicle.py: the 12 kg
 inspector's characterisation, time stamps as real logs have them, one run in
 ten without a valves stream, null, in-library and out-of-library runs at 1x
 and 2x each run's own minimum detectable size, keys hashed before any
@@ -11,7 +11,7 @@ modules: ``flex_mode`` a hinged panel (hingedRigidBodyStateEffector),
 ``fuel_slosh`` spring-mass-damper slosh (linearSpringMassDamper).
 
 What stays the bench's: the minimum detectable size of each run (measured
-on the bench's flight of it, bench/gap/detectable.py, as the bench campaign
+on the bench's flight of it, bench/campaigns/gap/detectable.py, as the bench campaign
 does; a Basilisk search would fly tens of logs per run) and the null
 calibration the diagnosis thresholds with (the 12 kg vehicle's, made on the
 bench's plant). A null Basilisk log that the diagnosis flags is therefore a
@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import time
 
-from bench.gap import validate_vehicle as vv
-from bench.gap.validate import score, sized_and_diagnosed
+from bench.campaigns.gap import validate_vehicle as vv
+from bench.campaigns.gap.validate import score, sized_and_diagnosed
 
 
 def simulate_key(key: dict, effects: dict | None = None):

@@ -16,12 +16,12 @@ two apart.
 A characterisation that holds each rate change through a coast does: each
 valve fired alone, then no firing until the segment ends (8 segments, one
 per valve, each a short run of its own). This module measures, on the same
-simulated vehicle and sensors, the separability (bench/gap/separability.py:
+simulated vehicle and sensors, the separability (bench/campaigns/gap/separability.py:
 the signature's distance delta2 from everything the closest competitor can
 produce, 10.8 needed for 95 % between two hypotheses) in docking and in
 that characterisation, at the same effect:
 
-    python -m bench.gap.characterise --effect thruster_misalignment --size 0.004 --seeds 3
+    python -m bench.campaigns.gap.characterise --effect thruster_misalignment --size 0.004 --seeds 3
 
 Both lambda (the signature's energy) and delta2 grow as size^2, so the
 size at which the characterisation separates is size * sqrt(10.8 / delta2).
@@ -43,7 +43,7 @@ RIVAL = {"thruster_misalignment": "thrust_loss", "thrust_loss": "thruster_misali
 def compare(seed: int, effect: str, size: float, fire_s: float, coast_s: float, docking_s: float = 120.0) -> dict:
     """delta2 of ``effect`` at ``size`` (a random direction from ``seed``) in
     the docking run of ``seed`` and in the single-valve characterisation."""
-    from bench.gap.separability import separability
+    from bench.campaigns.gap.separability import separability
     from bench.sim.effects import EFFECTS
 
     spec = EFFECTS[effect]
@@ -71,7 +71,9 @@ def compare(seed: int, effect: str, size: float, fire_s: float, coast_s: float, 
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m bench.gap.characterise", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.campaigns.gap.characterise", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("--effect", default="thruster_misalignment", choices=("thruster_misalignment", "thrust_loss"))
     ap.add_argument("--size", type=float, default=0.004, help="effect size (RMS angle [rad] or RMS loss [1])")
     ap.add_argument("--seeds", type=int, default=3)
@@ -102,7 +104,10 @@ def main(argv=None) -> int:
     if a.json:
         with open(a.json, "w") as f:
             json.dump(
-                {"command": "python -m bench.gap.characterise " + " ".join(argv or sys.argv[1:]), "rows": rows},
+                {
+                    "command": "python -m bench.campaigns.gap.characterise " + " ".join(argv or sys.argv[1:]),
+                    "rows": rows,
+                },
                 f,
                 indent=1,
             )

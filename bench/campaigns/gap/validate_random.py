@@ -12,13 +12,13 @@ bench's truth plant or by Basilisk. Nothing about the vehicle is committed:
 the diagnosis thresholds each log with the null calibration made for it
 (bench/gap/log_null.py), as for a team's first log, and the minimum
 detectable size of each run is measured with that calibration on the
-engine that flies the run (bench/gap/detectable.py): Basilisk's own slosh
+engine that flies the run (bench/campaigns/gap/detectable.py): Basilisk's own slosh
 and hinged panel move a vehicle otherwise than the bench's at the same
 size, so a size found on the bench's flight was below what a Basilisk log
 shows (three fuel sloshes undetected at seed 3403).
 
 The draw, pre-registration and scoring are the other campaigns'
-(bench/gap/validate.py): null, in-library and out-of-library runs at 1x and
+(bench/campaigns/gap/validate.py): null, in-library and out-of-library runs at 1x and
 2x, keys hashed before any diagnosis. A drifting clock, LED occlusion and a
 lens are not flown by the vehicle simulators and are not drawn.
 """
@@ -29,8 +29,8 @@ import time
 
 import numpy as np
 
-from bench.gap import validate_vehicle as vv
-from bench.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and_diagnosed
+from bench.campaigns.gap import validate_vehicle as vv
+from bench.campaigns.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and_diagnosed
 
 VEHICLE = "random"
 ENGINES = ("bench", "basilisk")
@@ -122,7 +122,7 @@ def calibration_of(key: dict) -> dict:
 def size_one(key: dict, _shared=None) -> dict:
     """The run's effect at its scale times its minimum detectable size,
     measured on its engine's flights of it against its own calibration."""
-    from bench.gap.detectable import min_detectable_size
+    from bench.campaigns.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 

@@ -1,9 +1,9 @@
 """Can a run's data tell its effect apart from each candidate in the library?
 
-For scoring the blind campaign (bench/gap/validate.py), after the answer is
+For scoring the blind campaign (bench/campaigns/gap/validate.py), after the answer is
 frozen: the effect's whitened signature s on the run actually flown (the
 run with the effect minus its valve commands replayed open loop without it,
-common random numbers; the same construction as bench/gap/detectable.py),
+common random numbers; the same construction as bench/campaigns/gap/detectable.py),
 and for every candidate c in the library the part of that signature c
 cannot reproduce, with c's parameters free:
 
@@ -67,8 +67,8 @@ def twin_logs(
 def separability_of_logs(log0, log1, name: str, in_library: bool) -> dict:
     """delta2 of the effect that makes ``log1`` differ from ``log0`` (the same
     flight and noise without it) against every library candidate."""
+    from bench.campaigns.gap.detectable import residuals_of
     from bench.gap.attribute import bounded_fit, candidate, signature
-    from bench.gap.detectable import residuals_of
 
     ctx0, e0, rows_ok = residuals_of(log0)
     try:
@@ -127,8 +127,8 @@ def set_separability_of_logs(log0, log1, true_in: list) -> dict:
     The out-of-library part (in + out runs): |(I - P_lib) s|^2 with P_lib the
     whole library fitted jointly, the largest set the diagnosis could name;
     below DELTA2_95 no answer could show that part as a remainder."""
+    from bench.campaigns.gap.detectable import residuals_of
     from bench.gap.attribute import signature
-    from bench.gap.detectable import residuals_of
 
     ctx0, e0, rows_ok = residuals_of(log0)
     try:

@@ -3,7 +3,7 @@
 A seeded generator draws the campaign: null runs, in-library effects and
 out-of-library effects, each with a random direction and a scale of 1x or
 2x. The size is then scale x the effect's minimum detectable size for that
-run's manoeuvres (bench/gap/detectable.py: the size the diagnoser's screen
+run's manoeuvres (bench/campaigns/gap/detectable.py: the size the diagnoser's screen
 detects with probability 0.95 in that run, from the run's own signature);
 an effect that no sensible size makes detectable in its run is simulated at
 its largest sensible size and scored apart. Every run's key (simulation
@@ -148,7 +148,7 @@ def draw_campaign(n_runs: int, seed: int, manoeuvres: str = "docking") -> list:
 def _size_one(key, run_ctx):
     """The drawn run's minimum detectable size, and its effect at scale x that."""
     duration_s, calibration = run_ctx
-    from bench.gap.detectable import min_detectable_size
+    from bench.campaigns.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 
@@ -180,7 +180,7 @@ def _size_one(key, run_ctx):
 
 
 def simulate(key: dict, duration_s: float):
-    from bench.gap.simlogs import docking_log, reality_available
+    from bench.campaigns.gap.simlogs import docking_log, reality_available
 
     if reality_available():
         from bench.sim.reality import simulate_log_with_key
@@ -261,7 +261,7 @@ def _run_one(key, run_ctx):
         out["wrong_fit"] = {"effect": w, **forced_fit(it, w)}
     if eff is not None:
         # Could this run's data tell its effect from each candidate at all?
-        from bench.gap.separability import separability
+        from bench.campaigns.gap.separability import separability
 
         sep = separability(
             key["seed"],
@@ -384,7 +384,7 @@ def _by_scale(inl: list) -> dict:
 
 def _by_scale_separable(inl: list) -> dict:
     """The top-1 rate over the runs whose data can tell the true effect from
-    every other candidate (bench/gap/separability.py: delta2 >= 10.8, where a
+    every other candidate (bench/campaigns/gap/separability.py: delta2 >= 10.8, where a
     perfect two-way decision is right 95 % of the time); the runs it leaves
     out are ones no diagnoser can attribute reliably."""
     sep_scale = {}

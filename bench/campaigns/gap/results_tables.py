@@ -2,7 +2,7 @@
 --json OUT` writes, with its keys and answers), as the campaign records in
 docs/results/ show them:
 
-    python -m bench.gap.results_tables OUT.json
+    python -m bench.campaigns.gap.results_tables OUT.json
 """
 
 from __future__ import annotations

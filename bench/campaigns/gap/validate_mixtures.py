@@ -4,8 +4,8 @@
 Each drawn run carries two or three simultaneous effects: in-library pairs,
 in-library triples, or one in-library effect with one out of the library;
 every effect at 1x or 2x its own minimum detectable size in that run
-(bench/gap/detectable.py, the effect alone), in a random direction. Keys are
-hashed before any diagnosis, as in bench/gap/validate.py.
+(bench/campaigns/gap/detectable.py, the effect alone), in a random direction. Keys are
+hashed before any diagnosis, as in bench/campaigns/gap/validate.py.
 
 Scores:
   exact set        the named effects are exactly the run's in-library ones
@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from bench.gap.validate import SCALES, blind, new_campaign, sized_and_diagnosed
+from bench.campaigns.gap.validate import SCALES, blind, new_campaign, sized_and_diagnosed
 from bench.sim.plans import then_scripts
 
 KINDS = ("pair", "triple", "in+out")
@@ -75,7 +75,7 @@ def _size_one(key, run_ctx):
     duration_s, calibration = run_ctx
     from dataclasses import replace
 
-    from bench.gap.detectable import min_detectable_size
+    from bench.campaigns.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 
@@ -139,8 +139,8 @@ def _run_one(key, run_ctx):
     except Exception as exc:  # scored as not measured, with the reason
         out["true_set_shrink"], out["true_set_measurable"], out["true_set_error"] = None, False, str(exc)
     # After the answer is frozen: can this run's data tell its set from the
-    # sets one step away (bench/gap/separability.py)?
-    from bench.gap.separability import set_separability
+    # sets one step away (bench/campaigns/gap/separability.py)?
+    from bench.campaigns.gap.separability import set_separability
 
     sep = set_separability(key["seed"], key["effects"], truth_in, duration_s, then_scripts=then_scripts(key))
     out["separability"] = {
@@ -249,7 +249,7 @@ def _pct(v: dict, key: str) -> str:
 def summary_lines(res: dict) -> list:
     """The campaign's scores as a GNC engineer reads them: per kind and
     size, then at each size over all kinds, all runs and the runs whose data
-    separate their set (bench/gap/separability.py set_separability)."""
+    separate their set (bench/campaigns/gap/separability.py set_separability)."""
     lines = []
     for k, v in res["by_kind_scale"].items():
         extra = (
@@ -334,7 +334,7 @@ def run_campaign(
 
 # Pairs of effects on one docking-then-characterisation log, each effect at a
 # size the diagnosis names when it is alone in the log (python -m
-# bench.gap.validate_mixtures pairs; docs/results/2026-11-26-several-effects.md).
+# bench.campaigns.gap.validate_mixtures pairs; docs/results/2026-11-26-several-effects.md).
 _RNG_TILT = np.random.default_rng(5)
 PAIRS = {
     "thrust loss on one valve + gyro bias": {

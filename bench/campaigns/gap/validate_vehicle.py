@@ -8,8 +8,8 @@ stamps as real logs have them: IMU samples 20 Hz with 5 % jitter and 2 %
 dropped, pose captures anywhere between IMU samples on a clock 0.25 s off
 the IMU's, a stated known latency; one run in ten has no valves stream. The
 campaign is drawn, pre-registered and scored exactly as the bench vehicle's
-(bench/gap/validate.py): null, in-library and out-of-library runs at 1x and
-2x each run's own minimum detectable size (bench/gap/detectable.py with this
+(bench/campaigns/gap/validate.py): null, in-library and out-of-library runs at 1x and
+2x each run's own minimum detectable size (bench/campaigns/gap/detectable.py with this
 vehicle's open-loop flight), keys hashed before any diagnosis.
 
 Thresholds: a null calibration of this vehicle's flight family
@@ -26,14 +26,14 @@ from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 
-from bench.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and_diagnosed
+from bench.campaigns.gap.validate import FRACTIONS, SCALES, new_campaign, score, sized_and_diagnosed
+from bench.gap.null import DATA
 
 VEHICLE = "12kg"
-CAL_PATH = Path(__file__).resolve().parent / "data" / "null_calibration_12kg.json"
+CAL_PATH = DATA.with_name("null_calibration_12kg.json")  # run-time data, beside the other null calibrations
 NO_VALVES_FRACTION = 0.1
 IN_LIBRARY = (
     "accel_bias",
@@ -143,7 +143,7 @@ def size_run(key, calibration):
     smallest size the diagnosis detects on this run's flight by the bench's
     plant (``calibration`` thresholding it), never beyond what the vehicle
     can carry; unchanged for an effect-free run."""
-    from bench.gap.detectable import min_detectable_size
+    from bench.campaigns.gap.detectable import min_detectable_size
     from bench.sim.effects import EFFECTS, max_size_for
     from bench.sim.log_description import resolve
 
@@ -175,10 +175,10 @@ def diagnose_run(key, calibration, simulate=None, source: str = "the 12 kg vehic
     plant); ``calibration`` None makes one for the log (``null_runs`` runs),
     ``source`` names it in the answer."""
     simulate = simulate or simulate_key
+    from bench.campaigns.gap.separability import separability_of_logs
+    from bench.campaigns.gap.validate import forced_fit
     from bench.gap.candidates import candidates_of
     from bench.gap.diagnose import diagnose, public
-    from bench.gap.separability import separability_of_logs
-    from bench.gap.validate import forced_fit
 
     t0 = time.time()
     log = simulate(key)
@@ -214,7 +214,7 @@ def diagnose_run(key, calibration, simulate=None, source: str = "the 12 kg vehic
 def load_calibration() -> dict:
     if not CAL_PATH.exists():
         raise FileNotFoundError(
-            f"no null calibration for the {VEHICLE} vehicle (python -m bench.gap.validate_vehicle calibrate)"
+            f"no null calibration for the {VEHICLE} vehicle (python -m bench.campaigns.gap.validate_vehicle calibrate)"
         )
     return json.loads(CAL_PATH.read_text())
 
@@ -308,32 +308,5 @@ def calibrate(runs: int, seed: int, workers: int | None = None, progress: bool =
         "null_screen_logp": b.tolist(),
         "elapsed_s": time.time() - t0,
         **({"failed_runs": failures(recs)} if failures(recs) else {}),
-        "command": f"python -m bench.gap.validate_vehicle calibrate --runs {runs} --seed {seed}",
+        "command": f"python -m bench.commands.null_calibration --vehicle 12kg --runs {runs} --seed {seed}",
     }
-
-
-def main(argv=None):
-    import argparse
-
-    from bench.commands.campaign_args import add_campaign_arguments, campaign_from
-
-    ap = argparse.ArgumentParser(description=f"Null calibration of the {VEHICLE} vehicle's flight family")
-    ap.add_argument("what", choices=("calibrate",))
-    ap.add_argument("--runs", type=int, default=200)
-    ap.add_argument("--seed", type=int, default=1200)
-    add_campaign_arguments(ap)
-    a = ap.parse_args(argv)
-    campaign = campaign_from(a, f"null-calibration-{VEHICLE}", {"runs": a.runs, "seed": a.seed})
-    cal = calibrate(a.runs, a.seed, campaign=campaign)
-    if a.summarise_only and cal["runs"] < a.runs:
-        print(f"{cal['runs']} of {a.runs} runs stored: {CAL_PATH} left as it is")
-    else:
-        CAL_PATH.write_text(json.dumps(cal, indent=1) + "\n")
-    print(
-        f"thresholds {cal['thresholds']}, false-alarm rate {cal['false_alarm_rate']:.3f} over {cal['runs']} runs, "
-        f"{cal['elapsed_s']:.0f} s"
-    )
-
-
-if __name__ == "__main__":
-    main()
