@@ -43,7 +43,7 @@ import numpy as np
 
 from bench.sim.flight_log import FlightLog
 from bench.sim.log_description import resolve
-from bench.sim.vehicle_sim import POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks, sample_imu
+from bench.sim.vehicle_sim import KNOWN, POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks, sample_imu
 from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
 
 STEP_S = 1e-3
@@ -52,23 +52,7 @@ AIR_DENSITY_KGPM3 = 5e-13  # as the bench's differential drag
 SLOSH_FREQ_HZ, SLOSH_DAMPING = 0.3, 0.05  # as the bench's fuel slosh
 PANEL_MASS_FRACTION, PANEL_ARM_M = 0.02, 0.15  # the hinged panel (out of library): 2 % of the mass, 15 cm arm
 PANEL_DAMPING = 0.005  # the panel mode's damping ratio, as the bench's flexible mode
-EFFECTS_HERE = (
-    "thrust_loss",
-    "thruster_misalignment",
-    "com_offset",
-    "mass_depletion",
-    "host_eccentricity",
-    "differential_j2",
-    "differential_drag",
-    "flex_mode",
-    "fuel_slosh",
-    "accel_bias",
-    "gyro_bias",
-    "gyro_scale",
-    "imu_misalignment",
-    "camera_latency",
-    "camera_lever_arm",
-)
+EFFECTS_HERE = KNOWN  # the bench plant's effects (bench/sim/vehicle_sim.py), each by Basilisk's modules
 
 
 def basilisk_version() -> str:
