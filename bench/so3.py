@@ -1,14 +1,31 @@
-"""Rotations for the bench: unit quaternions [w, x, y, z] (Hamilton, scalar
-first, docs/CONVENTIONS.md), rotation vectors and matrices, one at a time
-and vectorised over rows. ``rotmat(q)`` takes vectors in the frame q
-belongs to (the body) into the frame it points to; ``boxplus`` and
-``boxminus`` are the body-frame perturbations the flight filter uses
-(the flight code's so3.hpp). tests/py/test_bench_so3.py checks them against
-scipy's Rotation."""
+"""Rotations for the bench: unit quaternions [w, x, y, z], rotation vectors
+and matrices.
+
+Two kinds of function live here:
+
+- The flight code's own convention, one function for each of
+  fsw/include/fsw/math/so3.hpp's (docs/CONVENTIONS.md): Hamilton product,
+  scalar first, ``q`` rotating body vectors into the frame it points to,
+  the w >= 0 hemisphere, and the body-frame perturbations the flight filter
+  uses, ``boxplus(q, d) = q (x) Exp(d)`` and ``boxminus(q1, q0) =
+  Log(q0^-1 (x) q1)``. They are kept as plain numpy because they state that
+  convention where the bench's models meet the flight code, and because the
+  simulators call them once a step on one quaternion, where numpy's few
+  microseconds beat the ten or more of building a scipy ``Rotation``:
+  ``qmul``, ``qconj``, ``qnormalize``, ``qexp``, ``qlog``, ``boxplus``,
+  ``boxminus``, ``rotmat``, and over rows ``qmul_many`` (scipy's composition
+  costs twenty times as much there) and ``rotmats`` (Eigen's formula, which
+  takes the unset all-zero state of a filter, as scipy does not).
+- Everything else is scipy's ``Rotation`` behind the scalar-first order:
+  ``quat_from_rotmat`` (in place of the Shepperd conversion), ``rotvec_matrix``
+  and ``qexp_many``.
+
+tests/py/test_bench_so3.py checks the first kind against scipy's Rotation."""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 
 def qmul(p, q):
@@ -76,27 +93,25 @@ def rotmat(q):
     )
 
 
-def quat_from_rotmat(R: np.ndarray) -> np.ndarray:
-    """Rotation matrix -> unit quaternion [w, x, y, z], w >= 0 (Shepperd)."""
-    R = np.asarray(R, float)
-    tr = np.trace(R)
-    if tr > 0:
-        s = 2.0 * np.sqrt(1.0 + tr)
-        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
-        q = [(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s]
-    elif R[1, 1] > R[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
-        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s]
-    else:
-        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
-        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s]
-    return qnormalize(np.array(q))
+def qmul_many(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product row by row, (N, 4) x (N, 4) -> (N, 4)."""
+    pw, px, py, pz = p.T
+    qw, qx, qy, qz = q.T
+    return np.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ],
+        axis=1,
+    )
 
 
 def rotmats(q: np.ndarray) -> np.ndarray:
-    """(N, 4) wxyz -> (N, 3, 3) body-to-frame matrices."""
+    """(N, 4) wxyz -> (N, 3, 3) body-to-frame matrices: rotmat row by row,
+    as Eigen's toRotationMatrix, so a row of zeros (a filter state not yet
+    set) gives the identity where scipy refuses it."""
     q = np.atleast_2d(q)
     w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     out = np.empty((q.shape[0], 3, 3))
@@ -112,33 +127,26 @@ def rotmats(q: np.ndarray) -> np.ndarray:
     return out
 
 
+# --------------------------------------------------------------------- scipy
+
+
+def _wxyz(r: Rotation) -> np.ndarray:
+    """scipy's quaternions [x, y, z, w] in the scalar-first order."""
+    return r.as_quat()[..., [3, 0, 1, 2]]
+
+
+def quat_from_rotmat(R: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) or matrices (N, 3, 3) -> unit quaternion(s)
+    [w, x, y, z], w >= 0."""
+    q = _wxyz(Rotation.from_matrix(np.asarray(R, float)))
+    return np.where(q[..., :1] < 0.0, -q, q)
+
+
 def rotvec_matrix(phi) -> np.ndarray:
-    """Exp(phi) as a 3x3 matrix (Rodrigues)."""
-    phi = np.asarray(phi, float)
-    a = np.linalg.norm(phi)
-    k = np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])
-    if a < 1e-9:
-        return np.eye(3) + k
-    return np.eye(3) + np.sin(a) / a * k + (1 - np.cos(a)) / a**2 * (k @ k)
-
-
-def qmul_many(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    pw, px, py, pz = p.T
-    qw, qx, qy, qz = q.T
-    return np.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=1,
-    )
+    """Exp(phi) as a 3x3 matrix; (N, 3) rotation vectors give (N, 3, 3)."""
+    return Rotation.from_rotvec(np.asarray(phi, float)).as_matrix()
 
 
 def qexp_many(phi: np.ndarray) -> np.ndarray:
-    a = np.linalg.norm(phi, axis=1)
-    half = 0.5 * a
-    s = np.where(a < 1e-9, 0.5 - a * a / 48.0, np.sin(half) / np.where(a < 1e-9, 1.0, a))
-    q = np.concatenate([np.cos(half)[:, None], s[:, None] * phi], axis=1)
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
+    """(N, 3) rotation vectors [rad] -> (N, 4) unit quaternions."""
+    return _wxyz(Rotation.from_rotvec(np.asarray(phi, float)))

@@ -40,11 +40,12 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from bench.sim.flight_log import FlightLog
 from bench.sim.log_description import resolve
 from bench.sim.vehicle_sim import KNOWN, POSE_ATT_SIGMA_RAD, POSE_POS_FRAC, Clocks, sample_imu
-from bench.so3 import qexp, qlog, qmul, qnormalize, rotmat
+from bench.so3 import qexp, qlog, qmul, qnormalize, quat_from_rotmat, rotmat
 
 STEP_S = 1e-3
 J2_INCLINATION_RAD = np.deg2rad(51.6)  # as the bench's differential J2 (bench/sim/plant.py)
@@ -75,42 +76,12 @@ def _require_basilisk():
 
 def mrp_to_dcm_bn(sigma) -> np.ndarray:
     """(N, 3) MRPs sigma_BN -> (N, 3, 3) [BN] (N components -> B components)."""
-    s = np.atleast_2d(np.asarray(sigma, float))
-    s2 = np.sum(s * s, axis=1)
-    sk = np.zeros((s.shape[0], 3, 3))
-    sk[:, 0, 1], sk[:, 0, 2], sk[:, 1, 2] = -s[:, 2], s[:, 1], -s[:, 0]
-    sk -= np.transpose(sk, (0, 2, 1))
-    c = np.eye(3) + (8.0 * sk @ sk - 4.0 * (1.0 - s2)[:, None, None] * sk) / ((1.0 + s2) ** 2)[:, None, None]
-    return c
-
-
-def dcm_to_quat(c: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotation matrices (body -> frame) -> (N, 4) [w, x, y, z], w >= 0."""
-    c = np.atleast_3d(c).reshape(-1, 3, 3)
-    out = np.zeros((c.shape[0], 4))
-    for i, m in enumerate(c):
-        tr = np.trace(m)
-        k = int(np.argmax([tr, m[0, 0], m[1, 1], m[2, 2]]))
-        if k == 0:
-            w = 0.5 * np.sqrt(1.0 + tr)
-            q = [w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w)]
-        else:
-            i1, i2 = (k % 3), ((k + 1) % 3)
-            a = k - 1
-            x = 0.5 * np.sqrt(1.0 + 2.0 * m[a, a] - tr)
-            v = np.zeros(3)
-            v[a] = x
-            v[i1] = (m[i1, a] + m[a, i1]) / (4 * x)
-            v[i2] = (m[i2, a] + m[a, i2]) / (4 * x)
-            w = (m[i2, i1] - m[i1, i2]) / (4 * x)
-            q = [w, *v]
-        out[i] = qnormalize(q)
-    return out
+    return np.transpose(Rotation.from_mrp(np.atleast_2d(np.asarray(sigma, float))).as_matrix(), (0, 2, 1))
 
 
 def dcm_to_mrp(c_bn: np.ndarray) -> np.ndarray:
-    q = dcm_to_quat(c_bn.T)[0]  # q rotating B vectors into N
-    return q[1:] / (1.0 + q[0])
+    """[BN] -> sigma_BN, |sigma| <= 1."""
+    return Rotation.from_matrix(np.asarray(c_bn, float).T).as_mrp()
 
 
 def hill_frame(r_c, v_c):
@@ -650,7 +621,7 @@ def _truth(rec_host, rec_ins, idx) -> tuple:
     r, v, c_hn = relative_hill(rc, vc, rd, vd)
     rb_h = np.einsum("nij,nj->ni", c_hn, rb - rc)
     c_bn = mrp_to_dcm_bn(np.asarray(rec_ins.sigma_BN)[idx])
-    q = dcm_to_quat(c_hn @ np.transpose(c_bn, (0, 2, 1)))
+    q = quat_from_rotmat(c_hn @ np.transpose(c_bn, (0, 2, 1)))
     w = np.asarray(rec_ins.omega_BN_B)[idx]
     return r, v, q, w, rb_h
 

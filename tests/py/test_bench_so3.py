@@ -1,5 +1,6 @@
-"""The bench's rotations (bench/so3.py) against scipy's Rotation, and the
-vectorised forms against the one-at-a-time ones."""
+"""The bench's rotations (bench/so3.py): the flight code's convention kept
+in numpy against scipy's Rotation, and the forms that are scipy's against
+the one-at-a-time ones."""
 
 import numpy as np
 import pytest
@@ -53,8 +54,8 @@ def test_boxplus_and_boxminus_are_inverse_in_the_body_frame():
 
 
 @pytest.mark.parametrize("axis", range(3))
-def test_matrix_to_quaternion_on_every_branch(axis):
-    # near-pi rotations about each axis take the three non-trace branches
+def test_matrix_to_quaternion_near_pi_and_at_random(axis):
+    # near-pi rotations about each axis: the trace is near -1
     v = np.zeros(3)
     v[axis] = np.pi - 1e-3
     for R in [Rotation.from_rotvec(v).as_matrix()] + [
@@ -73,3 +74,12 @@ def test_vectorised_forms_equal_the_scalar_ones():
     np.testing.assert_allclose(e, np.array([so3.qexp(a) for a in v]), atol=1e-15)
     for a in v[:50]:
         np.testing.assert_allclose(so3.rotvec_matrix(a), so3.rotmat(so3.qexp(a)), atol=1e-12)
+
+
+def test_matrix_to_quaternion_over_rows_keeps_the_hemisphere():
+    q = _random_quats()
+    out = so3.quat_from_rotmat(so3.rotmats(q))
+    assert out.shape == q.shape and np.all(out[:, 0] >= 0.0)
+    np.testing.assert_allclose(out, q * np.sign(q[:, :1]), atol=1e-12)
+    v = _random_rotvecs(20)
+    np.testing.assert_allclose(so3.rotvec_matrix(v), np.array([so3.rotvec_matrix(a) for a in v]), atol=1e-15)
