@@ -9,6 +9,7 @@
 #include <cmath>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "fsw/modal/modal_acquisition.hpp"
 
@@ -191,24 +192,48 @@ TEST(ModalAcquisitionTest, SteppedSearchEqualsOneCall) {
   EXPECT_EQ(fresh->search_step(), AcquisitionStatus::NotStarted);  // never started
 }
 
-TEST(ModalAcquisitionTest, StoredImagesAreRebuiltAndReplayEqualsDirectStepping) {
-  const Vec3 prior = kOmega.cwiseProduct(Vec3(1.08, 0.93, 1.06));
-  auto acq = std::make_unique<Acq>(config<double>(prior));
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> nd;
+// Sixty images, one a minute with one gap, each with a covariance of its
+// own (as the points seen change) and noise drawn from it.
+struct History {
   std::vector<ModalDecompositionRecord<double, kM>> recs;
   std::vector<double> times;
+};
+
+History history(unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> nd;
+  History h;
   for (int k = 0; k < 60; ++k) {
-    // a covariance that changes from image to image, as the points seen do
     Mat3 A = Mat3::Identity() * 0.05;
     for (int r = 0; r < kM; ++r)
       for (int c = 0; c < kM; ++c) A(r, c) += 0.02 * nd(rng);
     const Mat3 cov = A * A.transpose() + 1e-4 * Mat3::Identity();
     const double t = 60.0 * k + (k > 30 ? 60.0 : 0.0);  // one gap
-    recs.push_back(record<double>(truth_at(t) + cov.llt().matrixL() * Vec3(nd(rng), nd(rng), nd(rng)), cov));
-    times.push_back(t);
-    ASSERT_EQ(acq->add(t, recs.back()), AcquisitionStatus::Ok);
+    h.recs.push_back(record<double>(truth_at(t) + cov.llt().matrixL() * Vec3(nd(rng), nd(rng), nd(rng)), cov));
+    h.times.push_back(t);
   }
+  return h;
+}
+
+// The bench's structure filter: undamped, rate 1-sigma w (unit amplitude),
+// frequencies from the acquisition with a 1 % sigma.
+ModalFilterConfig<double, kM> acquired_config(const Acq& acq, const Vec3& prior) {
+  ModalFilterConfig<double, kM> cfg;
+  for (int i = 0; i < kM; ++i) {
+    cfg.mode[i].sigma_v0_ps = prior(i);
+    cfg.mode[i].sigma_alpha0_ps = 1e-6;
+  }
+  acq.apply(cfg, 0.01);
+  return cfg;
+}
+
+const Vec3 kPrior = kOmega.cwiseProduct(Vec3(1.08, 0.93, 1.06));
+
+TEST(ModalAcquisitionTest, StoredImagesAreRebuiltAndReplayEqualsDirectStepping) {
+  auto acq = std::make_unique<Acq>(config<double>(kPrior));
+  const History h = history(11);
+  for (size_t k = 0; k < h.recs.size(); ++k) ASSERT_EQ(acq->add(h.times[k], h.recs[k]), AcquisitionStatus::Ok);
+  const auto& recs = h.recs;
   ModalDecompositionRecord<double, kM> out;
   for (int k : {0, 17, 59}) {
     ASSERT_EQ(acq->coarse(k, out), AcquisitionStatus::Ok);
@@ -220,12 +245,7 @@ TEST(ModalAcquisitionTest, StoredImagesAreRebuiltAndReplayEqualsDirectStepping) 
   EXPECT_EQ(acq->coarse(-1, out), AcquisitionStatus::NoSuchImage);
   ASSERT_EQ(acq->search(), AcquisitionStatus::Ok);
 
-  ModalFilterConfig<double, kM> cfg;
-  for (int i = 0; i < kM; ++i) {  // the bench's structure filter: undamped, rate 1-sigma w (unit amplitude)
-    cfg.mode[i].sigma_v0_ps = prior(i);
-    cfg.mode[i].sigma_alpha0_ps = 1e-6;
-  }
-  acq->apply(cfg, 0.01);
+  const ModalFilterConfig<double, kM> cfg = acquired_config(*acq, kPrior);
   for (int i = 0; i < kM; ++i) {
     EXPECT_EQ(cfg.mode[i].omega_radps, acq->omega(i));
     EXPECT_EQ(cfg.mode[i].sigma_omega0_radps, 0.01 * acq->omega(i));
@@ -234,17 +254,54 @@ TEST(ModalAcquisitionTest, StoredImagesAreRebuiltAndReplayEqualsDirectStepping) 
   ModalUkfJoint<double, kM>::Record rec;
   EXPECT_EQ(acq->replay_into(*replayed, cfg, rec), 60);  // the first initialises (eq. 7), 59 update
   auto direct = std::make_unique<ModalUkfJoint<double, kM>>(cfg);
-  for (size_t k = 0; k < recs.size(); ++k) direct->step(k == 0 ? 1.0 : times[k] - times[k - 1], recs[k], rec);
+  for (size_t k = 0; k < recs.size(); ++k) direct->step(k == 0 ? 1.0 : h.times[k] - h.times[k - 1], recs[k], rec);
   for (int i = 0; i < kM; ++i) {
     EXPECT_LT((replayed->mode_state(i) - direct->mode_state(i)).norm(), 1e-9);
     EXPECT_LT((replayed->mode_cov(i) - direct->mode_cov(i)).norm(), 1e-9 * direct->mode_cov(i).norm());
   }
-  // the filter from the acquired frequencies ends near the truth
-  // the filter from the acquired frequencies ends at the truth, consistently
+  // The filter from the acquired frequencies ends at the truth within its
+  // own 3 sigma, and that sigma is small: under 0.5 % of each frequency
+  // (0.34, 0.11 and 0.084 % here; the first mode turns 1.7 times in the
+  // hour, so its frequency is known to a few tenths of a percent, not
+  // better: a bound of 0.1 % on its error would fail three draws in four,
+  // ModalAcquisitionTest.FrequencyErrorsAreConsistentOverSeeds).
   for (int i = 0; i < kM; ++i) {
     const double err = replayed->mode_state(i)(2) - kOmega(i);
-    EXPECT_LT(std::abs(err), 1e-3 * kOmega(i));
-    EXPECT_LT(std::abs(err), 3.0 * std::sqrt(replayed->mode_cov(i)(2, 2)));
+    const double sigma = std::sqrt(replayed->mode_cov(i)(2, 2));
+    EXPECT_LT(sigma, 5e-3 * kOmega(i)) << "mode " << i;
+    EXPECT_LT(std::abs(err), 3.0 * sigma) << "mode " << i;
+  }
+}
+
+// The same acquisition and replay over 100 noise draws: each mode's
+// frequency error, in units of the filter's own sigma, has a mean square
+// near 1 (chi-square with 100 degrees of freedom over 100: 0.60 to 1.53 at
+// the 0.999 two-sided level) and exceeds 3 sigma in at most 4 draws (2.7e-3
+// a draw for a Gaussian error; 5 or more of 100 has probability 9e-6). One draw decides nothing:
+// the first mode's sigma is 0.34 % of its frequency, and the error of one
+// draw lands anywhere in that (other platforms' libm draws other noise).
+TEST(ModalAcquisitionTest, FrequencyErrorsAreConsistentOverSeeds) {
+  constexpr int kDraws = 100;
+  Vec3 z2 = Vec3::Zero();
+  Eigen::Vector3i beyond = Eigen::Vector3i::Zero();
+  for (unsigned seed = 1; seed <= kDraws; ++seed) {
+    auto acq = std::make_unique<Acq>(config<double>(kPrior));
+    const History h = history(seed);
+    for (size_t k = 0; k < h.recs.size(); ++k) ASSERT_EQ(acq->add(h.times[k], h.recs[k]), AcquisitionStatus::Ok);
+    ASSERT_EQ(acq->search(), AcquisitionStatus::Ok);
+    auto filter = std::make_unique<ModalUkfJoint<double, kM>>();
+    ModalUkfJoint<double, kM>::Record rec;
+    ASSERT_EQ(acq->replay_into(*filter, acquired_config(*acq, kPrior), rec), 60);
+    for (int i = 0; i < kM; ++i) {
+      const double z = (filter->mode_state(i)(2) - kOmega(i)) / std::sqrt(filter->mode_cov(i)(2, 2));
+      z2(i) += z * z / kDraws;
+      beyond(i) += std::abs(z) > 3.0 ? 1 : 0;
+    }
+  }
+  for (int i = 0; i < kM; ++i) {
+    EXPECT_GT(z2(i), 0.60) << "mode " << i;
+    EXPECT_LT(z2(i), 1.53) << "mode " << i;
+    EXPECT_LE(beyond(i), 4) << "mode " << i;
   }
 }
 
