@@ -74,6 +74,27 @@ class ApidDef:
 
 
 RANGE_POINTS_PER_SEGMENT = 24
+PLAN_VALVES = 8  # valves a tm_plan_valves carries
+# The valve plan (fsw/include/fsw/app/valve_plan.hpp): cmd_plan actions,
+# PlanState and PlanVerdict by their codes.
+PLAN_ACTIONS = {"load": 1, "start": 2, "abort": 3}
+PLAN_STATES = ("empty", "loaded", "running", "finished", "aborted")
+PLAN_VERDICTS = (
+    "accepted",
+    "incomplete",
+    "too_long",
+    "valve_out_of_range",
+    "on_time_too_short",
+    "on_time_too_long",
+    "bad_times",
+    "overlap",
+    "total_on_time_too_long",
+    "duration_too_long",
+    "no_plan",
+    "running",
+    "not_running",
+    "unknown_action",
+)
 MAX_RANGE_POINTS_PER_IMAGE = 4096
 MODAL_TM_MODES = 10  # modes carried by tm_modal
 
@@ -93,6 +114,10 @@ APIDS: Dict[int, ApidDef] = {
         ApidDef(0x020, "cmd_reset", TO_FLIGHT, "<II13d", 8, 13, quat_offset=56),
         # param_id, reserved, value
         ApidDef(0x021, "cmd_config", TO_FLIGHT, "<IId", 8, 1),
+        # plan_id, entry_index, entry_count, valve, 7 reserved, t_open_s, t_close_s
+        ApidDef(0x022, "cmd_plan_entry", TO_FLIGHT, "<IHHB7x2d", 16, 2),
+        # action (1 load, 2 start, 3 abort), plan_id, entry_count, reserved, duration_s
+        ApidDef(0x023, "cmd_plan", TO_FLIGHT, "<4Id", 16, 1),
         # r_hill_m[3], v_hill_mps[3], q_hb_wxyz[4]
         ApidDef(0x040, "tm_estimate", FROM_FLIGHT, "<10d", 0, 10, quat_offset=48),
         # n_valid, reserved, p_diag[15]
@@ -108,6 +133,11 @@ APIDS: Dict[int, ApidDef] = {
         # image_id, status, decomposition, fused, n_modes, n_used, n_skipped, rcond, nis,
         # omega_radps[10], alpha_ps[10], amplitude[10], amplitude_sigma[10]
         ApidDef(0x046, "tm_modal", FROM_FLIGHT, "<IBBBBII42d", 16, 42),
+        # plan_id, state, action, verdict, reserved, entry_count, entries_received, plans_loaded,
+        # commands_refused, duration_s, total_on_time_s
+        ApidDef(0x047, "tm_plan_status", FROM_FLIGHT, "<IBBBx4I2d", 24, 2),
+        # plan_id, valve_mask, state, reserved, interval_s, plan_time_s, on_time_s[8]
+        ApidDef(0x048, "tm_plan_valves", FROM_FLIGHT, "<IBBH10d", 8, 10),
     ]
 }
 APID_BY_NAME: Dict[str, ApidDef] = {a.name: a for a in APIDS.values()}
@@ -240,6 +270,60 @@ def range_image_segments(image_id: int, p_m, sigma_m):
     return out
 
 
+def plan_entry_payloads(plan_id: int, entries) -> list:
+    """A valve plan's cmd_plan_entry payloads, one per opening, in order.
+    entries: [(valve, t_open_s, t_close_s)] from the plan's start, ordered
+    by t_open_s (the flight side refuses them otherwise)."""
+    n = len(entries)
+    if not 1 <= n <= 0xFFFF:
+        raise ValueError(f"a plan holds 1 to 65535 entries on the link, not {n}")
+    apid = APID_BY_NAME["cmd_plan_entry"].apid
+    return [pack_payload(apid, plan_id, i, n, int(v), float(a), float(b)) for i, (v, a, b) in enumerate(entries)]
+
+
+def plan_command_payload(action: str, plan_id: int, entry_count: int = 0, duration_s: float = 0.0) -> bytes:
+    """cmd_plan: action "load" (with the entry count and the plan's
+    duration), "start" (at the packet's time tag) or "abort"."""
+    return pack_payload(
+        APID_BY_NAME["cmd_plan"].apid, PLAN_ACTIONS[action], plan_id, entry_count, 0, float(duration_s)
+    )
+
+
+PLAN_STATUS_FIELDS = (
+    "plan_id",
+    "state",
+    "action",
+    "verdict",
+    "entry_count",
+    "entries_received",
+    "plans_loaded",
+    "commands_refused",
+    "duration_s",
+    "total_on_time_s",
+)
+
+
+def decode_plan_status(payload: bytes) -> dict:
+    """tm_plan_status as named fields, state and verdict by name."""
+    d = dict(zip(PLAN_STATUS_FIELDS, unpack_payload(APID_BY_NAME["tm_plan_status"].apid, payload)))
+    d["state"] = PLAN_STATES[d["state"]]
+    d["verdict"] = PLAN_VERDICTS[d["verdict"]]
+    return d
+
+
+def decode_plan_valves(payload: bytes) -> dict:
+    """tm_plan_valves: the plan's valve command for one control interval."""
+    v = unpack_payload(APID_BY_NAME["tm_plan_valves"].apid, payload)
+    return {
+        "plan_id": v[0],
+        "valve_mask": v[1],
+        "state": PLAN_STATES[v[2]],
+        "interval_s": v[4],
+        "plan_time_s": v[5],
+        "on_time_s": list(v[6:]),
+    }
+
+
 class Sender:
     """Keeps the per-APID 14-bit sequence counts of one direction."""
 
@@ -319,6 +403,8 @@ _FIELD_CHECKED = frozenset(
         "tm_covariance_diag",
         "tm_innovation",
         "tm_modal",
+        "tm_plan_status",
+        "tm_plan_valves",
     )
 )
 
@@ -341,6 +427,10 @@ def _fields_ok(a: ApidDef, flags: SequenceFlags, payload: bytes) -> bool:
         return v[1] <= 3 and v[3] <= 6
     if a.name == "tm_modal":
         return v[1] <= 3 and v[2] <= 3 and v[4] <= MODAL_TM_MODES
+    if a.name == "tm_plan_status":
+        return v[1] < len(PLAN_STATES) and v[3] < len(PLAN_VERDICTS)
+    if a.name == "tm_plan_valves":
+        return v[2] < len(PLAN_STATES)
     return True
 
 

@@ -97,3 +97,52 @@ void modal_without_heap() {
 
 TEST(NoHeapTest, FlightAppModalDouble) { modal_without_heap<double>(); }
 TEST(NoHeapTest, FlightAppModalFloat) { modal_without_heap<float>(); }
+
+// A valve plan uplinked entry by entry, refused once (an overlap), loaded,
+// started, run over its intervals (commands into telemetry and the
+// learner), finished, started again and aborted: no heap, float and double.
+template <typename S>
+void plan_without_heap() {
+  auto app = std::make_unique<FlightApp<S>>();
+  Uplink up;
+  up.reset(0.0, Vec3<double>(0.1, -0.7, 0.0), Vec3<double>::Zero(), Quat<double>::Identity());
+  auto entry = [&up](std::uint32_t id, std::uint16_t i, std::uint16_t n, std::uint8_t valve, double a, double b) {
+    CmdPlanEntryMsg m;
+    m.plan_id = id;
+    m.entry_index = i;
+    m.entry_count = n;
+    m.valve = valve;
+    m.t_open_s = a;
+    m.t_close_s = b;
+    up.add(Apid::CmdPlanEntry, m, 0.0);
+  };
+  auto command = [&up](double t, PlanAction action, std::uint32_t id, std::uint32_t n, double duration) {
+    CmdPlanMsg m;
+    m.action = static_cast<std::uint32_t>(action);
+    m.plan_id = id;
+    m.entry_count = n;
+    m.duration_s = duration;
+    up.add(Apid::CmdPlan, m, t);
+  };
+  entry(1, 0, 2, 3, 0.0, 0.5);
+  entry(1, 1, 2, 3, 0.4, 0.9);  // overlaps the first
+  command(0.0, PlanAction::Load, 1, 2, 2.0);
+  for (std::uint16_t i = 0; i < 8; ++i) entry(2, i, 8, std::uint8_t(i), 0.2 * i, 0.2 * i + 0.3);
+  command(0.0, PlanAction::Load, 2, 8, 2.0);
+  command(0.5, PlanAction::Start, 2, 0, 0.0);
+  for (int k = 5; k <= 40; ++k) {
+    up.imu(0.1 * k, Vec3<double>(1e-3, 0, 0), Vec3<double>(0, 0, 0.01));
+    if (k == 30) command(3.0, PlanAction::Start, 2, 0, 0.0);
+  }
+  command(4.05, PlanAction::Abort, 2, 0, 0.0);
+  EXPECT_EQ(feed_counting_allocations(*app, up), 0);
+  EXPECT_EQ(app->counters().plans_loaded, 1u);
+  EXPECT_EQ(app->counters().plan_commands_refused, 1u);
+  EXPECT_EQ(app->counters().plans_finished, 1u);
+  EXPECT_EQ(app->counters().plan_aborts, 1u);
+  EXPECT_EQ(app->counters().plan_valve_commands, 20u + 10u);  // 0.5 .. 2.4, then 3.1 .. 4.0 (started after 3.0)
+  EXPECT_GT(app->counters().learner_samples, 0u);
+}
+
+TEST(NoHeapTest, FlightAppValvePlanDouble) { plan_without_heap<double>(); }
+TEST(NoHeapTest, FlightAppValvePlanFloat) { plan_without_heap<float>(); }

@@ -118,6 +118,10 @@ TEST(ApidTable, PayloadLengthsAsDocumented) {
   EXPECT_EQ(apid_info(0x043)->payload_len, 104);
   EXPECT_EQ(apid_info(0x044)->payload_len, 128);
   EXPECT_EQ(apid_info(0x045)->payload_len, 40);
+  EXPECT_EQ(apid_info(0x022)->payload_len, 32);
+  EXPECT_EQ(apid_info(0x023)->payload_len, 24);
+  EXPECT_EQ(apid_info(0x047)->payload_len, 40);
+  EXPECT_EQ(apid_info(0x048)->payload_len, 88);
   EXPECT_EQ(kMaxPayloadLen, 780u);
   EXPECT_TRUE(apid_info(0x013)->segmentable);
 }
@@ -240,4 +244,105 @@ TEST(PayloadCodecCounters, LinkCountersRoundTrip) {
   ASSERT_TRUE(decode(p.data(), 2.0, u));
   EXPECT_EQ(u.packets_accepted, 10u);
   EXPECT_EQ(u.rejected[4], 3u);
+}
+
+// The valve plan's messages (times in double in both builds): every field
+// back exactly, at its documented offset.
+TEST(PlanCodec, PlanEntryRoundTripAndLayout) {
+  CmdPlanEntryMsg m;
+  m.plan_id = 0xA1B2C3D4u;
+  m.entry_index = 17;
+  m.entry_count = 128;
+  m.valve = 6;
+  m.t_open_s = 12.3;
+  m.t_close_s = 15.3;
+  std::array<std::uint8_t, 32> p{};
+  p.fill(0xEE);
+  encode(m, p.data());
+  EXPECT_EQ(get_u32le(p.data()), 0xA1B2C3D4u);
+  EXPECT_EQ(get_u16le(p.data() + 4), 17);
+  EXPECT_EQ(get_u16le(p.data() + 6), 128);
+  EXPECT_EQ(p[8], 6);
+  for (int i = 9; i < 16; ++i) EXPECT_EQ(p[i], 0) << i;  // reserved
+  EXPECT_EQ(get_f64le(p.data() + 16), 12.3);
+  CmdPlanEntryMsg back;
+  ASSERT_TRUE(decode(p.data(), 4.5, back));
+  EXPECT_EQ(back.t_s, 4.5);
+  EXPECT_EQ(back.plan_id, m.plan_id);
+  EXPECT_EQ(back.entry_index, m.entry_index);
+  EXPECT_EQ(back.entry_count, m.entry_count);
+  EXPECT_EQ(back.valve, m.valve);
+  EXPECT_EQ(back.t_open_s, m.t_open_s);
+  EXPECT_EQ(back.t_close_s, m.t_close_s);
+}
+
+TEST(PlanCodec, PlanCommandRoundTripAndLayout) {
+  CmdPlanMsg m;
+  m.action = static_cast<std::uint32_t>(PlanAction::Load);
+  m.plan_id = 42;
+  m.entry_count = 26;
+  m.duration_s = 119.5;
+  std::array<std::uint8_t, 24> p{};
+  p.fill(0xEE);
+  encode(m, p.data());
+  EXPECT_EQ(get_u32le(p.data() + 12), 0u);  // reserved
+  EXPECT_EQ(get_f64le(p.data() + 16), 119.5);
+  CmdPlanMsg back;
+  ASSERT_TRUE(decode(p.data(), 1.0, back));
+  EXPECT_EQ(back.action, m.action);
+  EXPECT_EQ(back.plan_id, 42u);
+  EXPECT_EQ(back.entry_count, 26u);
+  EXPECT_EQ(back.duration_s, 119.5);
+}
+
+TEST(PlanCodec, PlanStatusAndValvesRoundTrip) {
+  TmPlanStatusMsg s;
+  s.plan_id = 3;
+  s.state = 2;
+  s.action = 1;
+  s.verdict = 7;
+  s.entry_count = 5;
+  s.entries_received = 4;
+  s.plans_loaded = 9;
+  s.commands_refused = 11;
+  s.duration_s = 60.5;
+  s.total_on_time_s = 7.25;
+  std::array<std::uint8_t, 40> ps{};
+  encode(s, ps.data());
+  TmPlanStatusMsg sb;
+  ASSERT_TRUE(decode(ps.data(), 2.0, sb));
+  EXPECT_EQ(sb.plan_id, 3u);
+  EXPECT_EQ(sb.state, 2);
+  EXPECT_EQ(sb.action, 1);
+  EXPECT_EQ(sb.verdict, 7);
+  EXPECT_EQ(sb.entry_count, 5u);
+  EXPECT_EQ(sb.entries_received, 4u);
+  EXPECT_EQ(sb.plans_loaded, 9u);
+  EXPECT_EQ(sb.commands_refused, 11u);
+  EXPECT_EQ(sb.duration_s, 60.5);
+  EXPECT_EQ(sb.total_on_time_s, 7.25);
+  EXPECT_TRUE(payload_fields_valid(Apid::TmPlanStatus, SeqFlags::Unsegmented, ps.data()));
+  ps[6] = kPlanVerdictMax + 1;
+  EXPECT_FALSE(payload_fields_valid(Apid::TmPlanStatus, SeqFlags::Unsegmented, ps.data()));
+
+  TmPlanValvesMsg v;
+  v.plan_id = 3;
+  v.valve_mask = 0x84;
+  v.state = 2;
+  v.interval_s = 0.1;
+  v.plan_time_s = 2.3;
+  v.on_time_s[2] = 0.1;
+  v.on_time_s[7] = 0.05;
+  std::array<std::uint8_t, 88> pv{};
+  encode(v, pv.data());
+  EXPECT_EQ(get_f64le(pv.data() + 24 + 8 * 7), 0.05);
+  TmPlanValvesMsg vb;
+  ASSERT_TRUE(decode(pv.data(), 3.3, vb));
+  EXPECT_EQ(vb.valve_mask, 0x84);
+  EXPECT_EQ(vb.state, 2);
+  EXPECT_EQ(vb.interval_s, 0.1);
+  EXPECT_EQ(vb.plan_time_s, 2.3);
+  EXPECT_EQ(vb.on_time_s, v.on_time_s);
+  pv[5] = kPlanStateMax + 1;
+  EXPECT_FALSE(payload_fields_valid(Apid::TmPlanValves, SeqFlags::Unsegmented, pv.data()));
 }

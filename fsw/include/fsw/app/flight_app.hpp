@@ -31,6 +31,24 @@
 //                          segment (or the first segment of another image)
 //                          closes it: one modal filter step, answered with
 //                          tm_modal
+//   cmd_plan_entry      -> one valve opening into the valve plan's staging
+//                          area (ValvePlan, fsw/app/valve_plan.hpp)
+//   cmd_plan            -> load (check the staged plan against the limits
+//                          and store it), start (time zero = its time tag)
+//                          or abort; answered with tm_plan_status; a
+//                          refused command changes nothing and is counted
+//                          (plan_commands_refused)
+// Valve plan: while a plan runs, every imu_sample (after the learner has
+// taken the interval it ends) computes the valve command of the interval
+// it opens, [t, t + dt_imu_s), sends it as tm_plan_valves (what the valve
+// drivers would be given) and holds it as the learner's next firing
+// interval, as a thruster_valves would be (only a command whose open
+// valves are open the whole interval: a partial firing is not the mask's
+// effect). A thruster_valves that arrives while a plan runs is counted
+// and not held: the plan commands the valves. The tick at or after the
+// plan's end closes every valve (tm_plan_valves state finished, then
+// tm_plan_status); an abort, or a cmd_reset carried out, closes them at
+// once (state aborted).
 // Re-acquisition: a pose re-initialises position and attitude (velocity and
 // biases kept) instead of correcting them when either
 //   - the filter is lost: its position or attitude standard deviation is
@@ -62,6 +80,7 @@
 #include <limits>
 
 #include "fsw/app/range_segment.hpp"
+#include "fsw/app/valve_plan.hpp"
 #include "fsw/link/apid.hpp"
 #include "fsw/link/deframer.hpp"
 #include "fsw/link/framer.hpp"
@@ -94,6 +113,12 @@ enum class ConfigParam : std::uint32_t {
   ModalPeak1 = 16,                // peak deflection of the lowest mode at coefficient 1 [m]
   ModalPriorOmegaFrac = 17,       // 1-sigma of the a priori frequencies, fraction of the model's
   ModalAcquireAfterPeriods = 18,  // frequency acquisition after this many lowest-mode periods (0: none)
+  // Valve plan limits (PlanLimits), applied at the next plan load:
+  PlanMinOnTime = 19,       // shortest valve opening [s]
+  PlanMaxOnTime = 20,       // longest valve opening [s]
+  PlanMaxTotalOnTime = 21,  // the openings of a plan summed [s]
+  PlanMaxDuration = 22,     // longest plan [s]
+  PlanValves = 23,          // valves of the vehicle (indices 0 .. n - 1; 1 to 8, integer)
 };
 
 // What a step did, as reported in tm_innovation.step_kind.
@@ -121,8 +146,16 @@ class FlightApp {
     std::uint32_t reacquisitions = 0;  // filter re-initialised from a pose (lost, or rejecting agreeing poses)
     std::uint32_t configs_rejected = 0;
     std::uint32_t valves = 0;
+    std::uint32_t valves_not_held = 0;  // thruster_valves while a plan commands the valves
     std::uint32_t learner_samples = 0;  // firing intervals entered into the learner
     std::uint32_t unhandled = 0;        // accepted packets this build does not consume
+    std::uint32_t plan_entries = 0;     // cmd_plan_entry received
+    std::uint32_t plans_loaded = 0;
+    std::uint32_t plan_starts = 0;
+    std::uint32_t plan_aborts = 0;  // by cmd_plan abort or by a cmd_reset
+    std::uint32_t plans_finished = 0;
+    std::uint32_t plan_commands_refused = 0;  // cmd_plan refused: nothing changed
+    std::uint32_t plan_valve_commands = 0;    // tm_plan_valves produced while running
     std::uint32_t tx_packets = 0;
     std::uint32_t tx_dropped = 0;         // telemetry lost to a full transmit buffer
     std::uint32_t tm_values_clamped = 0;  // non-finite telemetry doubles sent as +-max (see send())
@@ -146,6 +179,8 @@ class FlightApp {
   const LinkCounters& link() const { return deframer_.counters(); }
   const Counters& counters() const { return counters_; }
   const Modal& modal() const { return modal_; }
+  const ValvePlan& plan() const { return plan_; }
+  const PlanLimits& plan_limits() const { return plan_limits_; }
 
  private:
   void dispatch(const PacketView& p);
@@ -195,6 +230,22 @@ class FlightApp {
   void set_modal(double& field, S value);
 
   void on_range_segment(const PacketView& p);
+
+  void on_plan_entry(const PacketView& p);
+
+  void on_plan(const PacketView& p);
+
+  // The running plan's command for the interval the IMU sample at t_s opens.
+  void plan_tick(double t_s);
+
+  // Closes every valve of a running plan at t_s (abort, reset).
+  void plan_abort(double t_s);
+
+  void send_plan_valves(const PlanCommand& c, PlanState state, double t_s);
+
+  void send_plan_status(std::uint8_t action, PlanVerdict verdict, double t_s);
+
+  void set_plan_limit(double& field, S value);
 
   void report_modal(const typename Modal::Report& r);
 
@@ -266,6 +317,8 @@ class FlightApp {
   S lost_pos_sigma_ = S(10);
   S lost_att_sigma_ = S(0.5);
   Learner learner_;
+  ValvePlan plan_;
+  PlanLimits plan_limits_;
   ModalTrackerConfig modal_cfg_;
   Modal modal_;
   ThrusterValvesMsg<S> valves_;
@@ -324,6 +377,8 @@ inline void FlightApp<S>::dispatch(const PacketView& p) {
     case Apid::CmdConfig: return on_config(p);
     case Apid::ThrusterValves: return on_valves(p);
     case Apid::RangeImageSegment: return on_range_segment(p);
+    case Apid::CmdPlanEntry: return on_plan_entry(p);
+    case Apid::CmdPlan: return on_plan(p);
     default: ++counters_.unhandled; return;
   }
 }
@@ -336,6 +391,7 @@ inline void FlightApp<S>::on_imu(const PacketView& p) {
   ++counters_.imu_steps;
   report(StepKind::Predict, rec, p.t_s);
   learn(p.t_s, m);
+  plan_tick(p.t_s);
   if (pending_.valid && nav_.initialized() && nav_.t_s() >= pending_.t_s - nav_cfg_.time_tol_s) {
     pending_.valid = false;
     typename Nav::Record prec;
@@ -350,6 +406,10 @@ inline void FlightApp<S>::on_valves(const PacketView& p) {
   ThrusterValvesMsg<S> m;
   decode(p.payload, p.t_s, m);
   ++counters_.valves;
+  if (plan_.state() == PlanState::Running) {
+    ++counters_.valves_not_held;
+    return;
+  }
   valves_ = m;
   valves_t_s_ = p.t_s;  // the double time tag (a float t_s loses the tick after hours)
   valves_pending_ = true;
@@ -495,6 +555,7 @@ inline void FlightApp<S>::on_reset(const PacketView& p) {
     }
   }
   ++counters_.resets;
+  plan_abort(p.t_s);  // a new time base: the running plan's schedule no longer holds
   // A reset starts a new time base: the link's time history is cleared
   // (sequence counts kept), so one command tagged far in the future cannot
   // lock an APID out.
@@ -567,6 +628,16 @@ inline void FlightApp<S>::on_config(const PacketView& p) {
     case ConfigParam::ModalPeak1: return set_modal(modal_cfg_.plate.peak1_m, m.value);
     case ConfigParam::ModalPriorOmegaFrac: return set_modal(modal_cfg_.prior_omega_frac, m.value);
     case ConfigParam::ModalAcquireAfterPeriods: return set_modal(modal_cfg_.acquire_after_periods, m.value);
+    case ConfigParam::PlanMinOnTime: return set_plan_limit(plan_limits_.min_on_time_s, m.value);
+    case ConfigParam::PlanMaxOnTime: return set_plan_limit(plan_limits_.max_on_time_s, m.value);
+    case ConfigParam::PlanMaxTotalOnTime: return set_plan_limit(plan_limits_.max_total_on_time_s, m.value);
+    case ConfigParam::PlanMaxDuration: return set_plan_limit(plan_limits_.max_duration_s, m.value);
+    case ConfigParam::PlanValves:
+      if (m.value >= S(1) && m.value <= S(kPlanValves) && m.value == std::floor(m.value)) {
+        plan_limits_.valves = static_cast<std::uint32_t>(m.value);
+        return;
+      }
+      break;
   }
   ++counters_.configs_rejected;
 }
@@ -579,6 +650,110 @@ inline void FlightApp<S>::set_modal(double& field, S value) {
     field = old;
     ++counters_.configs_rejected;
   }
+}
+
+template <typename S>
+inline void FlightApp<S>::set_plan_limit(double& field, S value) {
+  const double old = field;
+  field = double(value);
+  if (plan_limits_invalid_field(plan_limits_) != nullptr) {
+    field = old;
+    ++counters_.configs_rejected;
+  }
+}
+
+template <typename S>
+inline void FlightApp<S>::on_plan_entry(const PacketView& p) {
+  CmdPlanEntryMsg m;
+  decode(p.payload, p.t_s, m);  // the deframer has checked finiteness
+  ++counters_.plan_entries;
+  plan_.stage(m);
+}
+
+template <typename S>
+inline void FlightApp<S>::on_plan(const PacketView& p) {
+  CmdPlanMsg m;
+  decode(p.payload, p.t_s, m);
+  PlanVerdict v = PlanVerdict::UnknownAction;
+  switch (static_cast<PlanAction>(m.action)) {
+    case PlanAction::Load:
+      v = plan_.load(m, plan_limits_);
+      if (v == PlanVerdict::Accepted) ++counters_.plans_loaded;
+      break;
+    case PlanAction::Start:
+      v = plan_.start(m.plan_id, p.t_s);
+      if (v == PlanVerdict::Accepted) ++counters_.plan_starts;
+      break;
+    case PlanAction::Abort:
+      if (plan_.state() != PlanState::Running) {
+        v = PlanVerdict::NotRunning;
+        break;
+      }
+      plan_abort(p.t_s);
+      v = PlanVerdict::Accepted;
+      break;
+  }
+  if (v != PlanVerdict::Accepted) ++counters_.plan_commands_refused;
+  send_plan_status(static_cast<std::uint8_t>(m.action <= 3 ? m.action : 0), v, p.t_s);
+}
+
+template <typename S>
+inline void FlightApp<S>::plan_tick(double t_s) {
+  PlanCommand c;
+  if (!plan_.command(t_s, nav_cfg_.dt_imu_s, nav_cfg_.time_tol_s, c)) return;
+  if (c.state == PlanState::Finished) {
+    plan_.finish();
+    ++counters_.plans_finished;
+    send_plan_valves(c, PlanState::Finished, t_s);
+    send_plan_status(0, PlanVerdict::Accepted, t_s);
+    return;
+  }
+  ++counters_.plan_valve_commands;
+  // The command is the learner's next firing interval, as a thruster_valves.
+  valves_.t_s = static_cast<S>(t_s);
+  valves_.interval_s = static_cast<S>(nav_cfg_.dt_imu_s);
+  valves_.valve_mask = c.valve_mask;
+  valves_t_s_ = t_s;
+  valves_pending_ = c.full && c.valve_mask != 0;
+  send_plan_valves(c, PlanState::Running, t_s);
+}
+
+template <typename S>
+inline void FlightApp<S>::plan_abort(double t_s) {
+  if (plan_.abort() != PlanVerdict::Accepted) return;
+  ++counters_.plan_aborts;
+  valves_pending_ = false;
+  PlanCommand c;
+  c.plan_time_s = t_s - plan_.t_start_s();
+  send_plan_valves(c, PlanState::Aborted, t_s);
+}
+
+template <typename S>
+inline void FlightApp<S>::send_plan_valves(const PlanCommand& c, PlanState state, double t_s) {
+  TmPlanValvesMsg tm;
+  tm.plan_id = plan_.id();
+  tm.valve_mask = state == PlanState::Running ? c.valve_mask : 0;
+  tm.state = static_cast<std::uint8_t>(state);
+  tm.interval_s = nav_cfg_.dt_imu_s;
+  tm.plan_time_s = c.plan_time_s;
+  if (state == PlanState::Running) tm.on_time_s = c.on_time_s;
+  send(Apid::TmPlanValves, tm, t_s);
+}
+
+template <typename S>
+inline void FlightApp<S>::send_plan_status(std::uint8_t action, PlanVerdict verdict, double t_s) {
+  TmPlanStatusMsg tm;
+  tm.plan_id = plan_.id();
+  tm.state = static_cast<std::uint8_t>(plan_.state());
+  tm.action = action;
+  tm.verdict = static_cast<std::uint8_t>(verdict);
+  tm.entry_count = static_cast<std::uint32_t>(plan_.size());
+  tm.entries_received = plan_.entries_received();
+  tm.plans_loaded = counters_.plans_loaded;
+  tm.commands_refused = counters_.plan_commands_refused;
+  tm.duration_s = plan_.duration_s();
+  tm.total_on_time_s = plan_.total_on_time_s();
+  send(Apid::TmPlanStatus, tm, t_s);
 }
 
 template <typename S>

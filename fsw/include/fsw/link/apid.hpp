@@ -31,6 +31,8 @@ enum class Apid : std::uint16_t {
   RangeImageSegment = 0x013,  // to flight, segmented (first/continuation/last)
   CmdReset = 0x020,           // to flight
   CmdConfig = 0x021,          // to flight
+  CmdPlanEntry = 0x022,       // to flight: one valve opening of a stored valve plan
+  CmdPlan = 0x023,            // to flight: load (check and store), start or abort the valve plan
   TmEstimate = 0x040,         // from flight
   TmCovarianceDiag = 0x041,   // from flight
   TmInnovation = 0x042,       // from flight: innovation, NIS, log-likelihood, step status
@@ -38,6 +40,8 @@ enum class Apid : std::uint16_t {
   TmLinkCounters = 0x044,     // from flight
   TmHousekeeping = 0x045,     // from flight
   TmModal = 0x046,            // from flight: one modal filter step per range image
+  TmPlanStatus = 0x047,       // from flight: the valve plan's state, answer to every cmd_plan
+  TmPlanValves = 0x048,       // from flight: the plan's valve command for one control interval
 };
 
 // One row of the table. The floating-point fields of each payload form one
@@ -61,10 +65,13 @@ constexpr std::size_t kRangeSegmentHeaderBytes = 12;
 constexpr std::uint16_t kMaxRangePointsPerImage = 4096;
 constexpr std::size_t kCovDiagMax = 15;
 constexpr std::size_t kLinkCounterSlots = 28;
-constexpr std::size_t kModalTmModes = 10;  // modes carried by tm_modal
-constexpr double kQuatNormTol = 1e-6;      // |‖q‖ - 1| allowed on the wire
+constexpr std::size_t kModalTmModes = 10;     // modes carried by tm_modal
+constexpr double kQuatNormTol = 1e-6;         // |‖q‖ - 1| allowed on the wire
+constexpr std::size_t kPlanValves = 8;        // valves a plan command carries (tm_plan_valves)
+constexpr std::uint8_t kPlanStateMax = 4;     // PlanState (fsw/app/valve_plan.hpp)
+constexpr std::uint8_t kPlanVerdictMax = 13;  // PlanVerdict (fsw/app/valve_plan.hpp)
 
-inline constexpr std::array<ApidInfo, 13> kApidTable{{
+inline constexpr std::array<ApidInfo, 17> kApidTable{{
     {Apid::ImuSample, "imu_sample", Direction::ToFlight, 48, false, 0, 6, -1},
     {Apid::LedPose, "led_pose", Direction::ToFlight, 72, false, 0, 9, 24},
     {Apid::ThrusterValves, "thruster_valves", Direction::ToFlight, 16, false, 0, 1, -1},
@@ -73,6 +80,8 @@ inline constexpr std::array<ApidInfo, 13> kApidTable{{
      static_cast<std::uint16_t>(kRangePointsPerSegment * 4), -1},
     {Apid::CmdReset, "cmd_reset", Direction::ToFlight, 112, false, 8, 13, 56},
     {Apid::CmdConfig, "cmd_config", Direction::ToFlight, 16, false, 8, 1, -1},
+    {Apid::CmdPlanEntry, "cmd_plan_entry", Direction::ToFlight, 32, false, 16, 2, -1},
+    {Apid::CmdPlan, "cmd_plan", Direction::ToFlight, 24, false, 16, 1, -1},
     {Apid::TmEstimate, "tm_estimate", Direction::FromFlight, 80, false, 0, 10, 48},
     {Apid::TmCovarianceDiag, "tm_covariance_diag", Direction::FromFlight, 128, false, 8, 15, -1},
     {Apid::TmInnovation, "tm_innovation", Direction::FromFlight, 72, false, 8, 8, -1},
@@ -80,6 +89,8 @@ inline constexpr std::array<ApidInfo, 13> kApidTable{{
     {Apid::TmLinkCounters, "tm_link_counters", Direction::FromFlight, 128, false, 0, 0, -1},
     {Apid::TmHousekeeping, "tm_housekeeping", Direction::FromFlight, 40, false, 0, 3, -1},
     {Apid::TmModal, "tm_modal", Direction::FromFlight, 352, false, 16, 42, -1},
+    {Apid::TmPlanStatus, "tm_plan_status", Direction::FromFlight, 40, false, 24, 2, -1},
+    {Apid::TmPlanValves, "tm_plan_valves", Direction::FromFlight, 88, false, 8, 10, -1},
 }};
 
 constexpr std::size_t kApidCount = kApidTable.size();
@@ -160,6 +171,8 @@ inline bool payload_fields_valid(Apid apid, SeqFlags flags, const std::uint8_t* 
     case Apid::TmCovarianceDiag: return get_u32le(p) <= kCovDiagMax;
     case Apid::TmInnovation: return p[1] <= 3 && p[3] <= 6;
     case Apid::TmModal: return p[4] <= 3 && p[5] <= 3 && p[7] <= kModalTmModes;
+    case Apid::TmPlanStatus: return p[4] <= kPlanStateMax && p[6] <= kPlanVerdictMax;
+    case Apid::TmPlanValves: return p[5] <= kPlanStateMax;
     default: return true;
   }
 }
@@ -220,6 +233,48 @@ struct CmdConfigMsg {
   std::uint32_t param_id = 0;
   S value{};
 };
+// The valve plan's messages keep their times in double in both builds: a
+// plan's open and close times are mission times, as the packet time tags.
+struct CmdPlanEntryMsg {
+  double t_s = 0.0;
+  std::uint32_t plan_id = 0;
+  std::uint16_t entry_index = 0;  // 0 .. entry_count - 1
+  std::uint16_t entry_count = 0;  // entries in the whole plan
+  std::uint8_t valve = 0;         // valve index (bit of thruster_valves' mask)
+  double t_open_s = 0.0;          // from the plan's start [s]
+  double t_close_s = 0.0;         // from the plan's start [s]
+};
+enum class PlanAction : std::uint32_t { Load = 1, Start = 2, Abort = 3 };
+struct CmdPlanMsg {
+  double t_s = 0.0;          // start: the plan's time zero
+  std::uint32_t action = 0;  // PlanAction
+  std::uint32_t plan_id = 0;
+  std::uint32_t entry_count = 0;  // load: entries the plan holds
+  double duration_s = 0.0;        // load: the plan's length, its last coast included [s]
+};
+struct TmPlanStatusMsg {
+  double t_s = 0.0;
+  std::uint32_t plan_id = 0;           // the stored plan (0: none)
+  std::uint8_t state = 0;              // PlanState
+  std::uint8_t action = 0;             // the cmd_plan answered (0: none, the plan ended)
+  std::uint8_t verdict = 0;            // PlanVerdict: 0 accepted, else why refused
+  std::uint32_t entry_count = 0;       // entries of the stored plan
+  std::uint32_t entries_received = 0;  // distinct entries of the plan being uplinked
+  std::uint32_t plans_loaded = 0;
+  std::uint32_t commands_refused = 0;  // cmd_plan refused since start
+  double duration_s = 0.0;             // of the stored plan
+  double total_on_time_s = 0.0;        // of the stored plan
+};
+struct TmPlanValvesMsg {
+  double t_s = 0.0;  // start of the control interval
+  std::uint32_t plan_id = 0;
+  std::uint8_t valve_mask = 0;  // valves open at some time in the interval
+  std::uint8_t state = 0;       // PlanState: running, or finished / aborted (all closed)
+  double interval_s = 0.0;
+  double plan_time_s = 0.0;                     // the interval's start from the plan's start
+  std::array<double, kPlanValves> on_time_s{};  // each valve's open time within the interval
+};
+
 template <typename S>
 struct TmEstimateMsg {
   S t_s{};
@@ -444,6 +499,94 @@ void encode(const CmdConfigMsg<S>& m, std::uint8_t* p) {
   zero(p, 8);
   put_u32le(p, m.param_id);
   wr(p, 8, m.value);
+}
+
+inline bool decode(const std::uint8_t* p, double t_s, CmdPlanEntryMsg& m) {
+  m.t_s = t_s;
+  m.plan_id = get_u32le(p);
+  m.entry_index = get_u16le(p + 4);
+  m.entry_count = get_u16le(p + 6);
+  m.valve = p[8];
+  m.t_open_s = get_f64le(p + 16);
+  m.t_close_s = get_f64le(p + 24);
+  return std::isfinite(t_s) && std::isfinite(m.t_open_s) && std::isfinite(m.t_close_s);
+}
+inline void encode(const CmdPlanEntryMsg& m, std::uint8_t* p) {
+  payload_detail::zero(p, 16);
+  put_u32le(p, m.plan_id);
+  put_u16le(p + 4, m.entry_index);
+  put_u16le(p + 6, m.entry_count);
+  p[8] = m.valve;
+  put_f64le(p + 16, m.t_open_s);
+  put_f64le(p + 24, m.t_close_s);
+}
+
+inline bool decode(const std::uint8_t* p, double t_s, CmdPlanMsg& m) {
+  m.t_s = t_s;
+  m.action = get_u32le(p);
+  m.plan_id = get_u32le(p + 4);
+  m.entry_count = get_u32le(p + 8);
+  m.duration_s = get_f64le(p + 16);
+  return std::isfinite(t_s) && std::isfinite(m.duration_s);
+}
+inline void encode(const CmdPlanMsg& m, std::uint8_t* p) {
+  payload_detail::zero(p, 16);
+  put_u32le(p, m.action);
+  put_u32le(p + 4, m.plan_id);
+  put_u32le(p + 8, m.entry_count);
+  put_f64le(p + 16, m.duration_s);
+}
+
+inline bool decode(const std::uint8_t* p, double t_s, TmPlanStatusMsg& m) {
+  m.t_s = t_s;
+  m.plan_id = get_u32le(p);
+  m.state = p[4];
+  m.action = p[5];
+  m.verdict = p[6];
+  m.entry_count = get_u32le(p + 8);
+  m.entries_received = get_u32le(p + 12);
+  m.plans_loaded = get_u32le(p + 16);
+  m.commands_refused = get_u32le(p + 20);
+  m.duration_s = get_f64le(p + 24);
+  m.total_on_time_s = get_f64le(p + 32);
+  return std::isfinite(t_s) && std::isfinite(m.duration_s) && std::isfinite(m.total_on_time_s);
+}
+inline void encode(const TmPlanStatusMsg& m, std::uint8_t* p) {
+  put_u32le(p, m.plan_id);
+  p[4] = m.state;
+  p[5] = m.action;
+  p[6] = m.verdict;
+  p[7] = 0;
+  put_u32le(p + 8, m.entry_count);
+  put_u32le(p + 12, m.entries_received);
+  put_u32le(p + 16, m.plans_loaded);
+  put_u32le(p + 20, m.commands_refused);
+  put_f64le(p + 24, m.duration_s);
+  put_f64le(p + 32, m.total_on_time_s);
+}
+
+inline bool decode(const std::uint8_t* p, double t_s, TmPlanValvesMsg& m) {
+  m.t_s = t_s;
+  m.plan_id = get_u32le(p);
+  m.valve_mask = p[4];
+  m.state = p[5];
+  m.interval_s = get_f64le(p + 8);
+  m.plan_time_s = get_f64le(p + 16);
+  bool ok = std::isfinite(t_s) && std::isfinite(m.interval_s) && std::isfinite(m.plan_time_s);
+  for (std::size_t i = 0; i < kPlanValves; ++i) {
+    m.on_time_s[i] = get_f64le(p + 24 + 8 * i);
+    ok = ok && std::isfinite(m.on_time_s[i]);
+  }
+  return ok;
+}
+inline void encode(const TmPlanValvesMsg& m, std::uint8_t* p) {
+  put_u32le(p, m.plan_id);
+  p[4] = m.valve_mask;
+  p[5] = m.state;
+  put_u16le(p + 6, 0);
+  put_f64le(p + 8, m.interval_s);
+  put_f64le(p + 16, m.plan_time_s);
+  for (std::size_t i = 0; i < kPlanValves; ++i) put_f64le(p + 24 + 8 * i, m.on_time_s[i]);
 }
 
 template <typename S>
