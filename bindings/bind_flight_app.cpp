@@ -37,6 +37,14 @@ py::dict app_counters(const App& app) {
   d["reacquisitions"] = c.reacquisitions;
   d["configs_rejected"] = c.configs_rejected;
   d["valves"] = c.valves;
+  d["valves_not_held"] = c.valves_not_held;
+  d["plan_entries"] = c.plan_entries;
+  d["plans_loaded"] = c.plans_loaded;
+  d["plan_starts"] = c.plan_starts;
+  d["plan_aborts"] = c.plan_aborts;
+  d["plans_finished"] = c.plans_finished;
+  d["plan_commands_refused"] = c.plan_commands_refused;
+  d["plan_valve_commands"] = c.plan_valve_commands;
   d["unhandled"] = c.unhandled;
   d["tx_packets"] = c.tx_packets;
   d["tx_dropped"] = c.tx_dropped;

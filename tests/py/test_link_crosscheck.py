@@ -60,6 +60,14 @@ def valid_payload(a: P.ApidDef, rng: random.Random, first=0, n=None, total=None)
             rng.randrange(2**32),
             rng.randrange(2**32),
         )
+    elif a.name == "cmd_plan_entry":
+        struct.pack_into("<IHHB", buf, 0, rng.randrange(2**32), 3, 7, rng.randrange(8))
+    elif a.name == "cmd_plan":
+        struct.pack_into("<III", buf, 0, rng.randrange(1, 4), rng.randrange(2**32), rng.randrange(129))
+    elif a.name == "tm_plan_status":
+        struct.pack_into("<IBBB", buf, 0, rng.randrange(2**32), rng.randrange(5), rng.randrange(4), rng.randrange(14))
+    elif a.name == "tm_plan_valves":
+        struct.pack_into("<IBB", buf, 0, rng.randrange(2**32), rng.randrange(256), rng.randrange(5))
     elif a.name in ("tm_learner", "tm_housekeeping"):
         pass
     elif a.name == "tm_link_counters":
@@ -330,3 +338,70 @@ def test_housekeeping_carries_the_telemetry_drop_count():
     ]
     assert len(hk) == 1
     assert hk[0]["tx_dropped"] == dropped and hk[0]["cycle_count"] == 210
+
+
+def _plan_telemetry(out: bytes) -> tuple:
+    """(tm_plan_status list, tm_plan_valves list) decoded on the bench side."""
+    status, valves = [], []
+    for p in P.Deframer(P.FROM_FLIGHT).feed(out):
+        if isinstance(p, P.Packet) and p.apid == P.APID_BY_NAME["tm_plan_status"].apid:
+            status.append(P.decode_plan_status(p.payload))
+        elif isinstance(p, P.Packet) and p.apid == P.APID_BY_NAME["tm_plan_valves"].apid:
+            valves.append({**P.decode_plan_valves(p.payload), "t_s": p.t_s})
+    return status, valves
+
+
+def test_valve_plan_from_the_bench_runs_in_the_flight_app():
+    """A plan built by the bench side (hil_sim.packets) is uplinked entry by
+    entry, a refused load (two openings of valve 1 overlapping) changes
+    nothing, the good plan loads and runs: the valve commands the flight
+    app sends, decoded by the bench side, are the plan's, interval by
+    interval; an abort closes the valves."""
+    app = fb.FlightApp(fb.NavConfig())
+    s = P.Sender()
+    entry, cmd, imu = (P.APID_BY_NAME[n].apid for n in ("cmd_plan_entry", "cmd_plan", "imu_sample"))
+    bad = [(1, 0.0, 0.5), (1, 0.3, 0.8)]
+    data = b"".join(s.frame(entry, 0.0, pl) for pl in P.plan_entry_payloads(4, bad))
+    data += s.frame(cmd, 0.0, P.plan_command_payload("load", 4, len(bad), 2.0))
+    status, _ = _plan_telemetry(app.on_bytes(data))
+    assert [(x["verdict"], x["state"], x["commands_refused"]) for x in status] == [("overlap", "empty", 1)]
+    good = [(0, 0.2, 0.5), (6, 0.3, 0.4), (0, 1.0, 1.2)]
+    data = b"".join(s.frame(entry, 0.0, pl) for pl in P.plan_entry_payloads(5, good))
+    data += s.frame(cmd, 0.0, P.plan_command_payload("load", 5, len(good), 1.5))
+    data += s.frame(cmd, 1.0, P.plan_command_payload("start", 5))
+    data += b"".join(s.frame(imu, 0.1 * k, P.pack_payload(imu, *[0.0] * 6)) for k in range(10, 27))
+    status, valves = _plan_telemetry(app.on_bytes(data))
+    assert [(x["verdict"], x["state"]) for x in status] == [
+        ("accepted", "loaded"),
+        ("accepted", "running"),
+        ("accepted", "finished"),
+    ]
+    assert status[0]["entry_count"] == 3 and status[0]["total_on_time_s"] == pytest.approx(0.6)
+    running = [v for v in valves if v["state"] == "running"]
+    assert len(running) == 15 and valves[-1]["state"] == "finished" and valves[-1]["valve_mask"] == 0
+    for k, v in enumerate(running):
+        tau = 0.1 * k
+        want = sum(1 << valve for valve, a, b in good if a - 1e-9 <= tau < b - 1e-9)
+        assert v["valve_mask"] == want, (k, v)
+        assert v["t_s"] == pytest.approx(1.0 + tau) and v["plan_time_s"] == pytest.approx(tau)
+        assert v["on_time_s"][0] == pytest.approx(0.1 if want & 1 else 0.0)
+    c = app.counters()
+    assert (c["plans_loaded"], c["plan_commands_refused"], c["plans_finished"]) == (1, 1, 1)
+    data = s.frame(cmd, 3.0, P.plan_command_payload("start", 5))
+    data += s.frame(imu, 3.0, P.pack_payload(imu, *[0.0] * 6))
+    data += s.frame(cmd, 3.05, P.plan_command_payload("abort", 5))
+    status, valves = _plan_telemetry(app.on_bytes(data))
+    assert [v["state"] for v in valves] == ["running", "aborted"] and valves[-1]["valve_mask"] == 0
+    assert status[-1]["state"] == "aborted" and app.counters()["plan_aborts"] == 1
+
+
+@pytest.mark.parametrize("name,offset", [("tm_plan_status", 4), ("tm_plan_status", 6), ("tm_plan_valves", 5)])
+def test_plan_telemetry_state_and_verdict_out_of_range_refused_on_both_sides(name, offset):
+    a = P.APID_BY_NAME[name]
+    payload = bytearray(valid_payload(a, random.Random(3)))
+    payload[offset] = 14 if offset == 6 else 5  # one past the last verdict / state
+    frame = P.build_frame(a.apid, 0, 1.0, bytes(payload))
+    cpp = fb.LinkDeframer("from_flight").feed(frame)
+    py = P.Deframer(P.FROM_FLIGHT).feed(frame)
+    assert cpp[0]["kind"] == "rejected" and cpp[0]["reason"] == "invalid_field"
+    assert isinstance(py[0], P.Rejection) and py[0].reason == "invalid_field"
