@@ -1,66 +1,85 @@
-"""A progress bar on standard error: runs done of the total, rate, time
-elapsed and time left."""
+"""Progress on standard error, drawn by tqdm: done of the total (and how many
+were already stored or failed), rate, time elapsed and time left.
+
+Shown only when its stream is a terminal, redrawn in place. PROXOPS_PROGRESS=1
+asks for it where the stream is not a terminal too (a log file): a whole line
+at most every 30 s, no carriage returns. PROXOPS_PROGRESS=0 turns it off
+everywhere."""
 
 from __future__ import annotations
 
+import os
 import sys
-import time
+
+from tqdm import tqdm
+
+ENV = "PROXOPS_PROGRESS"
+LOG_INTERVAL_S = 30.0
 
 
-def _clock(s: float) -> str:
-    s = int(round(s))
-    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+class _Lines:
+    """The stream tqdm draws into when it is not a terminal: every redraw as
+    one whole line, without the carriage return and padding tqdm writes."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> None:
+        text = text.replace("\r", "").strip()
+        if text:
+            self.stream.write(text + "\n")
+
+    def flush(self) -> None:
+        self.stream.flush()
 
 
 class ProgressBar:
-    WIDTH = 24
+    """``update()`` after each run (``failed=True`` for a failed one); called
+    as ``bar()`` or ``bar(n)`` it serves as a progress callback; ``total`` may
+    grow while it runs; ``close()`` at the end."""
 
-    def __init__(self, label: str, total: int, stored: int = 0, enabled: bool = True, stream=None):
-        self.label, self.total, self.stored = label, int(total), int(stored)
+    def __init__(self, label: str, total: int, stored: int = 0, enabled: bool = True, stream=None, unit: str = "run"):
+        self.label, self.stored = label, int(stored)
         self.done, self.failed = 0, 0
-        self.enabled = enabled and total > 0
-        self.stream = stream or sys.stderr
-        self.t0 = time.monotonic()
-        self._last = 0.0
-        self._shown = None
-        self._tty = hasattr(self.stream, "isatty") and self.stream.isatty()
-        self.show(force=True)
-
-    def update(self, failed: bool = False) -> None:
-        self.done += 1
-        self.failed += int(failed)
-        self.show(force=self.stored + self.done == self.total)
-
-    def line(self) -> str:
-        n = self.stored + self.done
-        el = time.monotonic() - self.t0
-        rate = self.done / el if el > 0 and self.done else 0.0
-        left = (self.total - n) / rate if rate > 0 else None
-        fill = int(self.WIDTH * n / self.total) if self.total else self.WIDTH
-        return (
-            f"  {self.label}: [{'#' * fill}{'.' * (self.WIDTH - fill)}] {n}/{self.total} runs"
-            + (f" ({self.stored} stored)" if self.stored else "")
-            + (f", {self.failed} failed" if self.failed else "")
-            + f", {rate * 60:.1f} runs/min, {_clock(el)} elapsed, "
-            + ("time left ?" if left is None else f"~{_clock(left)} left")
+        stream = stream or sys.stderr
+        tty = hasattr(stream, "isatty") and stream.isatty()
+        asked = os.environ.get(ENV, "").strip()
+        self.enabled = enabled and total > 0 and asked != "0" and (tty or asked == "1")
+        self._bar = tqdm(
+            total=int(total),
+            initial=self.stored,
+            desc=f"  {label}",
+            unit=unit,
+            file=stream if tty else _Lines(stream),
+            mininterval=0.2 if tty else LOG_INTERVAL_S,
+            dynamic_ncols=tty,
+            disable=not self.enabled,
+            postfix=self._note(),
         )
 
-    def show(self, force: bool = False) -> None:
-        if not self.enabled:
-            return
-        now = time.monotonic()
-        # On a terminal the bar is redrawn in place; in a file, one line every 30 s.
-        if not force and now - self._last < (0.2 if self._tty else 30.0):
-            return
-        self._last = now
-        self._shown = (self.done, self.failed)
-        self.stream.write(("\r" if self._tty else "") + self.line() + ("" if self._tty else "\n"))
-        self.stream.flush()
+    @property
+    def total(self) -> int:
+        return int(self._bar.total)
+
+    @total.setter
+    def total(self, value: int) -> None:
+        self._bar.total = int(value)
+        self._bar.refresh()
+
+    def _note(self) -> str:
+        """What the bar says after its rate: runs already stored, runs failed."""
+        counts = ((self.stored, "stored"), (self.failed, "failed"))
+        return ", ".join(f"{count} {what}" for count, what in counts if count)
+
+    def update(self, failed: bool = False, n: int = 1) -> None:
+        self.done += n
+        self.failed += int(failed)
+        if failed:
+            self._bar.set_postfix_str(self._note(), refresh=False)
+        self._bar.update(n)
+
+    def __call__(self, n: int = 1) -> None:
+        self.update(n=n)
 
     def close(self) -> None:
-        if self.enabled:
-            if self._shown != (self.done, self.failed):
-                self.show(force=True)
-            if self._tty:
-                self.stream.write("\n")
-            self.stream.flush()
+        self._bar.close()
