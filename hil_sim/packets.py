@@ -284,9 +284,7 @@ def plan_entry_payloads(plan_id: int, entries) -> list:
 def plan_command_payload(action: str, plan_id: int, entry_count: int = 0, duration_s: float = 0.0) -> bytes:
     """cmd_plan: action "load" (with the entry count and the plan's
     duration), "start" (at the packet's time tag) or "abort"."""
-    return pack_payload(
-        APID_BY_NAME["cmd_plan"].apid, PLAN_ACTIONS[action], plan_id, entry_count, 0, float(duration_s)
-    )
+    return pack_payload(APID_BY_NAME["cmd_plan"].apid, PLAN_ACTIONS[action], plan_id, entry_count, 0, float(duration_s))
 
 
 PLAN_STATUS_FIELDS = (

@@ -39,7 +39,7 @@ class HilConfig:
     baud: int = BAUD
 
 
-class _Pacer:
+class Pacer:
     """Holds the loop to the wall clock in real-time mode."""
 
     def __init__(self, realtime: bool, t_offset: float, wall0: float):
@@ -76,7 +76,7 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
             )
             nav.time_offset_s = t_done
             nav.configure_nav(nav_config(sc), t_s=0.0)
-            pacer = _Pacer(cfg.realtime, t_done, wall0)
+            pacer = Pacer(cfg.realtime, t_done, wall0)
             pacers.append(pacer)
             run = run_docking(cfg.seed + k, sc, nav=nav, on_step=pacer)
             # A run not docked when the time left ran out was cut by the
@@ -94,9 +94,14 @@ def run_hil(cfg: HilConfig, progress=None) -> dict:
     finally:
         wall = time.perf_counter() - wall0
         ended = link.close()
+    return link_result(nav, link, runs, wall, t_done, pacers, ended)
+
+
+def link_result(nav: LinkNav, link, runs: list, wall: float, sim_time: float, pacers: list, ended: dict) -> dict:
+    """A HIL run's figures: its runs, timing, step latency and the link's
+    statistics on both sides (run_hil's answer)."""
     lat = np.array(nav.step_latency_s) * 1e3
     steps = len(lat)
-    sim_time = t_done
     return {
         "runs": runs,
         "wall_s": wall,

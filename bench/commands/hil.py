@@ -24,7 +24,6 @@ def register(sub):
         formatter_class=HelpFormatter,
     )
     one_line_errors(p, "proxops hil")
-    prob = number(float, 0.0, 1.0)
     p.add_argument(
         "--scenario",
         choices=["docking", "plate"],
@@ -44,26 +43,20 @@ def register(sub):
         help="docking: simulated seconds, docking runs chained (> 0, <= 1e6)",
     )
     p.add_argument("--realtime", action="store_true", help="pace the loop at 10 Hz by the wall clock")
-    p.add_argument(
-        "--ber", type=number(float, 0.0, 0.5), default=0.0, help="bit error rate on both directions (0 to 0.5)"
-    )
-    p.add_argument(
-        "--drop-rate",
-        type=number(float, 0.0, 1.0, hi_open=True),
-        default=0.0,
-        help="probability that a byte is lost (0 to < 1)",
-    )
-    p.add_argument("--burst-rate", type=prob, default=0.0, help="probability of a burst per frame (0 to 1)")
-    p.add_argument("--duplicate-rate", type=prob, default=0.0, help="probability a frame is duplicated (0 to 1)")
-    p.add_argument(
-        "--reorder-rate", type=prob, default=0.0, help="probability a frame is held back behind the next (0 to 1)"
-    )
-    p.add_argument("--stall-rate", type=prob, default=0.0, help="probability of a stall per chunk (0 to 1)")
+    _fault_options(p)
     p.add_argument("--seed", type=seed, default=1, help=SEED_HELP)
     p.add_argument(
         "--learner",
         action="store_true",
         help="send the valve commands so the flight thruster learner learns (tm_learner telemetry)",
+    )
+    p.add_argument(
+        "--plan",
+        default=None,
+        metavar="FILE",
+        help="fly this valve plan (the JSON of proxops plan --separate --json) open loop: uplinked to the "
+        "flight side, checked and run by it, the plant firing the valves it commands (docs/LINK.md, "
+        '"Valve plans"); the plan\'s length replaces --duration',
     )
     p.add_argument(
         "--device",
@@ -89,6 +82,26 @@ def register(sub):
     )
     p.add_argument("--report", default=None, help="report folder: plots, JSON, flight log")
     p.set_defaults(func=main)
+
+
+def _fault_options(p):
+    """The link faults the relay injects (both directions)."""
+    prob = number(float, 0.0, 1.0)
+    p.add_argument(
+        "--ber", type=number(float, 0.0, 0.5), default=0.0, help="bit error rate on both directions (0 to 0.5)"
+    )
+    p.add_argument(
+        "--drop-rate",
+        type=number(float, 0.0, 1.0, hi_open=True),
+        default=0.0,
+        help="probability that a byte is lost (0 to < 1)",
+    )
+    p.add_argument("--burst-rate", type=prob, default=0.0, help="probability of a burst per frame (0 to 1)")
+    p.add_argument("--duplicate-rate", type=prob, default=0.0, help="probability a frame is duplicated (0 to 1)")
+    p.add_argument(
+        "--reorder-rate", type=prob, default=0.0, help="probability a frame is held back behind the next (0 to 1)"
+    )
+    p.add_argument("--stall-rate", type=prob, default=0.0, help="probability of a stall per chunk (0 to 1)")
 
 
 def hil_summary(res: dict, args) -> dict:
@@ -207,6 +220,11 @@ def print_summary(s: dict):
             else ""
         )
     )
+    print_link_lines(s)
+
+
+def print_link_lines(s: dict):
+    """The summary's lines after its first: steps, navigation, link, fsw_node."""
     print(
         f"  steps {s['steps']}, latency p50 {s['step_latency_p50_ms']:.3f} ms, p99 {s['step_latency_p99_ms']:.3f} ms, "
         f"timeouts {s['step_timeouts']}"
@@ -274,6 +292,70 @@ def plate_main(args, faults) -> int:
     return 0 if s["fsw_node_exit_code"] == 0 or _device(args) else 1
 
 
+def _plan_lines(s: dict) -> list:
+    p = s["plan"]
+    head = (
+        f"HIL plan {s['plan_file']}: {p['entries']} valve openings over {p['duration_s']:g} s "
+        f"(on-time {p['on_time_s']:g} s); flight side: {p['verdict']}"
+    )
+    if not p["started"]:
+        return [head + ("; nothing flown" if p["verdict"] == "accepted" else ", refused; nothing flown")]
+    return [
+        head + f", started, {p['ended'] or 'not seen to end'}",
+        f"  valves: the plant fired {p['intervals_firing'] - p['intervals_differing']} of the plan's "
+        f"{p['intervals_firing']} firing intervals as planned, {p['intervals_differing']} of {p['intervals']} "
+        f"intervals differing, {p['firing_outside_the_plan']} firing outside it; valve-seconds "
+        f"{p['valve_seconds_planned']:g} planned, {p['valve_seconds_flown']:g} flown "
+        f"({p['commands_received']} commands received)",
+        f"  {s['sim_time_s']:.1f} s simulated in {s['wall_s']:.2f} s (real-time factor {s['real_time_factor']:.1f})",
+    ]
+
+
+def plan_main(args, faults) -> int:
+    """--plan FILE: the plan flown over the link (hil_sim/plan_link.py).
+    Exit code 1 when the flight side refused it or the plant did not fly it
+    as planned."""
+    from hil_sim.plan_link import PlanHilConfig, read_plan, run_plan_hil
+
+    if args.scenario != "docking":
+        raise ValueError("--plan flies the plan on the docking plant; it cannot be used with --scenario plate")
+    entries, duration = read_plan(args.plan)
+    cfg = PlanHilConfig(
+        entries,
+        duration,
+        seed=args.seed,
+        realtime=args.realtime,
+        faults=faults,
+        step_timeout_s=0.05 if faults.clean else 0.02,
+        device=_device(args),
+        baud=_baud(args),
+    )
+    res = run_plan_hil(cfg)
+    args.duration = duration
+    s = hil_summary(res, args)
+    s.update({"scenario": "plan", "plan_file": str(args.plan), "plan": res["plan"]})
+    p = s["plan"]
+    for line in _plan_lines(s):
+        print(line)
+    if p["started"]:
+        print_link_lines(s)
+    else:
+        print(f"  fsw_node: {_node_line(s)}")
+    if args.report and p["started"]:
+        from hil_sim.report import write_hil_report
+
+        with staged_report_dir(args.report) as tmp:
+            write_json(tmp / "hil.json", s, strict=True)
+            not_written = write_hil_report(res, s, tmp)
+        print(f"  report: {args.report}/ (hil.json, " + ("" if not_written else "flight_log.h5, ") + "plots)")
+        if not_written:
+            print(f"  {not_written}")
+    if args.json:
+        _write_summary(args, s)
+    flown = p["started"] and p["ended"] == "finished" and p["intervals_differing"] == 0
+    return 0 if flown else 1
+
+
 def _write_summary(args, s: dict):
     """--json FILE (written atomically), or --json - (to standard output;
     the printed summary then went to standard error). Strict JSON."""
@@ -311,6 +393,8 @@ def _main(args):
         reorder_rate=args.reorder_rate,
         stall_rate=args.stall_rate,
     )
+    if getattr(args, "plan", None):
+        return plan_main(args, faults)
     if args.scenario == "plate":
         return plate_main(args, faults)
     timeout = 0.05 if faults.clean else 0.02
