@@ -68,6 +68,8 @@ STEPS = [
     ("FlightApp<float>::on_bytes (whole app step)", r"^fsw::FlightApp<float>::on_bytes\("),
     ("FlightApp<float>::on_imu (imu_sample)", r"^fsw::FlightApp<float>::on_imu\("),
     ("FlightApp<float>::on_pose (led_pose)", r"^fsw::FlightApp<float>::on_pose\("),
+    ("FlightApp<float>::on_plan (cmd_plan: load, start, abort)", r"^fsw::FlightApp<float>::on_plan\("),
+    ("FlightApp<float>::plan_tick (a plan's valve command)", r"^fsw::FlightApp<float>::plan_tick\("),
     ("NavUkf<float>::predict", r"fsw::NavUkf<float, false, \d+>::predict\("),
     ("NavUkf<float>::update_pose", r"fsw::NavUkf<float, false, \d+>::update_pose\("),
     ("NavUkf<float>::reacquire", r"fsw::NavUkf<float, false, \d+>::reacquire\("),

@@ -162,6 +162,11 @@ int run_app(const std::uint8_t* input, std::size_t n, Lines& out, Meter& meter) 
   out.str("A tx_dropped ").num(c.tx_dropped).end();
   out.str("A images_fused ").num(mc.images_fused).end();
   out.str("A acquisitions ").num(mc.acquisitions).end();
+  out.str("A plans_loaded ").num(c.plans_loaded).end();
+  out.str("A plan_commands_refused ").num(c.plan_commands_refused).end();
+  out.str("A plan_valve_commands ").num(c.plan_valve_commands).end();
+  out.str("A plans_finished ").num(c.plans_finished).end();
+  out.str("A plan_aborts ").num(c.plan_aborts).end();
   out.str("A packets_accepted ").num(app->link().packets_accepted).end();
   out.str("A rejected_total ").num(app->link().rejected_total()).end();
   const int status = (c.tx_dropped == 0 && app->link().rejected_total() == 0) ? 0 : 1;

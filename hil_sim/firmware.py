@@ -231,6 +231,8 @@ APP_TABLE = [
     ("app: thruster_valves", 0x012),
     ("app: range_image_segment (incl. image steps)", 0x013),
     ("app: cmd_reset", 0x020),
+    ("app: cmd_plan_entry (one opening staged)", 0x022),
+    ("app: cmd_plan (load: the whole plan checked; start; abort)", 0x023),
 ]
 
 

@@ -148,6 +148,8 @@ def test_stack_report_bounds_every_step_within_the_reserved_stack(tmp_path):
         "BayesLinReg::remove_oldest",
         "ModalTracker::add (segment, image step)",
         "FlightApp<float>::on_bytes (whole app step)",
+        "FlightApp<float>::on_plan (cmd_plan: load, start, abort)",
+        "FlightApp<float>::plan_tick (a plan's valve command)",
         "Reset_Handler (whole program)",
     ):
         s = steps[name]
@@ -184,10 +186,14 @@ def test_firmware_self_test_matches_the_host_float_build(runs):
     tgt, host = runs
     assert tgt.status == 0 and host.status == 0
     # The recording exercises every step: poses fused, learner samples,
-    # every image fused and the frequency acquisition done once.
+    # every image fused and the frequency acquisition done once, a valve
+    # plan refused, loaded, flown to its end (60 intervals), started again
+    # and aborted after 4.
     a = tgt.app_counters
-    assert a["imu_steps"] == 600 and a["pose_fused"] == 60 and a["learner_samples"] > 100
+    assert a["imu_steps"] == 666 and a["pose_fused"] == 66 and a["learner_samples"] > 100
     assert a["images_fused"] == 84 and a["acquisitions"] == 1 and a["rejected_total"] == 0
+    assert (a["plans_loaded"], a["plan_commands_refused"], a["plans_finished"], a["plan_aborts"]) == (1, 1, 1, 1)
+    assert a["plan_valve_commands"] == 60 + 4
     c = fw.compare(tgt, host)
     assert c.failures == []
     assert c.packets > 2000 and c.values > 30000
