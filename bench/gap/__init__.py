@@ -1,34 +1,26 @@
-"""Sim-to-real gap diagnosis (docs/GAP.md).
+"""Sim-to-real gap diagnosis (docs/GAP.md): one flight log in, where the
+model and the log disagree, which unmodelled effect explains it, and how far
+it shrinks on data the fit never saw.
 
-In layers, top to bottom (a module imports its own layer or lower ones;
-tests/py/test_architecture.py checks it):
+The modules are the diagnosis's stages; diagnose.py calls them in order,
+once each, and names what each hands to the next:
 
-campaigns
-  validate, validate_vehicle, validate_mixtures   blind campaigns (``proxops validate-gap``)
-  detectable, separability, characterise          detection limits, what the data can tell apart
-  design      the test that separates: a valve plan for sets a log cannot tell apart
-  bundled, perf_diagnose, results_tables          the bundled run, timing, tables for docs/
-the answer
-  diagnose    the whole pipeline on one log (``proxops diagnose``): verdict, set, shares
-  answers     the answer in words, one text for the command line and the report
-  report      Markdown page with plots
-  report_plots  its figures: the gap map, residuals and their spectra
-null calibrations
-  null        the committed thresholds (seeded Monte Carlo of simulated-on-simulated logs)
-  log_null    a calibration made for a log (parametric bootstrap of its own flight)
-  simlogs     simulated logs of the docking scenario (runs go through bench/runner)
-  calibration_file  what a --calibration file must hold before its thresholds are trusted
-  validity    the envelope the diagnosis is validated on; a log outside it, named
-the model
-  detection   the two detection statistics under the nominal model
-  select      several effects at once: forward selection and joint refit
-  alternatives  the sets the data cannot tell from the answer's: look-alikes, sets
-                that explain as well, hidden members
-  attribute   screening of every candidate, confirmation by full fits, Bayes factors
-  localise    the gap map: stream, axis, regime, frequency and lag
-  quantify    train / held-out time blocks, deficit, shrink with bootstrap interval
-  dyn         the dynamics channel: accelerometer and gyro against the valve commands
-  candidates  parametric models of the in-library effects, as the diagnoser sees them
-  replay      re-runs the flight filter (fsw_bindings.NavUkf) over a log's IMU and
-              pose streams with a candidate's corrections applied to the inputs
+  1 load        load          the log resolved: LogData (its description, IMU ticks, poses, valves)
+    thresholds  null, log_null  the null calibration the log is judged by (calibration_file: a
+                              supplied one checked; validity: the envelope it was validated on)
+  2 replay      replay        the flight filter re-run over the log, with a candidate's corrections
+  3 channels    dyn           the dynamics channel: the IMU against the commanded valves
+  4 map         detection, localise   the gap map and the two detection statistics
+  5 screen      attribute, candidates  every in-library candidate on its linearised signature
+  6 quantify    quantify      training and held-out blocks, shrink, held-out scores
+  7 confirm     verdict, select, alternatives   full refits, sets, the verdict
+    and select
+  8 answer      answers       the answer as JSON and in words
+  9 report      report, report_plots   the Markdown page with its figures
+
+Beside them: design (``proxops plan``: the valve plan that tells apart the
+sets a diagnosis could not) and bundled (the bundled reality run and its
+sealed key). The campaigns that validate the diagnosis are in
+bench/campaigns/gap; they use this package, never the reverse
+(tests/py/test_architecture.py).
 """

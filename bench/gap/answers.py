@@ -11,7 +11,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from bench.gap import localise
+from bench.gap.attribute import Context
+from bench.gap.candidates import NOT_MODELLED
+from bench.gap.load import LogData
+from bench.gap.quantify import channel_rms, heldout_runs_shrink, segment_of
 from bench.sim.flight_log import VALVE_OVERLAP_TOL_S
+from bench.so3 import rotmats
 
 # The count of valve pulses that ran past the next command and were ended
 # there (bench/gap/replay.py); every other entry of ``dropped`` is left out.
@@ -191,3 +199,229 @@ def answer_lines(out: dict) -> list:
     for i, t in enumerate(examined_lines(out)):
         rows.append(("examined" if i == 0 else "", t))
     return rows
+
+
+# --- the answer as JSON -------------------------------------------------------
+
+
+MIN_RUN_UPDATES = 10  # fewer fused pose updates than this: a run too short to show a gap
+
+RATE_EXCITED_RPS = 0.01  # a body axis never turned faster than this relative to Hill: not excited
+
+
+def _dynamics_or_sensor(where, verdict: str, ranking: list, effect_set) -> str | None:
+    """Whether the gap is in the vehicle's dynamics or in a sensor: the
+    answer's kind, or where the gap map puts it when nothing explains it."""
+    set_kinds = (
+        {m["kind"] for m in effect_set["members"]}
+        if effect_set is not None and effect_set["explains_heldout"]
+        else None
+    )
+    if set_kinds:
+        return set_kinds.pop() if len(set_kinds) == 1 else "dynamics and sensor"
+    if verdict in ("explained", "ambiguous"):
+        return ranking[0]["kind"]
+    if where is None:
+        return None
+    # The IMU disagreeing with the valve model while firing, or by a
+    # slow drift or swing at any time (the body moving as no thrust
+    # explains: a flexible panel, slosh), and position-only slow
+    # gaps point at the dynamics; attitude, broadband or IMU-scatter
+    # gaps at a sensor.
+    s, st = where["stream"], where["stat"]
+    return (
+        "dynamics"
+        if (
+            s in ("imu accel vs valves", "gyro vs valve torques")
+            and (where["regime_peak"] == "firing" or st in ("mean", "lowfreq"))
+        )
+        or (s == "pose position" and st in ("mean", "lowfreq", "lag"))
+        else "sensor"
+    )
+
+
+def result(
+    d: LogData,
+    ctx: Context,
+    det,
+    cal: dict,
+    cal_info: dict,
+    fits: list,
+    ranking: list,
+    verdict: str,
+    ambiguous_with: list,
+    effect_set,
+    detected: bool,
+) -> dict:
+    """The JSON-ready answer of diagnose() (stage 8)."""
+    nominal, ch, held = ctx.nominal, ctx.ch, ctx.held_nav
+    summ = localise.summarise(det.cells, cal.get("null_map_max_abs_z"))
+    where = summ["where"]
+    dyn_or_sensor = _dynamics_or_sensor(where, verdict, ranking, effect_set) if detected else None
+    best = ranking[0] if ranking else None
+    acts = None
+    # The set is the answer when it explains the held-out data, or when it
+    # explains part of it (the rest then stays a located remainder).
+    is_set = effect_set is not None and (effect_set["explains_heldout"] or verdict == "partly_explained")
+    if verdict in ("explained", "ambiguous"):
+        if is_set:
+            from bench.gap.select import as_fit
+
+            f = as_fit(effect_set["_fit"])
+        else:
+            f = next(f for f in fits if f.name == best["effect"])
+        acts = localise.signature_regimes(d, ch, nominal.white, f.after_nav.white, nominal.res, f.after_dyn)
+    shrink_best = effect_set["shrink_heldout"] if is_set else (best["shrink_heldout"] if best else None)
+    if is_set:
+        runs_shrink = {"runs": int(d.n_segments), "fraction": None, "reason": "measured on held-out blocks for a set"}
+    else:
+        runs_shrink = heldout_runs_shrink(ctx, best["effect"]) if best is not None and verdict != "no_gap" else None
+    return {
+        "gap_detected": detected,
+        "statistics": _statistics(det, cal, fits),
+        "location": {
+            "where": where,
+            "dynamics_or_sensor": dyn_or_sensor,
+            "top_cells": summ["top_cells"],
+            "effect_acts_while": acts,
+        },
+        "attribution": ranking,
+        "effects": _named_effects(effect_set, is_set, ranking, verdict),
+        "effect_set": effect_set,
+        "screening": _screen_table(fits),
+        "verdict": verdict,
+        "ambiguous_with": ambiguous_with,
+        "shrink_heldout_runs": runs_shrink,
+        "shrink_heldout": (
+            {
+                "effect": " + ".join(m["effect"] for m in effect_set["members"]) if is_set else best["effect"],
+                "fraction": shrink_best["fraction"],
+                "ci95": shrink_best["ci95"],
+            }
+            if best
+            else None
+        ),
+        "replay_rms_heldout_before": channel_rms(nominal.innovation[held]),
+        "not_modelled": list(NOT_MODELLED),
+        "examined": examined(d, ctx, detected),
+        "calibration": cal_info,
+        "log": _log_summary(d, ctx),
+    }
+
+
+def _statistics(det, cal: dict, fits: list) -> dict:
+    """The detection statistics beside their calibrated thresholds."""
+    thr = cal.get("thresholds", {})
+    return {
+        "map_max_abs_z": det.map_max_abs_z,
+        "map_threshold": float(thr.get("map_max_abs_z", np.inf)),
+        "screen_logp_max": det.screen_logp_max,
+        "screen_logp_threshold": float(thr.get("screen_logp", np.inf)),
+        "screen_bic_max": max(f.screen_bic for f in fits),
+        "false_alarm_rate": cal.get("false_alarm_rate"),
+        "calibration_runs": cal.get("runs"),
+    }
+
+
+def _screen_table(fits: list) -> list:
+    """Each candidate's screening statistics, one row per candidate."""
+    return [
+        {
+            "effect": f.name,
+            "kind": f.kind,
+            "screen_2dll": f.screen_2dll,
+            "rank": f.rank,
+            "screen_logp": f.screen_logp,
+            "screen_ln_bf": f.screen_ln_bf,
+            "screen_bic": f.screen_bic,
+        }
+        for f in fits
+    ]
+
+
+def _named_effects(effect_set, is_set: bool, ranking: list, verdict: str) -> list:
+    """The effects the answer names with their parameters: the set's members,
+    or the best single candidate when that is the answer."""
+    if is_set:
+        return effect_set["members"]
+    if verdict in ("explained", "ambiguous"):
+        return [{"effect": ranking[0]["effect"], "parameters": ranking[0]["parameters"]}]
+    return []
+
+
+def _log_summary(d: LogData, ctx: Context) -> dict:
+    """What the log held and how it was split into training and held-out data."""
+    return {
+        "duration_s": d.duration_s,
+        "imu_samples": int(d.imu_t.size),
+        "pose_updates": int(d.pose_tc.size),
+        "segments": int(d.pose_start.sum()),
+        "valves": d.valves is not None,
+        "thrusters": int(d.desc.n_thrusters),
+        "manoeuvres": d.desc.manoeuvres() or None,
+        "defaults_used": list(d.desc.defaults),
+        "dropped": dict(d.dropped),
+        "train_updates": int(ctx.train_nav.sum()),
+        "heldout_updates": int(ctx.held_nav.sum()),
+    }
+
+
+def examined(d: LogData, ctx: Context, detected: bool) -> dict:
+    """What the diagnosis could and could not look at in this log: the
+    channels (the dynamics need the valve stream), runs too short to show a
+    gap, thrusters that never fired and body axes that never turned (their
+    effects are not examined), and the defaults taken for what the log does
+    not state."""
+    ok = np.isfinite(ctx.nominal.nis)
+    channels = {"pose": {"examined": bool(ok.sum() > 0), "rows": int(ok.sum())}}
+    if not channels["pose"]["examined"]:
+        channels["pose"]["why"] = "no pose update accepted by the filter"
+    not_examined = []
+    if ctx.ch is None:
+        for name in ("accelerometer vs valves", "gyro vs valve torques"):
+            channels[name] = {"examined": False, "why": "no valves stream"}
+        not_examined.append(
+            "dynamics (accelerometer and gyro against the commanded thrust): no valves stream, so "
+            "thrust loss, thruster misalignment and mass depletion cannot be seen"
+        )
+    else:
+        n_a = int(np.sum(ctx.ch.kind == 0))
+        channels["accelerometer vs valves"] = {"examined": True, "rows": n_a}
+        channels["gyro vs valve torques"] = {"examined": True, "rows": int(ctx.ch.rows - n_a)}
+        fired = d.valves.sum(axis=0) * d.dt_s
+        idle = [int(i) for i in np.flatnonzero(fired <= 0.0)]
+        if idle:
+            not_examined.append(
+                f"thruster{'s' if len(idle) > 1 else ''} {', '.join(map(str, idle))} never fired: "
+                "their loss and tilt are not examined"
+            )
+        for u in ctx.split.unexcited if ctx.split is not None else []:
+            not_examined.append(f"{u['why']}: its loss and tilt are not identifiable from this log")
+    seg = segment_of(d, d.pose_tc)
+    short = [int(k) for k in np.unique(seg) if int(np.sum(ok & (seg == k))) < MIN_RUN_UPDATES]
+    if short:
+        not_examined.append(
+            f"run{'s' if len(short) > 1 else ''} {', '.join(map(str, short))}: fewer than "
+            f"{MIN_RUN_UPDATES} pose updates each"
+        )
+    if d.ref_q is not None:
+        w_h = np.einsum("nji,j->ni", rotmats(d.ref_q), np.array([0.0, 0.0, d.n_radps]))
+        w_bh = np.abs(d.gyro - w_h)
+        still = [a for i, a in enumerate("xyz") if np.percentile(w_bh[:, i], 99) < RATE_EXCITED_RPS]
+        if still:
+            not_examined.append(
+                f"rotation about body {', '.join(still)} never exceeded {RATE_EXCITED_RPS} rad/s: "
+                "gyro scale on that axis is not examined"
+            )
+    looked = [k for k, v in channels.items() if v["examined"]]
+    missing = [k for k, v in channels.items() if not v["examined"]]
+    summary = (f"no gap in {', '.join(looked)}" if not detected else f"channels: {', '.join(looked)}") + (
+        f"; not examined: {', '.join(missing)} ({channels[missing[0]]['why']})" if missing else ""
+    )
+    return {
+        "summary": summary,
+        "channels": channels,
+        "not_examined": not_examined,
+        "defaults_used": list(d.desc.defaults) if d.desc is not None else [],
+        "dropped": dict(d.dropped),
+    }

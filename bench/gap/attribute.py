@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.gap.candidates import CANDIDATES, Candidate, candidates_of
-from bench.gap.replay import LogData, replay
+from bench.gap.load import LogData
+from bench.gap.replay import replay
 
 BF_AMBIGUOUS = float(np.log(20.0))  # ln Bayes factor below which two candidates are not told apart
 # Two signatures closer than this (in noise variances) are told apart with

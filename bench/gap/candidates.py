@@ -23,7 +23,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from bench.gap.replay import Corrections, LogData
+from bench.gap.load import LogData
+from bench.gap.replay import Corrections
 
 
 @dataclass(frozen=True)

@@ -124,7 +124,7 @@ def _log_problem(log):
     """(ctx, e0, rows_ok) of the log's nominal model on its training rows."""
     from bench.gap.attribute import training_residuals
     from bench.gap.detection import context
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
 
     ctx = context(prepare(log))
     e0, rows_ok = training_residuals(ctx)
@@ -264,7 +264,7 @@ def fit_hypotheses(log, sets: list) -> list:
 def description_of(log) -> dict:
     """The log's described vehicle, sensors and orbit as a full description
     (every default resolved, bench/sim/log_description.py), for flying plans."""
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
 
     d = prepare(log)
     r = d.desc
@@ -384,7 +384,7 @@ def block_jacobians(description: dict, blocks: list, hyps: list) -> tuple:
     simulator flies all its members."""
     from bench.gap.attribute import signature
     from bench.gap.detection import context
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
     from bench.sim.vehicle_sim import simulate
 
     n_valves = _thrusts(description)[0].size
@@ -890,7 +890,7 @@ def flown_distances(description: dict, segments: list, hyps: list, truth: int, s
     s the true set's linearisation does not reach."""
     from bench.gap.attribute import signature
     from bench.gap.detection import context
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
     from bench.sim.vehicle_sim import simulate
 
     A = hyps[truth]

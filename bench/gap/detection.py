@@ -1,4 +1,5 @@
-"""Detection: the two statistics that say whether a log holds a gap, computed
+"""Stage 4 of the diagnosis (bench/gap/diagnose.py), detect and map: the
+gap map and the two statistics that say whether a log holds a gap, computed
 under the nominal model.
 
 ``detect(d)`` runs the nominal replay of a prepared log (bench/gap/replay.py)
@@ -18,7 +19,8 @@ import numpy as np
 
 from bench.gap import dyn, localise, quantify
 from bench.gap.attribute import Context, Pass, screen
-from bench.gap.replay import LogData, ReplayResult, prepare, reference
+from bench.gap.load import LogData, prepare
+from bench.gap.replay import ReplayResult, reference
 
 
 def pass_from(res: ReplayResult, d: LogData) -> Pass:
@@ -51,16 +53,15 @@ def map_cells(d: LogData, p: Pass) -> list:
 
 
 def context(d: LogData) -> Context:
-    """The nominal pass over a prepared log, its dynamics channel, and the
-    training / held-out split of both channels (alternate time blocks that
-    excite every fired valve in both halves, quantify.excitation_split)."""
-    nominal = pass_from(reference(d), d)
-    ch = dyn.build(d)
-    split = quantify.excitation_split(d.imu_t, d.valves * d.dt_s if d.valves is not None else None)
-    train, held = split.masks(d.pose_tc)
-    ok = np.isfinite(nominal.nis)
-    train_dyn, held_dyn = split.masks(ch.t) if ch is not None else (None, None)
-    return Context(d, nominal, ch, train & ok, held & ok, train_dyn, held_dyn, split)
+    """Stages 2 and 3 over a prepared log: the nominal pass (replay), its
+    dynamics channel (dyn.build), and the training / held-out split of both
+    (quantify.split_context)."""
+    return quantify.split_context(d, pass_from(reference(d), d), dyn.build(d))
+
+
+def gap_map(ctx: Context) -> list:
+    """The gap map's cells of both channels under the nominal model."""
+    return map_cells(ctx.d, ctx.nominal) + localise.dyn_cells(ctx.d, ctx.ch)
 
 
 @dataclass
@@ -72,16 +73,22 @@ class Detection:
     screen_logp_max: float
 
 
+def statistics(ctx: Context, cells: list, fits: list) -> Detection:
+    """Both detection statistics: the gap map's largest |z| and the
+    screening's smallest p-value (as -log10 p)."""
+    return Detection(ctx, cells, localise.map_statistic(cells), fits, max(f.screen_logp for f in fits))
+
+
 def detect(d: LogData, progress=None, given: dict | None = None) -> Detection:
-    """Both detection statistics of a prepared log. ``progress(n)`` is called
-    after the nominal pass and after each screening replay. ``given``: the
+    """Both detection statistics of a prepared log (the diagnosis's stages 2
+    to 5, as a null calibration runs them). ``progress(n)`` is called after
+    the nominal pass and after each screening replay. ``given``: the
     candidates' Jacobians to screen with (attribute.screen)."""
     ctx = context(d)
     if progress is not None:
         progress()
-    cells = map_cells(d, ctx.nominal) + localise.dyn_cells(d, ctx.ch)
-    fits = screen(ctx, progress=progress, given=given)
-    return Detection(ctx, cells, localise.map_statistic(cells), fits, max(f.screen_logp for f in fits))
+    cells = gap_map(ctx)
+    return statistics(ctx, cells, screen(ctx, progress=progress, given=given))
 
 
 def null_statistics(log, given: dict | None = None) -> dict:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import cholesky_banded, solve_banded
 
-from bench.gap.replay import LogData
+from bench.gap.load import LogData
 from bench.so3 import rotmats, rotvec_matrix
 
 # Candidates with a signature in this channel, and the parameters each takes.
@@ -466,7 +466,7 @@ def _open_weighted_run_seconds(valves: dict, t: np.ndarray, dt: float, n_thruste
     (the propellant gone), averaged over valve i's open time within each
     IMU interval (t_k - dt, t_k]: the mass each valve's thrust acted on,
     exactly for pulses of any length and jittered or dropped samples."""
-    from bench.gap.replay import open_time
+    from bench.gap.load import open_time
 
     vt, on = _pulses(valves, n_thrusters)
     pulses = [(vt[on[:, i] > 0.0], on[on[:, i] > 0.0, i]) for i in range(n_thrusters)]

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.gap.replay import LogData, ReplayResult
+from bench.gap.load import LogData
+from bench.gap.replay import ReplayResult
 from bench.so3 import rotmats
 
 STREAMS = (("pose position", 0, "xyz (Hill)"), ("pose attitude", 3, "xyz (body)"))

@@ -38,6 +38,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.gap.attribute import Context, Pass, confirm, screen
+from bench.gap.candidates import candidates_of
+from bench.gap.load import LogData
+
 N_BLOCKS = 6
 BOOT = 400
 BOOT_BLOCK = 5
@@ -340,3 +344,145 @@ def gap_cells(nis_train, e_train=None, lab_train=None, seg_train=None) -> list:
 def channel_rms(innov: np.ndarray) -> dict:
     names = ("r_x_m", "r_y_m", "r_z_m", "th_x_rad", "th_y_rad", "th_z_rad")
     return {k: float(np.sqrt(np.mean(innov[:, i] ** 2))) if innov.size else float("nan") for i, k in enumerate(names)}
+
+
+def split_context(d: LogData, nominal: Pass, ch) -> Context:
+    """The training / held-out split of both channels, the nominal pass
+    and the dynamics channel ``ch`` (None without valves): alternate time
+    blocks that excite every fired valve in both halves (excitation_split),
+    the navigation rows where the nominal pass fused a pose."""
+    split = excitation_split(d.imu_t, d.valves * d.dt_s if d.valves is not None else None)
+    train, held = split.masks(d.pose_tc)
+    ok = np.isfinite(nominal.nis)
+    train_dyn, held_dyn = split.masks(ch.t) if ch is not None else (None, None)
+    return Context(d, nominal, ch, train & ok, held & ok, train_dyn, held_dyn, split)
+
+
+# --- the scores every answer is judged by (stage 7) ---------------------------
+
+
+def channel_gain(e0: np.ndarray, e1: np.ndarray) -> dict:
+    """What a candidate's fit did to one channel's training rows: e0, e1 its
+    whitened residuals before and after (rows with NaN dropped). g is the
+    channel's log-likelihood gain, 1/2 (|e0|^2 - |e1|^2), and q = |e1 - e0|^2
+    the size of the correction there. A right candidate gains in every
+    channel it touches on average (its signal is there, and the fit's own
+    noise-fitting only adds to a training gain); noise moves g by about
+    sqrt(q). A look-alike that buys one channel at another's cost corrects
+    where the data show nothing, and there g is about -q / 2. z = g / sqrt(q)
+    below -Z_CONTRADICT says the channel contradicts the candidate."""
+    ok = np.isfinite(e0) & np.isfinite(e1)
+    a, b = e0[ok], e1[ok]
+    d = b - a
+    q = float(d @ d)
+    g = 0.5 * float(a @ a - b @ b)
+    return {"gain": g, "q": q, "z": g / np.sqrt(q) if q > 0.0 else 0.0}
+
+
+def segment_of(d: LogData, t: np.ndarray) -> np.ndarray:
+    """Which chained run (segment) each time falls in."""
+    brk = np.flatnonzero(np.diff(d.imu_seg) != 0) + 1
+    return np.searchsorted(d.imu_t[brk], np.asarray(t, float), side="right")
+
+
+def gap_cells_of(ctx: Context):
+    """The deficit cells where the nominal model's gap lies on the training
+    rows (gap_cells), every dynamics row's cell and its segment
+    (dyn_segments)."""
+    ch = ctx.ch
+    if ch is None:
+        return gap_cells(ctx.nominal.nis[ctx.train_nav]), None, None
+    lab, seg = dyn_cell_labels(ch), dyn_segments(ch)
+    tr = ctx.train_dyn
+    return gap_cells(ctx.nominal.nis[ctx.train_nav], ch.e0[tr], lab[tr], seg[tr]), lab, seg
+
+
+def heldout_runs_shrink(ctx: Context, name: str) -> dict:
+    """Fit ``name`` on the even-numbered runs of a chained log and measure
+    the shrink on the odd-numbered ones (every time block of them)."""
+    d, ch, nominal = ctx.d, ctx.ch, ctx.nominal
+    seg_nav = segment_of(d, d.pose_tc)
+    n_runs = int(segment_of(d, d.imu_t[-1:])[0]) + 1
+    if n_runs < 2:
+        return {"runs": n_runs, "fraction": None, "reason": "the log holds one run"}
+    ok = np.isfinite(nominal.nis)
+    train, held = ok & (seg_nav % 2 == 0), ok & (seg_nav % 2 == 1)
+    td = hd = None
+    if ch is not None:
+        seg_dyn = segment_of(d, ch.t)
+        td, hd = seg_dyn % 2 == 0, seg_dyn % 2 == 1
+    c2 = Context(d, nominal, ch, train, held, td, hd)
+    f = screen(c2, names=[name])[0]
+    if not np.isfinite(f.screen_bic):
+        return {"runs": n_runs, "fraction": None, "reason": "no signature on the training runs"}
+    confirm(c2, f)
+    e0 = e1 = t_d = None
+    if ch is not None:
+        t_d = ch.t[hd]
+        e0, e1 = ch.e0[hd], (f.after_dyn if f.after_dyn is not None else ch.e0)[hd]
+    cells, lab, seg = gap_cells_of(c2)
+    sh = shrink_combined(
+        d.pose_tc[held],
+        nominal.nis[held],
+        f.after_nav.nis[held],
+        t_d,
+        e0,
+        e1,
+        cells=cells,
+        lab_dyn=None if lab is None else lab[hd],
+        seg_dyn=None if seg is None else seg[hd],
+    )
+    return {
+        "runs": n_runs,
+        "train_runs": int((n_runs + 1) // 2),
+        "heldout_runs": int(n_runs // 2),
+        **sh,
+        "parameters": {p: float(v) for p, v in zip(candidates_of(d)[name].params, f.theta)},
+    }
+
+
+class HeldOut:
+    """The scores every answer is judged by: the held-out shrink and
+    log-likelihood gain, and each channel's gain on the training rows, of a
+    replay with the candidate's corrections (after_nav, after_dyn) against
+    the nominal one. The shrink counts the gap's cells only (gap_cells_of)."""
+
+    def __init__(self, ctx: Context):
+        self.ctx = ctx
+        self.cells, self.lab_dyn, self.seg_dyn = gap_cells_of(ctx)
+
+    def shrink(self, after_nav: Pass, after_dyn) -> dict:
+        ctx, ch, hd = self.ctx, self.ctx.ch, self.ctx.held_dyn
+        e0 = e1 = td = None
+        if ch is not None:
+            td = ch.t[hd]
+            e0, e1 = ch.e0[hd], (after_dyn if after_dyn is not None else ch.e0)[hd]
+        held = ctx.held_nav
+        return shrink_combined(
+            ctx.d.pose_tc[held],
+            ctx.nominal.nis[held],
+            after_nav.nis[held],
+            td,
+            e0,
+            e1,
+            cells=self.cells,
+            lab_dyn=None if self.lab_dyn is None else self.lab_dyn[hd],
+            seg_dyn=None if self.seg_dyn is None else self.seg_dyn[hd],
+        )
+
+    def train_channels(self, after_nav: Pass, after_dyn) -> dict:
+        ctx, ch, train = self.ctx, self.ctx.ch, self.ctx.train_nav
+        out = {"pose": channel_gain(ctx.nominal.white[train].ravel(), after_nav.white[train].ravel())}
+        if ch is not None and after_dyn is not None:
+            for name, kind in (("accelerometer", 0), ("gyro", 1)):
+                m = ctx.train_dyn & (ch.kind == kind)
+                out[name] = channel_gain(ch.e0[m].ravel(), after_dyn[m].ravel())
+        return out
+
+    def dll(self, after_nav: Pass, after_dyn) -> float:
+        ctx, ch, held = self.ctx, self.ctx.ch, self.ctx.held_nav
+        v = float(np.nansum(after_nav.loglik[held]) - np.nansum(ctx.nominal.loglik[held]))
+        if ch is not None and after_dyn is not None:
+            e0, e1 = ch.e0[ctx.held_dyn].ravel(), after_dyn[ctx.held_dyn].ravel()
+            v += 0.5 * float(e0 @ e0 - e1 @ e1)
+        return v

@@ -72,7 +72,8 @@ def _median(rows: list, key: str) -> float:
 def time_replay(path: Path, repeats: int) -> dict:
     """Median wall and CPU time of one navigation replay of the log (after
     its reference), stepped from Python and in one call, alternated."""
-    from bench.gap.replay import prepare, reference, replay
+    from bench.gap.load import prepare
+    from bench.gap.replay import reference, replay
     from bench.perf.nav_replay_stepped import stepped
     from bench.sim.flight_log import read_flight_log
 

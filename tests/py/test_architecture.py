@@ -13,17 +13,22 @@ import pytest
 grimp = pytest.importorskip("grimp")
 
 # bench/gap, top to bottom: a module may import its own layer or lower ones.
+# The layers are the diagnosis's stages in reverse (bench/gap/diagnose.py
+# names them): a stage uses the ones before it, never one after it.
 GAP_LAYERS = (
-    ("the test that separates, the bundled run", {"design", "bundled"}),
-    ("the answer: verdicts, words, report", {"diagnose", "answers", "report", "report_plots"}),
+    ("the pipeline, and the test that separates", {"diagnose", "design"}),
+    ("9 report", {"report", "report_plots"}),
+    ("8 answer", {"answers"}),
+    ("7 confirm and select", {"verdict", "select", "alternatives"}),
     (
-        "null calibrations and the flights they simulate",
-        {"null", "log_null", "calibration_file", "validity"},
+        "thresholds: the null calibrations, the bundled run",
+        {"null", "log_null", "calibration_file", "validity", "bundled"},
     ),
-    (
-        "the model: replay, dynamics channel, candidates, screening, selection, detection",
-        {"detection", "select", "alternatives", "attribute", "localise", "quantify", "dyn", "candidates", "replay"},
-    ),
+    ("4 detect and map, 6 quantify", {"detection", "localise", "quantify"}),
+    ("5 screen: the candidates and their signatures", {"attribute", "candidates"}),
+    ("3 channels", {"dyn"}),
+    ("2 replay", {"replay"}),
+    ("1 load", {"load"}),
 )
 # Only the command line and the HIL performance comparison use the HIL loop;
 # the HIL loop builds on the bench's models.

@@ -7,7 +7,8 @@ import pytest
 from bench.campaigns.gap.validate import blind, run_campaign
 from bench.gap import null as nullmod
 from bench.gap.diagnose import diagnose, public
-from bench.gap.replay import prepare, reference
+from bench.gap.load import prepare
+from bench.gap.replay import reference
 
 reality = pytest.importorskip("bench.sim.reality")
 
@@ -22,7 +23,7 @@ def _log(seed, effects):
 @pytest.fixture(scope="module")
 def calibration():
     cal = nullmod.load()
-    assert cal, "bench/gap/data/null_calibration.json missing (python -m bench.gap.null)"
+    assert cal, "bench/gap/data/null_calibration.json missing (python -m bench.commands.null_calibration)"
     return cal
 
 
@@ -330,7 +331,7 @@ def test_segments_cut_at_valve_changes_runs_and_windows():
 def test_signature_distance_is_zero_inside_the_other_span_and_full_outside():
     from bench.gap.attribute import Fit
     from bench.gap.candidates import CANDIDATES
-    from bench.gap.diagnose import signature_distance
+    from bench.gap.verdict import signature_distance
 
     rng = np.random.default_rng(1)
     Jb = rng.standard_normal((200, 3))
@@ -349,7 +350,7 @@ def test_signature_distance_is_zero_inside_the_other_span_and_full_outside():
 def test_a_thrust_gain_is_no_thrust_loss():
     from bench.gap.attribute import Fit, bound_excess
     from bench.gap.candidates import CANDIDATES
-    from bench.gap.diagnose import signature_distance
+    from bench.gap.verdict import signature_distance
 
     loss = CANDIDATES["thrust_loss"]
     assert loss.nonnegative and loss.lower == 0.0 and CANDIDATES["gyro_bias"].lower == -CANDIDATES["gyro_bias"].bound
@@ -408,7 +409,8 @@ def test_a_campaign_with_the_characterisation_records_it_in_every_key():
 
 
 def test_a_fit_that_buys_one_channel_with_another_is_a_contradiction():
-    from bench.gap.diagnose import Z_CONTRADICT, channel_gain
+    from bench.gap.quantify import channel_gain
+    from bench.gap.verdict import Z_CONTRADICT
 
     rng = np.random.default_rng(8)
     n = rng.standard_normal(3000)

@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from bench.gap import dyn
-from bench.gap.replay import prepare
+from bench.gap.load import prepare
 from bench.sim.flight_log import relative_to_start
 from bench.sim.vehicle_sim import simulate
 
@@ -26,7 +26,7 @@ DRAWS = 40
 
 
 def _noise_free_channel(vehicle_seed: int):
-    from bench.gap.log_null import random_flight
+    from bench.campaigns.gap.log_null_far import random_flight
 
     desc, clocks, plan = random_flight(vehicle_seed)
     log, _ = simulate(desc, plan, {}, seed=433590181, clocks=clocks, with_truth=False, noise_scale=0.0)

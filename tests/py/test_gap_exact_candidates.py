@@ -24,7 +24,8 @@ import pytest
 from bench.gap import dyn
 from bench.gap.attribute import run_pass
 from bench.gap.candidates import candidates_of
-from bench.gap.replay import prepare, reference
+from bench.gap.load import prepare
+from bench.gap.replay import reference
 from bench.sim.log_description import resolve
 from bench.sim.plans import characterisation_plan
 from bench.sim.random_vehicle import random_clocks, random_description

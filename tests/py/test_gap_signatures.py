@@ -9,7 +9,7 @@ from bench.gap import log_null
 from bench.gap.attribute import NAV_READINGS_FREE, signatures
 from bench.gap.detection import context, null_statistics
 from bench.gap.dyn import READINGS_FREE
-from bench.gap.replay import prepare
+from bench.gap.load import prepare
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def test_null_runs_with_the_shared_jacobians_keep_their_statistics(flight):
         own, with_shared = null_statistics(null), null_statistics(null, shared)
         assert with_shared["map_max_abs_z"] == own["map_max_abs_z"]  # the map needs no Jacobian
         assert with_shared["screen_logp"] == pytest.approx(own["screen_logp"], abs=0.1)
-        assert log_null._one(seed, (log, prepared, 99)) == {"seed": seed, **with_shared}
+        assert log_null.null_run(seed, (log, prepared, 99)) == {"seed": seed, **with_shared}
 
 
 def test_jacobians_of_another_shape_are_not_used(flight):

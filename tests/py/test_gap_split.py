@@ -55,8 +55,8 @@ def test_a_valve_fired_in_one_short_window_is_named_with_its_times():
 
 
 def test_parameters_of_an_unexcited_valve_or_without_spread_have_no_value():
-    from bench.gap.diagnose import parameters
-    from bench.gap.replay import LogData
+    from bench.gap.load import LogData
+    from bench.gap.verdict import parameters
 
     d = LogData.__new__(LogData)
     d.desc = None

@@ -15,7 +15,7 @@ from bench.gap import bundled, log_null
 from bench.gap import null as nullmod
 from bench.gap.answers import answer_lines
 from bench.gap.diagnose import diagnose, public
-from bench.gap.replay import prepare
+from bench.gap.load import prepare
 from bench.sim.flight_log import read_flight_log
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,7 @@ import pytest
 from bench.gap import bundled
 from bench.gap.answers import answer_lines
 from bench.gap.diagnose import diagnose, public
-from bench.gap.replay import prepare
+from bench.gap.load import prepare
 from bench.sim.flight_log import (
     STREAMS,
     VALVE_OVERLAP_TOL_S,

@@ -12,8 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.campaigns.gap import log_null_far
+from bench.campaigns.gap.log_null_far import MAX_RATIO, tail_evidence
 from bench.gap import log_null
-from bench.gap.log_null import FA_EACH, MAX_RATIO, STATISTICS, frechet_threshold, tail_evidence, tail_threshold
+from bench.gap.log_null import FA_EACH, STATISTICS, frechet_threshold, tail_threshold
 
 DATA = Path(__file__).resolve().parents[2] / "bench" / "gap" / "data"
 
@@ -41,7 +43,7 @@ def test_a_long_lower_tail_does_not_move_the_threshold():
     for k in STATISTICS:
         for _ in range(20):
             v = rng.choice(np.array(cal[f"null_{k}"]), 40, replace=False)
-            low = log_null._stretched_low(v, rng)
+            low = log_null_far._stretched_low(v, rng)
             assert np.sum(low < v) >= 10
             assert tail_threshold(low)[0] == tail_threshold(v)[0] <= MAX_RATIO * v.max()
         assert frechet_threshold(low) > MAX_RATIO * low.max()
@@ -50,10 +52,10 @@ def test_a_long_lower_tail_does_not_move_the_threshold():
 def test_leave_one_out_judges_each_null_run_by_the_others():
     rng = np.random.default_rng(3)
     null = {k: rng.gumbel(3.0, 0.5, 40) for k in STATISTICS}
-    flagged, n = log_null.leave_one_out(null)
+    flagged, n = log_null_far.leave_one_out(null)
     assert n == 40 and 0 <= flagged <= 3
     null["screen_logp"][7] = 50.0  # far above the others: flagged
-    assert log_null.leave_one_out(null)[0] >= 1
+    assert log_null_far.leave_one_out(null)[0] >= 1
 
 
 def test_the_tail_is_fitted_to_the_top_and_recorded():
@@ -194,7 +196,7 @@ def test_a_damaged_or_mismatched_cache_entry_is_made_again(one_vehicle, tmp_path
     third = log_null.calibrate_for_log(log, runs=3, seed=3, workers=1, cache_dir=tmp_path, progress=False)
     assert third["from_cache"] and third["thresholds"] == cal["thresholds"]
     # Supplied with --calibration, a raised threshold is refused.
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
 
     with pytest.raises(log_null.CalibrationMismatch, match="not its null values"):
         log_null.check_supplied(bad["not its null values'"], log, prepare(log), "cal.json")
@@ -202,13 +204,13 @@ def test_a_damaged_or_mismatched_cache_entry_is_made_again(one_vehicle, tmp_path
 
 def test_false_alarm_campaign_mechanics(tmp_path):
     """Two random vehicles, 3 null runs each, 2 fresh logs each: the
-    mechanics of ``python -m bench.gap.log_null far`` (not its rate)."""
+    mechanics of ``python -m bench.campaigns.gap.log_null_far far`` (not its rate)."""
     from bench.runner.runner import Campaign
     from bench.runner.store import RunStore
 
     def run():
         store = RunStore("log-null-far", {"test": 1}, root=tmp_path / "runs")
-        return log_null.far(2, 2, 3, 17, Campaign(store, workers=1, progress=False), cache_dir=tmp_path / "cal")
+        return log_null_far.far(2, 2, 3, 17, Campaign(store, workers=1, progress=False), cache_dir=tmp_path / "cal")
 
     res = run()
     assert res["summary"]["vehicles"] == len(res["vehicles"]) == 2
@@ -235,7 +237,7 @@ def test_another_flight_of_the_plan_with_its_own_jitter_shares_its_calibration(t
     model, the thresholds no longer follow the stamps (docs/GAP.md, "The
     cache"). A flight at another IMU rate, with other valves or with a
     command 10 ms later does not share it."""
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
     from bench.sim.plans import characterisation_plan
     from bench.sim.random_vehicle import random_clocks, random_description
     from bench.sim.vehicle_sim import simulate

@@ -14,7 +14,8 @@ if not hasattr(fb, "nav_replay"):
     pytest.skip("fsw_bindings has no nav_replay (rebuild the bindings)", allow_module_level=True)
 
 from bench.gap import bundled  # noqa: E402
-from bench.gap.replay import V0_SIGMA_MPS, Corrections, ReplayResult, nav_config, prepare, reference, replay  # noqa: E402
+from bench.gap.load import V0_SIGMA_MPS, prepare  # noqa: E402
+from bench.gap.replay import Corrections, ReplayResult, nav_config, reference, replay  # noqa: E402
 from bench.perf.nav_replay_stepped import stepped  # noqa: E402
 from bench.sim.flight_log import read_flight_log  # noqa: E402
 from bench.sim.plans import characterisation_plan  # noqa: E402

@@ -4,7 +4,7 @@ valve integration agreeing with the simulator's."""
 
 import numpy as np
 
-from bench.gap.replay import open_fractions
+from bench.gap.load import open_fractions
 from bench.sim.plans import characterisation_plan
 from bench.sim.vehicle_sim import Clocks, PlanSegment, simulate
 from bench.sim.vehicles import inspector_12kg
@@ -87,7 +87,8 @@ def test_gyro_differences_are_exact_under_jitter_drops_and_pwm():
     # jittered and dropped samples and pulses shorter than an interval (a
     # per-sample torque average leaked a drift of 2e-3 rad/s here).
     from bench.gap import dyn
-    from bench.gap.replay import prepare, reference
+    from bench.gap.load import prepare
+    from bench.gap.replay import reference
 
     desc = inspector_12kg()
     desc["imu"] = dict(desc["imu"], accel_noise_density_mps2_rthz=1e-12, gyro_noise_density_rps_rthz=1e-12)

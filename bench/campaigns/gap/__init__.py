@@ -15,4 +15,5 @@ committed data. They use the diagnosis; the diagnosis never uses them
   null_calibration     the committed null calibrations (bench/gap/null.py), made again
   simlogs              the bench's docking scenario written as flight logs
   bundled_run          the bundled reality run (bench/gap/bundled.py), made again
+  log_null_far         the calibration made for a log, checked: tail model, false alarms on random vehicles
 """

@@ -68,7 +68,7 @@ def residuals_of(log, ctx_ref=None):
     rows of ``ctx_ref`` (the effect-free run) when given."""
     from bench.gap.attribute import training_residuals
     from bench.gap.detection import context
-    from bench.gap.replay import prepare
+    from bench.gap.load import prepare
 
     ctx = context(prepare(log))
     if ctx_ref is None:
@@ -250,7 +250,9 @@ def min_detectable_size(
         spec = replace(spec, max_size=float(max_size))
     thr = float(calibration.get("thresholds", {}).get("screen_logp", np.nan))
     if not np.isfinite(thr):
-        raise ValueError("the null calibration has no screen_logp threshold (regenerate it: python -m bench.gap.null)")
+        raise ValueError(
+            "the null calibration has no screen_logp threshold (regenerate it: python -m bench.commands.null_calibration)"
+        )
     with_candidate = spec.in_library and name in CANDIDATES
     thr_map = float(calibration["thresholds"]["map_max_abs_z"])
     k_all = spec.n_params

@@ -437,7 +437,7 @@ def run_campaign(
     cal = nullmod.load(manoeuvres=manoeuvres)
     if not cal:
         raise FileNotFoundError(
-            f"no null calibration for {manoeuvres!r} logs (python -m bench.gap.null --manoeuvres {manoeuvres})"
+            f"no null calibration for {manoeuvres!r} logs (python -m bench.commands.null_calibration --manoeuvres {manoeuvres})"
         )
     campaign = new_campaign(campaign, workers, progress)
     t0 = time.time()

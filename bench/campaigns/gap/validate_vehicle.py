@@ -214,7 +214,7 @@ def diagnose_run(key, calibration, simulate=None, source: str = "the 12 kg vehic
 def load_calibration() -> dict:
     if not CAL_PATH.exists():
         raise FileNotFoundError(
-            f"no null calibration for the {VEHICLE} vehicle (python -m bench.campaigns.gap.validate_vehicle calibrate)"
+            f"no null calibration for the {VEHICLE} vehicle (python -m bench.commands.null_calibration --vehicle 12kg)"
         )
     return json.loads(CAL_PATH.read_text())
 
