@@ -96,6 +96,46 @@ def diagnose_bundled(report_dir: Path) -> int:
     write_json(report_dir / "diagnosis.json", out)
     print_answers(out, indent="  ")
     print(f"  diagnosed in {out['elapsed_s']:.1f} s; report {page}")
+    plan_if_ambiguous(bundled.LOG, out, report_dir)
     key = bundled.sealed_key()
     print(f"  sealed key, opened after the answer: {key['effects']}")
     return 0
+
+
+def plan_if_ambiguous(log_path: Path, out: dict, report_dir: Path) -> None:
+    """An ambiguous answer comes with the test that would settle it: the
+    valve plan designed for the log's own vehicle within the default limits
+    (`proxops plan LOG --separate`, bench/gap/design.py; docs/GAP.md),
+    written beside the diagnosis with its figure, and each pair's predicted
+    distance printed against the fixed characterisation's."""
+    if out.get("verdict") != "ambiguous" or not out.get("ambiguous_with"):
+        return
+    from bench.gap.design import plot, separate
+    from bench.report import write_json
+    from bench.sim.flight_log import read_flight_log
+
+    print("  ambiguous: designing the valve plan that would separate the look-alikes (about 30 s) ...", flush=True)
+    path, fig = report_dir / "plan.json", report_dir / "plan.png"
+    command = f"proxops plan {log_path} --separate --diagnosis {report_dir / 'diagnosis.json'} --json {path}"
+    res = {"command": command, **separate(read_flight_log(log_path, relative_time=True), out)}
+    write_json(path, res, strict=True)
+    plot(res, str(fig))
+    d, f = res["designed"], res["fixed"]
+    fired = sorted({int(v) for run in d["schedule"] for v in run["valves"]})
+    print(
+        f"  plan it would fly: {d['runs']} runs from rest, valves {', '.join(map(str, fired))} "
+        f"({res['passes']} passes), {d['duration_s']:.0f} s and {d['delta_v_mps']:.3g} m/s "
+        f"(fixed characterisation: {f['duration_s']:.0f} s, {f['delta_v_mps']:.3g} m/s)"
+    )
+    for pd, pf in zip(d["pairs"], f["pairs"]):
+        told = "separated" if pd["separated_95"] else "not separated within the limits"
+        print(
+            f"    {pd['a']} vs {pd['b']}: distance {pd['delta2']:.3g} "
+            f"(fixed plan {pf['delta2']:.3g}; {res['delta2_95']:.3g} separates 95 % of the time): {told}"
+        )
+    if not all(p["separated_95"] for p in d["pairs"]):
+        print(
+            "    more delta-v or time separates the rest: proxops plan LOG --separate --target-delta2 10.8 "
+            "--max-duration-s 300 --max-delta-v 0.4"
+        )
+    print(f"  plan {path}; figure {fig}")
