@@ -139,11 +139,12 @@ int main(int argc, char** argv) {
     (void)std::fprintf(stderr,
                        "fsw_node: stopped; frames %u, packets accepted %u, rejected %u, imu steps %u, "
                        "pose updates %u (fused %u, deferred %u), learner samples %u, range images %u (fused %u, "
-                       "frequency acquisitions %u), resets refused %u, telemetry packets %u (dropped %u, "
-                       "non-finite values clamped %u)\n",
+                       "frequency acquisitions %u), resets refused %u, plans loaded %u (plan commands refused %u, "
+                       "plan valve commands %u), telemetry packets %u (dropped %u, non-finite values clamped %u)\n",
                        l.frames_total, l.packets_accepted, l.rejected_total(), c.imu_steps, c.pose_updates,
                        c.pose_fused, c.poses_deferred, c.learner_samples, m.images, m.images_fused, m.acquisitions,
-                       c.resets_refused, c.tx_packets, c.tx_dropped, c.tm_values_clamped);
+                       c.resets_refused, c.plans_loaded, c.plan_commands_refused, c.plan_valve_commands, c.tx_packets,
+                       c.tx_dropped, c.tm_values_clamped);
   }
   return 0;
 }
