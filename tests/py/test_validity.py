@@ -37,8 +37,8 @@ def _not_finite(seed, flight):
 
 
 def test_a_calibration_whose_null_flights_are_not_finite_names_the_fields(tmp_path, monkeypatch):
-    monkeypatch.setattr(cluster, "inside_worker", lambda: True)  # the runs in this process, with _one replaced
-    monkeypatch.setattr(log_null, "_one", _not_finite)
+    monkeypatch.setattr(cluster, "inside_worker", lambda: True)  # the runs in this process, with null_run replaced
+    monkeypatch.setattr(log_null, "null_run", _not_finite)
     log = read_flight_log(bundled.LOG)
     log.description = copy.deepcopy(dict(bench_description(), segments=[WHOLE_RUN]))
     log.description["imu"]["gyro_sigma_rps"] = 1e-6
@@ -54,7 +54,7 @@ def _raises(seed, flight):
 
 def test_failed_null_flights_name_the_fields_outside_the_envelope(tmp_path, monkeypatch):
     monkeypatch.setattr(cluster, "inside_worker", lambda: True)
-    monkeypatch.setattr(log_null, "_one", _raises)
+    monkeypatch.setattr(log_null, "null_run", _raises)
     log = read_flight_log(bundled.LOG)
     log.description = copy.deepcopy(dict(bench_description(), segments=[WHOLE_RUN]))
     log.description["vehicle"]["mass_kg"] = 0.1  # 0.16 N of thrust: 1.6 m/s^2
