@@ -62,7 +62,7 @@ def residual_series(result: dict) -> tuple:
                     f"{name} {ax}",
                     ch.t[m],
                     ch.e0[m, i],
-                    fit.after_dyn[m, i] if fit.after_dyn is not None else None,
+                    fit.after_dyn[m, i] if fit is not None and fit.after_dyn is not None else None,
                     hd,
                     d.dt_s,
                 )

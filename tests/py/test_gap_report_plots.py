@@ -114,3 +114,9 @@ def test_the_residuals_shown_are_where_the_gap_was_found(tmp_path):
     moved["location"] = {**res["location"], "where": {**res["location"]["where"], "stream": "pose position"}}
     series, what = residual_series(moved)
     assert what.startswith("pose innovations") and series[0][0].startswith("r_x")
+    # an answer with no effect to show (unexplained, or no gap) where the gap map's
+    # largest cell is in the dynamics channel: the nominal rows alone, no "after"
+    for verdict, attribution in (("unexplained", res["attribution"]), ("no_gap", [])):
+        alone = {**copy.copy(res), "verdict": verdict, "attribution": attribution, "effect_set": None}
+        series, what = residual_series(alone)
+        assert what.startswith("accelerometer and gyro") and all(s[3] is None for s in series)
