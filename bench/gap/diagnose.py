@@ -45,7 +45,6 @@ draws the same):
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -60,27 +59,7 @@ from bench.gap.log_null import thresholds_for
 from bench.gap.quantify import HeldOut, split_context
 from bench.gap.replay import reference
 from bench.gap.verdict import N_CONFIRM, decide, rank
-
-
-class _Progress:
-    def __init__(self, total: int, enabled: bool, label: str = "diagnose"):
-        self.total, self.done, self.enabled, self.label = total, 0, enabled, label
-        self.t0 = self.t_last = time.time()
-
-    def __call__(self, n: int = 1):
-        self.done += n
-        if self.enabled and time.time() - self.t_last > 0.5:
-            self.t_last = time.time()
-            print(
-                f"\r  {self.label}: {min(self.done, self.total)}/{self.total} replays, {time.time() - self.t0:5.1f} s",
-                end="",
-                flush=True,
-                file=sys.stderr,
-            )
-
-    def close(self):
-        if self.enabled:
-            print(f"\r  {self.label}: {self.done} replays, {time.time() - self.t0:5.1f} s", file=sys.stderr)
+from bench.runner.progress import ProgressBar
 
 
 def diagnose(
@@ -107,7 +86,7 @@ def diagnose(
     cal, cal_info = thresholds_for(
         log, d, calibration, make_calibration, calibration_source, calibration_runs, progress
     )
-    prog = _Progress(1 + sum(c.n_params for c in CANDIDATES.values() if c.nav), progress)
+    prog = ProgressBar("diagnose", 1 + sum(c.n_params for c in CANDIDATES.values() if c.nav), progress, unit="replay")
     ctx = split_context(d, pass_from(reference(d), d), build(d))  # 2, 3
     prog()
     cells = gap_map(ctx)  # 4

@@ -524,3 +524,16 @@ def test_the_clock_candidate_undoes_a_drifting_flight_clock():
     assert public(res)["verdict"] == "no_gap"
     fit = next(f for f in res["_internal"]["fits"] if f.name == "clock_drift")
     assert abs(fit.theta[0]) < 3.0 * fit.sigma[0] and fit.sigma[0] < 0.1 * eps
+
+
+def test_diagnosis_progress_is_whole_lines_off_a_terminal(calibration, capsys, monkeypatch):
+    # Asked for in a log file (not a terminal): whole lines of replays done,
+    # no carriage returns; not asked for: nothing.
+    log = _log(3, {})
+    monkeypatch.setenv("PROXOPS_PROGRESS", "1")
+    diagnose(log, calibration=calibration, progress=True)
+    err = capsys.readouterr().err
+    assert "diagnose" in err and "replay" in err and "\r" not in err
+    monkeypatch.delenv("PROXOPS_PROGRESS")
+    diagnose(log, calibration=calibration, progress=True)
+    assert capsys.readouterr().err == ""
