@@ -53,6 +53,27 @@ def register(sub):
         help="runs with two or three effects at once (in-library pairs and triples, in-library plus "
         "out-of-library), each at 1x or 2x its own minimum detectable size (the logs fly --manoeuvres)",
     )
+    p.add_argument(
+        "--plans",
+        action="store_true",
+        help="designed plans, checked: mixture runs at 2x on docking logs whose answer is ambiguous get the "
+        "plan designed from it, flown after the docking log with the true effects and without, and "
+        "diagnosed again (bench/campaigns/gap/validate_plans.py)",
+    )
+    p.add_argument(
+        "--plans-from",
+        action="append",
+        metavar="JSON",
+        help="with --plans: the 2x runs of this recorded mixture campaign at their recorded sizes instead of "
+        "--runs drawn (repeat for several)",
+    )
+    p.add_argument(
+        "--basilisk-runs",
+        type=number(int, 0, 100000),
+        default=0,
+        help="with --plans: this many planned runs also fly their plan alone on Basilisk (and on the bench's "
+        "vehicle simulator), diagnosed alone",
+    )
     add_campaign_arguments(p)
     p.set_defaults(func=main)
 
@@ -62,6 +83,19 @@ def _campaign(args):
     and by the null calibration it scores against."""
     from bench.runner.records import sha256
 
+    if args.plans:
+        from bench.gap import null as nullmod
+
+        kind = {
+            "plans": True,
+            "duration_s": args.duration,
+            "plans_from": [sha256_file(f) for f in args.plans_from or []],
+        }
+        return campaign_from(
+            args,
+            "validate-gap",
+            {"runs": args.runs, "seed": args.seed, **kind, "calibration_sha256": sha256(nullmod.load())},
+        )
     if args.vehicle == "random":
         # No committed calibration: each log's is made for it (and keyed by it).
         return campaign_from(
@@ -96,6 +130,8 @@ def main(args):
         raise ValueError("--engine basilisk runs the 12 kg single-effect campaign, not --mixtures")
     campaign = _campaign(args)
     where = campaign.where()
+    if args.plans:
+        return _plans(args, campaign, where)
     if args.mixtures:
         from bench.campaigns.gap import validate_mixtures
 
@@ -194,3 +230,44 @@ def _single_effects(args, campaign) -> dict:
             args.runs, args.seed, args.json, duration_s=args.duration, manoeuvres=args.manoeuvres, campaign=campaign
         )
     return res
+
+
+def sha256_file(path) -> str:
+    import hashlib
+    from pathlib import Path
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _plans(args, campaign, where) -> int:
+    """``--plans``: the designed plans' campaign (bench/campaigns/gap/validate_plans.py)."""
+    from bench.campaigns.gap import validate_plans
+    from bench.report import write_json
+
+    if args.plans_from:
+        drawn = validate_plans.recorded_keys(args.plans_from)
+        source = {"plans_from": [str(f) for f in args.plans_from], "runs": len(drawn)}
+        command = " ".join(f"--plans-from {f}" for f in args.plans_from)
+    else:
+        drawn = validate_plans.draw_keys(args.runs, args.seed)
+        source = {"seed": args.seed, "runs": args.runs}
+        command = f"--runs {args.runs} --seed {args.seed}"
+    res = validate_plans.run_campaign(
+        drawn,
+        args.json,
+        {**source, "plans": True},
+        duration_s=args.duration,
+        campaign=campaign,
+        basilisk_runs=args.basilisk_runs,
+    )
+    res.update(source)
+    res["command"] = f"proxops validate-gap --plans {command}" + (
+        f" --basilisk-runs {args.basilisk_runs}" if args.basilisk_runs else ""
+    )
+    if args.json:
+        write_json(args.json, res, strict=True)
+    print(f"designed plans: {res['docking_runs']} docking runs ({res['elapsed_s']:.0f} s on {where})")
+    report_campaign(res)
+    for line in validate_plans.summary_lines(res):
+        print(line)
+    return 0

@@ -1,0 +1,515 @@
+"""Designed plans, flown and diagnosed: ``proxops validate-gap --plans``.
+
+The designed plan (bench/gap/design.py, docs/GAP.md "Designing the test
+that separates") checked as a campaign, not on one log:
+
+1. Draws: runs of two or three effects as the mixture campaign draws them
+   (bench/campaigns/gap/validate_mixtures.py draw_mixtures: in-library
+   pairs and triples, one in-library effect beside one out of the library,
+   random directions), every member at 2x its own minimum detectable size
+   in the run, on docking logs; or the 2x runs of recorded mixture
+   campaigns at their recorded sizes (``recorded``). Each docking log is
+   diagnosed with the committed docking calibration (as the mixture
+   campaign does); a run is kept when its answer is ambiguous, or when its
+   true in-library set is not the answer but is one of the sets it lists.
+2. For each kept run (``plan_run``): the plan designed from the answer
+   (the defaults: every direction of a hidden member, two passes, 120 s and
+   the fixed characterisation's delta-v), and the shortest plan reaching
+   the separability distance within half the fixed plan's duration and
+   delta-v (``--target-delta2 10.8``); their predicted distances and the
+   pairs they leave below 10.8. The true effects are flown on each plan
+   and on the fixed characterisation by the bench's vehicle simulator
+   (bench/sim/vehicle_sim.py, as ``proxops plan --check``), and their
+   distance from every listed set that does not hold the true set is
+   measured on that flight. The designed plan is then appended to the
+   docking log: the same docking runs with the same effects, then the
+   plan's runs open loop (bench.sim.reality ``then_scripts``, as the
+   docking-then-characterisation campaign appends the fixed plan), and the
+   whole log is diagnosed again. The same docking seed and plan flown
+   without any effect and diagnosed is the false-alarm check.
+3. On Basilisk (``basilisk_run``, the first kept runs whose effects its
+   engine flies): the designed plan alone, flown with the true effects and
+   without, each log diagnosed alone with a calibration made for it (a
+   Basilisk flight cannot be appended to a bench docking log), beside the
+   same plan alone flown by the bench's vehicle simulator.
+
+Scores (``score_plans``), over the kept runs: the exact set named after
+the plan (the named set is the true in-library set), and settled (named,
+and the answer no longer ambiguous); the true set the answer or listed;
+the designed plan within half the fixed plan's duration and delta-v
+reaching 10.8 (predicted, and the true effects' flown distance); false
+alarms on the effect-free flights. Targets: TARGETS.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bench.gap.attribute import DELTA2_95
+from bench.sim.plans import DT_S
+
+TARGETS = {"exact_set": 0.90, "false_alarms": 0.02, "duration_share": 0.5, "delta_v_share": 0.5}
+SCALE = 2.0
+
+
+# --- the draws -----------------------------------------------------------------------------------
+
+
+def draw_keys(n_runs: int, seed: int) -> list:
+    """The mixture campaign's draws (validate_mixtures.draw_mixtures), every
+    run at 2x (the size is found by ``size_key``)."""
+    from bench.campaigns.gap.validate_mixtures import draw_mixtures
+
+    return [dict(k, scale=SCALE, source=f"drawn, seed {seed}") for k in draw_mixtures(n_runs, seed)]
+
+
+def recorded_keys(paths: list) -> list:
+    """The 2x runs of recorded mixture campaigns (their JSON or .full.json.gz)
+    whose every member was detectable, at their recorded sizes, numbered
+    afresh in order (``source`` and ``recorded_run`` say where each is from)."""
+    keys = []
+    for p in paths:
+        opener = gzip.open if str(p).endswith(".gz") else open
+        with opener(p, "rt") as f:
+            rec = json.load(f)
+        if rec.get("manoeuvres", "docking") != "docking":
+            raise ValueError(f"{p}: a campaign of {rec['manoeuvres']} logs; the plans are appended to docking logs")
+        for k in rec["keys"]:
+            if k["scale"] == SCALE and k.get("detectable", True):
+                keys.append(dict(k, source=Path(p).name, recorded_run=k["run"]))
+    return [dict(k, run=i) for i, k in enumerate(keys)]
+
+
+def size_key(key: dict, shared) -> dict:
+    """Each member at 2x its own minimum detectable size in the run (the
+    mixture campaign's sizing); a key drawn from a record keeps its sizes."""
+    if key.get("effects"):
+        return key
+    from dataclasses import replace
+
+    from bench.campaigns.gap.detectable import min_detectable_size
+    from bench.sim.effects import EFFECTS, max_size_for
+    from bench.sim.log_description import resolve
+
+    duration_s, calibration = shared
+    key = dict(key, min_detectable={}, effects={})
+    for e in key["members"]:
+        spec = replace(EFFECTS[e], max_size=max_size_for(e, resolve(None)))
+        md = min_detectable_size(key["seed"], e, key["units"][e], duration_s, calibration, max_size=spec.max_size)
+        size = float(min(key["scale"] * md["size"] if md["detectable"] else spec.max_size, spec.max_size))
+        key["min_detectable"][e] = md["size"] if md["detectable"] else None
+        key["effects"][e] = [float(x) for x in spec.at(key["units"][e], size)]
+    key["detectable"] = all(v is not None for v in key["min_detectable"].values())
+    return key
+
+
+def truth_in(key: dict) -> list:
+    from bench.sim.effects import EFFECTS
+
+    return sorted(e for e in key["members"] if EFFECTS[e].in_library)
+
+
+def answer_of(pub: dict, key: dict) -> dict:
+    """A diagnosis as scored: the named set, the listed sets, exact, listed,
+    settled (exact and not ambiguous)."""
+    from bench.gap.answers import listed_sets
+
+    named = [m["effect"] for m in pub["effects"]] if pub["gap_detected"] else []
+    alts = [sorted(s) for s in listed_sets(pub)] if pub["gap_detected"] else []
+    truth = set(truth_in(key))
+    exact = set(named) == truth and pub["verdict"] != "unexplained"
+    return {
+        "gap_detected": bool(pub["gap_detected"]),
+        "verdict": pub["verdict"],
+        "named": named,
+        "alternatives": alts,
+        "exact": bool(exact),
+        "listed": bool(exact or any(set(a) == truth for a in alts)),
+        "settled": bool(exact and pub["verdict"] != "ambiguous"),
+        "t_diagnose_s": pub.get("elapsed_s"),
+    }
+
+
+def docking_log(key: dict, duration_s: float, effects: dict | None = None, then: list | None = None):
+    """The run's docking log, blind (what a user's log holds); ``then``: valve scripts flown after it."""
+    from bench.campaigns.gap.validate import blind
+    from bench.sim.reality import simulate_log_with_key
+
+    eff = key["effects"] if effects is None else effects
+    log, _ = simulate_log_with_key(key["seed"], eff, duration_s=duration_s, with_truth=False, then_scripts=then)
+    return blind(log)
+
+
+def diagnose_docking(key: dict, shared) -> dict:
+    """The docking log diagnosed as the mixture campaign does; kept when
+    ambiguous, or when the true set is listed but not the answer."""
+    from bench.gap.diagnose import diagnose, public
+
+    duration_s, calibration = shared
+    pub = public(diagnose(docking_log(key, duration_s), calibration=calibration))
+    a = answer_of(pub, key)
+    a["run"] = key["run"]
+    a["kept"] = bool(a["gap_detected"] and (a["verdict"] == "ambiguous" or (a["listed"] and not a["exact"])))
+    # What the design reads back (design.sets_of_diagnosis), as a saved diagnosis holds it.
+    a["diagnosis"] = {k: pub.get(k) for k in ("verdict", "gap_detected", "effects", "ambiguous_with")}
+    return a
+
+
+# --- the plans, designed and flown ---------------------------------------------------------------
+
+
+def plan_scripts(plan: dict) -> list:
+    """The plan's runs as the bench's docking engine flies valve scripts
+    (one configuration per control interval, bit i opens valve i)."""
+    out = []
+    for r in plan["schedule"]:
+        ((v, [[a, b]]),) = r["valves"].items()
+        n_lead, n_on, n_coast = (int(round(x / DT_S)) for x in (a, b - a, r["duration_s"] - b))
+        out.append([0] * n_lead + [1 << int(v)] * n_on + [0] * n_coast)
+    return out
+
+
+def plan_row(res: dict, key: str) -> dict:
+    """A plan's cost and predicted distances; the pairs below 10.8."""
+    p = res[key]
+    return {
+        "duration_s": p["duration_s"],
+        "delta_v_mps": p["delta_v_mps"],
+        "runs": p["runs"],
+        "delta2_min": p["delta2_min"],
+        "below_95": [{k: r[k] for k in ("a", "b", "delta2")} for r in p["pairs"] if not r["separated_95"]],
+        "pairs": len(p["pairs"]),
+    }
+
+
+def true_hypothesis(key: dict):
+    """The run's true effects as a hypothesis: its in-library members, every effect flown."""
+    from bench.gap.design import Hypothesis
+
+    return Hypothesis(truth_in(key), {k: np.asarray(v) for k, v in key["effects"].items()}, "the true effects")
+
+
+def flown_true(key: dict, description: dict, plan: dict, hyps: list) -> dict:
+    """The true effects flown on ``plan`` by the bench's vehicle simulator
+    (common random numbers): their distance from each listed set that does
+    not hold the true set (design.flown_distances), and the smallest."""
+    from bench.gap.design import flown_distances, plan_segments
+    from bench.sim.vehicle_sim import KNOWN
+
+    missing = sorted(set(key["effects"]) - set(KNOWN))
+    if missing:
+        return {"flown": False, "why": f"{', '.join(missing)} not flown by the vehicle simulator"}
+    truth = true_hypothesis(key)
+    others = [h for h in hyps if set(h.members) != set(truth.members)]
+    if not others or not truth.members:
+        return {"flown": False, "why": "no listed set to measure against"}
+    segs = plan_segments(plan, len(description["vehicle"]["thrusters"]))
+    f = flown_distances(description, segs, [truth, *others], 0, key["seed"])
+    pairs = [{"b": p["b"], "delta2": p["delta2"]} for p in f["pairs"]]
+    return {
+        "flown": True,
+        "lambda": f["lambda"],
+        "pairs": pairs,
+        "delta2_min": min((p["delta2"] for p in pairs), default=None),
+    }
+
+
+def designs(key: dict, log, diagnosis: dict) -> tuple:
+    """(hypotheses, description, the default design, the shortest design
+    reaching 10.8 within half the fixed plan's duration and delta-v)."""
+    from bench.gap.design import description_of, design, hypotheses_for
+
+    hyps, _ = hypotheses_for(log, diagnosis)
+    description = description_of(log)
+    res = design(hyps, description)
+    fixed_t, fixed_v = res["fixed"]["duration_s"], res["fixed"]["delta_v_mps"]
+    half = design(hyps, description, 0.5 * fixed_t, 0.5 * fixed_v, target_delta2=DELTA2_95)
+    return hyps, description, res, half
+
+
+def appended(key: dict, duration_s: float, scripts: list, calibration: dict) -> dict:
+    """The plan appended to the docking log, with the true effects and
+    without any, each diagnosed: the answer after the plan, and whether the
+    effect-free flight raised a gap (a false alarm)."""
+    from bench.gap.diagnose import diagnose, public
+
+    pub = public(diagnose(docking_log(key, duration_s, then=scripts), calibration=calibration))
+    null = public(diagnose(docking_log(key, duration_s, effects={}, then=scripts), calibration=calibration))
+    return {
+        "after": answer_of(pub, key),
+        "null": {"gap_detected": bool(null["gap_detected"]), "verdict": null["verdict"]},
+    }
+
+
+def plan_run(item, shared) -> dict:
+    """One kept run: the plans designed from its answer, flown and diagnosed
+    (module docstring, step 2)."""
+    key, answer = item
+    duration_s, calibration = shared
+    t0 = time.time()
+    out = {"run": key["run"], "before": {k: answer[k] for k in ("verdict", "named", "alternatives", "exact")}}
+    log = docking_log(key, duration_s)
+    try:
+        hyps, description, res, half = designs(key, log, answer["diagnosis"])
+    except ValueError as exc:  # e.g. an answer that names no effect: nothing to design from
+        out.update(designed=False, why=str(exc), elapsed_s=time.time() - t0)
+        return out
+    out["designed"] = True
+    out["hypotheses"] = [h.name for h in hyps]
+    out["plans"] = {"designed": plan_row(res, "designed"), "half": plan_row(half, "designed")}
+    out["plans"]["fixed"] = plan_row(res, "fixed")
+    out["plans"]["half"]["target_reached"] = bool(half.get("target_reached"))
+    out["schedule"] = [{"valves": r["valves"], "duration_s": r["duration_s"]} for r in res["designed"]["schedule"]]
+    out["flown_true"] = {
+        "designed": flown_true(key, description, res["designed"], hyps),
+        "half": flown_true(key, description, half["designed"], hyps),
+        "fixed": flown_true(key, description, res["fixed"], hyps),
+    }
+    out.update(appended(key, duration_s, plan_scripts(res["designed"]), calibration))
+    out["elapsed_s"] = time.time() - t0
+    return out
+
+
+def _plan_alone(description: dict, segs: list, effects: dict, seed: int, engine: str) -> dict:
+    """The plan alone flown by ``engine`` and diagnosed with a calibration made for its log."""
+    from bench.gap.diagnose import diagnose, public
+
+    if engine == "basilisk":
+        from bench.sim.basilisk_sim import simulate
+    else:
+        from bench.sim.vehicle_sim import simulate
+    log, _ = simulate(description, segs, effects, seed=seed, with_truth=False)
+    return public(diagnose(log))
+
+
+def basilisk_run(item, shared) -> dict:
+    """The designed plan alone (``plan_run``'s schedule), flown with the true
+    effects and without by Basilisk and by the bench's vehicle simulator,
+    each log diagnosed alone (module docstring, step 3)."""
+    from bench.gap.design import description_of, plan_segments
+
+    key, planned = item
+    duration_s, _ = shared
+    t0 = time.time()
+    description = description_of(docking_log(key, duration_s))
+    segs = plan_segments({"schedule": planned["schedule"]}, len(description["vehicle"]["thrusters"]))
+    out = {"run": key["run"]}
+    for engine in ("basilisk", "bench"):
+        t1 = time.time()
+        pub = _plan_alone(description, segs, key["effects"], key["seed"], engine)
+        null = _plan_alone(description, segs, {}, key["seed"], engine)
+        out[engine] = {
+            "after": answer_of(pub, key),
+            "null": {"gap_detected": bool(null["gap_detected"]), "verdict": null["verdict"]},
+            "calibration": (pub.get("calibration") or {}).get("source"),
+            "elapsed_s": time.time() - t1,
+        }
+    out["elapsed_s"] = time.time() - t0
+    return out
+
+
+def basilisk_flies(key: dict) -> bool:
+    from bench.sim.basilisk_sim import EFFECTS_HERE
+
+    return set(key["effects"]) <= set(EFFECTS_HERE)
+
+
+# --- scores --------------------------------------------------------------------------------------
+
+
+def _rate(flags: list) -> dict:
+    return {"n": len(flags), "k": int(sum(flags)), "fraction": float(np.mean(flags)) if flags else None}
+
+
+def _after(p: dict | None, a: dict) -> dict:
+    """The answer the run ends with: after the plan, or its own when no plan was designed."""
+    return p["after"] if p and p.get("designed") else a
+
+
+def _distance_scores(done: list) -> dict:
+    """The designed plans' reach: predicted and flown (true effects) against 10.8, and their cost."""
+    half = [p["plans"]["half"] for p in done]
+    flown_half = [p["flown_true"]["half"] for p in done if p["flown_true"]["half"].get("flown")]
+    flown_des = [p["flown_true"]["designed"] for p in done if p["flown_true"]["designed"].get("flown")]
+    flown_fix = [p["flown_true"]["fixed"] for p in done if p["flown_true"]["fixed"].get("flown")]
+    fixed_t = [p["plans"]["fixed"]["duration_s"] for p in done]
+    fixed_v = [p["plans"]["fixed"]["delta_v_mps"] for p in done]
+    med = lambda xs: float(np.median(xs)) if xs else None  # noqa: E731
+    return {
+        "half_limits_reach_predicted": _rate([h["target_reached"] for h in half]),
+        "half_limits_reach_flown": _rate([f["delta2_min"] >= DELTA2_95 for f in flown_half]),
+        "half_duration_share_median": med([h["duration_s"] / t for h, t in zip(half, fixed_t)]),
+        "half_delta_v_share_median": med([h["delta_v_mps"] / v for h, v in zip(half, fixed_v)]),
+        "designed_reach_predicted": _rate([p["plans"]["designed"]["delta2_min"] >= DELTA2_95 for p in done]),
+        "designed_reach_flown": _rate([f["delta2_min"] >= DELTA2_95 for f in flown_des]),
+        "fixed_reach_predicted": _rate([p["plans"]["fixed"]["delta2_min"] >= DELTA2_95 for p in done]),
+        "fixed_reach_flown": _rate([f["delta2_min"] >= DELTA2_95 for f in flown_fix]),
+        "designed_duration_share_median": med(
+            [p["plans"]["designed"]["duration_s"] / t for p, t in zip(done, fixed_t)]
+        ),
+        "designed_delta_v_share_median": med(
+            [p["plans"]["designed"]["delta_v_mps"] / v for p, v in zip(done, fixed_v)]
+        ),
+        "flown_true_delta2_median": {
+            "designed": med([f["delta2_min"] for f in flown_des]),
+            "half": med([f["delta2_min"] for f in flown_half]),
+            "fixed": med([f["delta2_min"] for f in flown_fix]),
+        },
+    }
+
+
+def run_rows(keys: list, answers: list, planned: list) -> list:
+    """One row per kept run: what it carried, its answer before and after, the plans' reach."""
+    rows = []
+    for k, a, p in zip(keys, answers, planned):
+        after = _after(p, a)
+        row = {
+            "run": k["run"],
+            "kind": k["kind"],
+            "members": k["members"],
+            "source": k.get("source"),
+            "recorded_run": k.get("recorded_run"),
+            "before": {x: a[x] for x in ("verdict", "named", "exact", "listed")},
+            "after": {x: after[x] for x in ("verdict", "named", "exact", "settled", "listed")},
+            "designed": bool(p and p.get("designed")),
+        }
+        if p and p.get("designed"):
+            row["plans"] = {
+                n: {x: v[x] for x in ("duration_s", "delta_v_mps", "delta2_min")} for n, v in p["plans"].items()
+            }
+            row["half_target_reached"] = p["plans"]["half"]["target_reached"]
+            row["below_95_designed"] = p["plans"]["designed"]["below_95"]
+            row["flown_true_delta2_min"] = {n: f.get("delta2_min") for n, f in p["flown_true"].items()}
+            row["null_gap_detected"] = p["null"]["gap_detected"]
+        elif p:
+            row["why_no_plan"] = p.get("why")
+        rows.append(row)
+    return rows
+
+
+def score_plans(keys: list, answers: list, planned: list, flown_elsewhere: list) -> dict:
+    """Scores over the kept runs (``keys``, ``answers``, ``planned`` aligned;
+    a planned None: not run yet), and the Basilisk subset's."""
+    pairs = [(k, a, p) for k, a, p in zip(keys, answers, planned) if p is not None]
+    done = [p for _, _, p in pairs if p.get("designed")]
+    res = {
+        "kept": len(pairs),
+        "designed": len(done),
+        "exact_before": _rate([a["exact"] for _, a, _ in pairs]),
+        "settled_before": _rate([a["exact"] and a["verdict"] != "ambiguous" for _, a, _ in pairs]),
+        "listed_before": _rate([a["listed"] for _, a, _ in pairs]),
+        "exact_after": _rate([_after(p, a)["exact"] for _, a, p in pairs]),
+        "settled_after": _rate([bool(_after(p, a).get("settled")) for _, a, p in pairs]),
+        "listed_after": _rate([_after(p, a)["listed"] for _, a, p in pairs]),
+        "false_alarms": _rate([p["null"]["gap_detected"] for p in done]),
+        "by_kind": {},
+        "distances": _distance_scores(done) if done else {},
+        "not_designed": [{"run": p["run"], "why": p.get("why")} for _, _, p in pairs if not p.get("designed")],
+    }
+    for kind in sorted({k["kind"] for k, _, _ in pairs}):
+        sel = [(a, p) for k, a, p in pairs if k["kind"] == kind]
+        res["by_kind"][kind] = {
+            "n": len(sel),
+            "exact_after": _rate([_after(p, a)["exact"] for a, p in sel])["k"],
+            "settled_after": _rate([bool(_after(p, a).get("settled")) for a, p in sel])["k"],
+        }
+    res["elsewhere"] = {}
+    for engine in ("basilisk", "bench"):
+        sel = [b[engine] for b in flown_elsewhere if b is not None]
+        if sel:
+            res["elsewhere"][engine] = {
+                "exact": _rate([s["after"]["exact"] for s in sel]),
+                "settled": _rate([s["after"]["settled"] for s in sel]),
+                "listed": _rate([s["after"]["listed"] for s in sel]),
+                "false_alarms": _rate([s["null"]["gap_detected"] for s in sel]),
+            }
+    return res
+
+
+def _pct(r: dict) -> str:
+    return "-" if not r or not r.get("n") else f"{r['k']} of {r['n']} ({100 * r['fraction']:.0f} %)"
+
+
+def summary_lines(res: dict) -> list:
+    """The campaign's scores against its targets, as printed."""
+    s = res["scores"]
+    d = s.get("distances") or {}
+    lines = [
+        f"docking logs diagnosed: {res['docking_runs']}; kept (ambiguous, or the true set listed but not the "
+        f"answer): {s['kept']}; plans designed: {s['designed']}",
+        f"exact set named: before the plan {_pct(s['exact_before'])}, after {_pct(s['exact_after'])}; settled "
+        f"(exact and not ambiguous): before {_pct(s['settled_before'])}, after {_pct(s['settled_after'])} "
+        f"(target >= {100 * TARGETS['exact_set']:.0f} %)",
+        f"true set the answer or listed after the plan: {_pct(s['listed_after'])}",
+        f"false alarms, the plan flown after an effect-free docking: {_pct(s['false_alarms'])} "
+        f"(target <= {100 * TARGETS['false_alarms']:.0f} %)",
+    ]
+    if d:
+        lines += [
+            f"within half the fixed plan's duration and delta-v, 10.8 reached: predicted "
+            f"{_pct(d['half_limits_reach_predicted'])}, the true effects flown {_pct(d['half_limits_reach_flown'])}",
+            f"default design (120 s, the fixed plan's delta-v): 10.8 predicted {_pct(d['designed_reach_predicted'])}, "
+            f"true effects flown {_pct(d['designed_reach_flown'])}; fixed characterisation: predicted "
+            f"{_pct(d['fixed_reach_predicted'])}, flown {_pct(d['fixed_reach_flown'])}",
+        ]
+    for engine, v in s.get("elsewhere", {}).items():
+        lines.append(
+            f"plan alone on the {engine} engine, diagnosed alone: exact {_pct(v['exact'])}, settled "
+            f"{_pct(v['settled'])}, listed {_pct(v['listed'])}, false alarms {_pct(v['false_alarms'])}"
+        )
+    return lines
+
+
+def run_campaign(
+    drawn: list,
+    out: str | None,
+    prereg: dict,
+    duration_s: float = 120.0,
+    campaign=None,
+    workers: int | None = None,
+    progress: bool = True,
+    basilisk_runs: int = 0,
+) -> dict:
+    """Size and diagnose the drawn docking runs, keep the ambiguous ones,
+    design, fly and diagnose their plans, and score (module docstring)."""
+    from bench.campaigns.gap.validate import new_campaign, sized_and_diagnosed
+    from bench.gap import null as nullmod
+    from bench.runner.runner import failures, results
+
+    cal = nullmod.load(manoeuvres="docking")
+    campaign = new_campaign(campaign, workers, progress)
+    t0 = time.time()
+    shared = (duration_s, cal)
+    keys, answers, _, info = sized_and_diagnosed(
+        campaign, drawn, size_key, diagnose_docking, shared, out, prereg, "validate-gap plans: docking logs"
+    )
+    kept = [(k, a) for k, a in zip(keys, answers) if a["kept"] and k.get("detectable", True)]
+    recs = campaign.map("plan", plan_run, kept, seeds=[k["seed"] for k, _ in kept], shared=shared, label="plans")
+    planned = results(recs)
+    info["failed_runs"] += failures(recs)
+    flies = [(k, p) for (k, _), p in zip(kept, planned) if p and p.get("designed") and basilisk_flies(k)]
+    flies = flies[:basilisk_runs]
+    recs_b = campaign.map(
+        "basilisk", basilisk_run, flies, seeds=[k["seed"] for k, _ in flies], shared=shared, label="Basilisk"
+    )
+    info["failed_runs"] += failures(recs_b)
+    elsewhere = results(recs_b)
+    return {
+        "docking_runs": len(keys),
+        "scores": score_plans([k for k, _ in kept], [a for _, a in kept], planned, elsewhere),
+        "targets": TARGETS,
+        "delta2_95": DELTA2_95,
+        "rows": run_rows([k for k, _ in kept], [a for _, a in kept], planned),
+        "elapsed_s": time.time() - t0,
+        "duration_s": duration_s,
+        "campaign": info,
+        "keys": keys,
+        "answers": answers,
+        "planned": planned,
+        "elsewhere": elsewhere,
+    }
