@@ -55,8 +55,8 @@ def register(sub):
         default=None,
         metavar="FILE",
         help="fly this valve plan (the JSON of proxops plan --separate --json) open loop: uplinked to the "
-        "flight side, checked and run by it, the plant firing the valves it commands (docs/LINK.md, "
-        '"Valve plans"); the plan\'s length replaces --duration',
+        "flight side, checked and run by it, the plant firing the valves it commands "
+        '(docs/LINK.md, "Valve plans"); the plan\'s length replaces --duration',
     )
     p.add_argument(
         "--device",
