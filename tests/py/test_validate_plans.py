@@ -114,3 +114,14 @@ def test_an_ambiguous_docking_run_is_settled_by_its_plan_and_a_clean_flight_rais
     )
     # every other listed set holds the true set: no flown distance to measure
     assert not p["flown_true"]["designed"]["flown"]
+
+
+def test_an_unexplained_answer_is_designed_for_the_sets_it_lists():
+    listed = {"ambiguous_with": [{"set": ["gyro_scale"]}, {"set": ["gyro_scale", "thrust_loss"]}]}
+    assert vp.listed_of_unexplained({"verdict": "unexplained", **listed}) == [
+        ["gyro_scale"],
+        ["gyro_scale", "thrust_loss"],
+    ]
+    # one listed set is nothing to separate; an answer with a set designs from that set
+    assert vp.listed_of_unexplained({"verdict": "unexplained", "ambiguous_with": [{"set": ["gyro_scale"]}]}) is None
+    assert vp.listed_of_unexplained({"verdict": "ambiguous", **listed}) is None

@@ -227,12 +227,22 @@ def flown_true(key: dict, description: dict, plan: dict, hyps: list) -> dict:
     }
 
 
+def listed_of_unexplained(diagnosis: dict) -> list | None:
+    """An unexplained answer names no set to separate, but lists the library
+    parts that may sit beside what the library lacks: with two or more,
+    the plan separates those (as ``proxops plan --hypotheses`` would)."""
+    from bench.gap.answers import listed_sets
+
+    sets = listed_sets(diagnosis) if diagnosis.get("verdict") == "unexplained" else []
+    return [list(x) for x in sets] if len(sets) >= 2 else None
+
+
 def designs(key: dict, log, diagnosis: dict) -> tuple:
     """(hypotheses, description, the default design, the shortest design
     reaching 10.8 within half the fixed plan's duration and delta-v)."""
     from bench.gap.design import description_of, design, hypotheses_for
 
-    hyps, _ = hypotheses_for(log, diagnosis)
+    hyps, _ = hypotheses_for(log, diagnosis, listed_of_unexplained(diagnosis))
     description = description_of(log)
     res = design(hyps, description)
     fixed_t, fixed_v = res["fixed"]["duration_s"], res["fixed"]["delta_v_mps"]
@@ -282,6 +292,11 @@ def plan_run(item, shared) -> dict:
         return out
     out["designed"] = True
     out["hypotheses"] = [h.name for h in hyps]
+    out["hypotheses_from"] = (
+        "the listed sets of an unexplained answer"
+        if listed_of_unexplained(answer["diagnosis"])
+        else "the answer and the sets it lists"
+    )
     out["plans"] = {"designed": plan_row(res, "designed"), "half": plan_row(half, "designed")}
     out["plans"]["fixed"] = plan_row(res, "fixed")
     out["plans"]["half"]["target_reached"] = bool(half.get("target_reached"))
