@@ -162,7 +162,7 @@ class DynChannel:
         dirs = np.asarray(veh.directions_b, float)
         if "thruster_misalignment" in p:
             phi = np.asarray(p["thruster_misalignment"], float).reshape(k, 3)
-            dirs = np.einsum("kij,kj->ki", _rotvec_matrices(phi), dirs)
+            dirs = np.einsum("kij,kj->ki", rotvec_matrix(phi), dirs)
         thrust = np.asarray(veh.thrust_n, float) * np.asarray(veh.thrust_scale, float) * np.ones(k)
         if "thrust_loss" in p:
             thrust = thrust * (1.0 - np.asarray(p["thrust_loss"], float))
@@ -260,11 +260,6 @@ def _central_jacobian(ch: DynChannel, name: str) -> np.ndarray:
         th[i] = h
         out[:, :, i] = (ch.residual({name: th}) - ch.e0) / h
     return out
-
-
-def _rotvec_matrices(phi: np.ndarray) -> np.ndarray:
-    """(K, 3) rotation vectors -> (K, 3, 3) rotation matrices."""
-    return np.array([rotvec_matrix(x) for x in phi])
 
 
 def _open_seconds_before(n_open: np.ndarray, seg_id: np.ndarray) -> np.ndarray:
