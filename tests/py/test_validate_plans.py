@@ -125,3 +125,10 @@ def test_an_unexplained_answer_is_designed_for_the_sets_it_lists():
     # one listed set is nothing to separate; an answer with a set designs from that set
     assert vp.listed_of_unexplained({"verdict": "unexplained", "ambiguous_with": [{"set": ["gyro_scale"]}]}) is None
     assert vp.listed_of_unexplained({"verdict": "ambiguous", **listed}) is None
+
+
+def test_the_basilisk_subset_is_spread_over_the_runs_its_engine_flies():
+    kept = [({"effects": {"gyro_bias": [0, 0, 0]}}, {}) for _ in range(9)]
+    kept[1] = ({"effects": {"clock_drift": [1e-5]}}, {})
+    assert vp.basilisk_subset(kept, 3) == {0, 3, 5}
+    assert vp.basilisk_subset(kept, 0) == set() and len(vp.basilisk_subset(kept, 20)) == 8
