@@ -442,6 +442,8 @@ def run_rows(keys: list, answers: list, planned: list) -> list:
                 row["fixed_appended"] = {x: p["fixed_after"][x] for x in ("verdict", "named", "exact", "settled")}
         elif p:
             row["why_no_plan"] = p.get("why")
+        else:  # not run (a campaign stopped early): scored nowhere
+            row["not_run"] = True
         rows.append(row)
     return rows
 
