@@ -277,6 +277,20 @@ TYPED_TEST(FlightAppPlan, RefusesIncompletePlan) {
   this->expect_unchanged();
 }
 
+// An entry whose index lies past its own plan's count spoils the staging:
+// both good entries arrive too, and still the load is refused.
+TYPED_TEST(FlightAppPlan, RefusesPlanWithAnEntryIndexPastItsCount) {
+  PlanUplink up = this->uplink();
+  up.entry(1.0, 8, 0, 2, {0, 0.0, 0.5});
+  up.entry(1.0, 8, 2, 2, {2, 0.0, 0.5});  // index 2 of 2
+  up.entry(1.0, 8, 1, 2, {1, 0.6, 0.9});
+  up.load(1.0, 8, 2, 1.0);
+  this->send(up);
+  ASSERT_FALSE(this->tm.status.empty());
+  EXPECT_EQ(this->tm.status.back().verdict, static_cast<std::uint8_t>(PlanVerdict::Incomplete));
+  this->expect_unchanged();
+}
+
 TYPED_TEST(FlightAppPlan, RefusesLoadOfAnotherCount) {
   EXPECT_EQ(this->try_load({{0, 0.0, 0.5}, {1, 0.6, 0.9}}, 1.0, 3), PlanVerdict::Incomplete);
   this->expect_unchanged();
