@@ -1,7 +1,9 @@
 # Two commands set up a fresh Debian machine and do the work:
 #   make run    the main job (installs what is missing first)
 #   make test   every test: ctest (GoogleTest) and pytest, with the
-#               Cortex-M7 firmware built and its self-test run under QEMU
+#               Cortex-M7 firmware built and its self-test run under QEMU,
+#               clang-tidy and cppcheck; with CI=true also sanitized and
+#               with line and branch coverage against its floors
 # and one builds the flight processor image (docs/FIRMWARE.md):
 #   make firmware   cross toolchain installed if missing, image, size and stack report
 # and, outside CI (tens of minutes of compiling), the flight core's
@@ -44,13 +46,17 @@ ASSURANCE_APT_PKGS := clang-tidy cppcheck ccache
 COMMA := ,
 TEST_SANITIZE ?= $(if $(CI),address$(COMMA)undefined)
 TIDY_BUILD := build/tidy
-COV_BUILD  := build/cov
-# TEST_COVERAGE=1 makes `make test` end with the coverage target, which
-# fails under the core's floors. Off by default, in CI too: a fresh clone
-# compiles build/cov cold (ccache cannot share objects with gcov counters
-# between clones), about 8 to 16 min on the 2-core machine, which with the
-# run would take CI past 20 to 30 min (docs/ASSURANCE.md, "Coverage").
-TEST_COVERAGE ?=
+# The coverage tree is built at a fixed path outside the checkout, from its
+# sources reached through a fixed symbolic link to the checkout: gcc writes
+# each object's absolute counter path into it, so only a tree at one path
+# lets ccache hand another clone (CI's) the objects of the last run
+# (docs/ASSURANCE.md, "Coverage"). One run at a time (a lock).
+COV_ROOT   ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/proxops/coverage
+COV_SRC    := $(COV_ROOT)/src
+COV_BUILD  := $(COV_ROOT)/build
+# CI (CI=true) ends `make test` with the coverage target, which fails under
+# the core's floors; TEST_COVERAGE=1 does the same elsewhere.
+TEST_COVERAGE ?= $(CI)
 # The two soak tests (a simulated day of the navigation filter, ten million
 # BLR add/remove pairs) took over half of the suite's time at -O0 and
 # reach no line or branch the rest does not (checked 2026-11-27): the
@@ -73,12 +79,12 @@ LINK_PY_TESTS := tests/py/test_fsw_node_link.py tests/py/test_fsw_node_args.py t
   tests/py/test_hil_modal.py tests/py/test_hil_device.py
 
 .PHONY: run test test-cpp test-py setup bench bench-modal clean firmware firmware-selftest test-aarch64 \
-  test-asan check-static check-cppcheck coverage
+  test-asan check-static check-cppcheck coverage coverage-locked
 
 run: $(STAMPS)/install
 	$(VENV)/bin/proxops run --report report
 
-test: test-cpp test-py test-asan check-cppcheck $(if $(TEST_COVERAGE),coverage)
+test: test-cpp test-py test-asan check-static $(if $(TEST_COVERAGE),coverage)
 
 setup: $(STAMPS)/install $(STAMPS)/cpp-configure
 
@@ -188,20 +194,34 @@ check-static: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/venv
 # against its fsw_node; gcovr reports the core, vision and platform apart
 # and fails when the core is under its floors or an exclusion is stale
 # (tests/static/coverage.py, tests/static/coverage_exclusions.txt).
-$(STAMPS)/cov-configure: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/venv $(CMAKE_SRC) CMakePresets.json Makefile
-	$(VENV)/bin/cmake --preset coverage -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) $(CCACHE_LAUNCHER) >/dev/null
-	@touch $@
-
 $(STAMPS)/gcovr: $(STAMPS)/venv
 	$(VPY) -m pip install -q --disable-pip-version-check "gcovr>=7"
 	@touch $@
 
-coverage: $(STAMPS)/cov-configure $(STAMPS)/install $(STAMPS)/gcovr
-	$(VENV)/bin/cmake --build --preset coverage
+coverage: $(STAMPS)/apt $(STAMPS)/apt-assurance $(STAMPS)/install $(STAMPS)/gcovr
+	@mkdir -p $(COV_ROOT)
+	flock $(COV_ROOT)/.lock $(MAKE) --no-print-directory coverage-locked
+
+# Configured every run (seconds when the tree exists): the tree is shared by
+# every checkout on the machine, the link points at this one. Its objects
+# are deleted first: one built from another checkout's headers can look
+# newer than this checkout's, so Ninja's times cannot be trusted here;
+# ccache (which hashes the contents) gives back each object that did not
+# change, in well under a minute for the whole tree. The counters go too:
+# the build runs each test program to list its tests, and a counter file
+# left by another build of an object would be refused with a warning.
+coverage-locked:
+	@mkdir -p $(COV_ROOT)
+	ln -sfn $(CURDIR) $(COV_SRC)
+	cd $(COV_SRC) && $(abspath $(VENV))/bin/cmake --preset coverage -B $(COV_BUILD) \
+	  -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) $(CCACHE_LAUNCHER) >/dev/null
+	find $(COV_BUILD) \( -name '*.o' -o -name '*.gcda' \) -delete
+	CCACHE_BASEDIR=$(COV_ROOT) $(VENV)/bin/cmake --build $(COV_BUILD) -j2
 	find $(COV_BUILD) -name '*.gcda' -delete
 	cd $(COV_BUILD) && $(abspath $(VENV))/bin/ctest --output-on-failure -j2 -E '$(COV_CTEST_EXCLUDE)'
-	PROXOPS_FSW_NODE=$(abspath $(COV_BUILD))/fsw_node $(VPY) -m pytest -q -n $(PYTEST_WORKERS) $(LINK_PY_TESTS)
-	$(VPY) tests/static/coverage.py --build $(COV_BUILD) --gcovr $(VENV)/bin/gcovr --json $(COV_BUILD)/coverage.json
+	PROXOPS_FSW_NODE=$(COV_BUILD)/fsw_node $(VPY) -m pytest -q -n $(PYTEST_WORKERS) $(LINK_PY_TESTS)
+	$(VPY) tests/static/coverage.py --build $(COV_BUILD) --root $(COV_SRC) --gcovr $(VENV)/bin/gcovr \
+	  --json $(COV_BUILD)/coverage.json
 
 # The Cortex-M7 self-test firmware (CMakePresets.json "firmware"; -j2: the
 # machine is shared).

@@ -5,7 +5,12 @@ reported for the flight core, vision and the platform apart. Fails (exit 1)
 when the core is under its floors or when an exclusion matches no line;
 prints what is left uncovered in the core, file by file.
 
-    coverage.py --build build/cov [--gcovr PATH] [--json OUT] [--exclusions FILE]
+    coverage.py --build BUILD [--root SRC] [--gcovr PATH] [--json OUT] [--exclusions FILE]
+
+--root is the path the build was configured with when it is not this
+checkout's own (the Makefile builds the tree at a fixed path, its sources
+reached through a fixed symbolic link to the checkout); the counters name
+their sources by that path.
 
 How lines and branches are counted:
 - A source line is covered when any instantiation of its template runs it,
@@ -143,17 +148,18 @@ def merged(f: dict) -> tuple[list[int], dict[int, tuple[int, int]]]:
     return missed, part
 
 
-def summary(gcovr: str, tracefile: Path, filt: str, out: Path, merge: bool) -> dict:
-    cmd = [gcovr, "-r", str(ROOT), "-a", str(tracefile), "--filter", filt, "--json-summary", str(out)]
+def summary(gcovr: str, root: Path, tracefile: Path, filt: str, out: Path, merge: bool) -> dict:
+    cmd = [gcovr, "-r", str(root), "-a", str(tracefile), "--filter", filt, "--json-summary", str(out)]
     if merge:
         cmd.append("--merge-lines")
-    subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    subprocess.run(cmd, check=True, cwd=root, stdout=subprocess.DEVNULL)
     return json.loads(out.read_text())
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--build", type=Path, required=True)
+    ap.add_argument("--root", type=Path, default=ROOT, help="the source path the build was configured with")
     ap.add_argument("--gcovr", default="gcovr")
     ap.add_argument("--json", type=Path, help="write the figures here")
     ap.add_argument("--exclusions", type=Path, default=EXCLUSIONS)
@@ -166,7 +172,7 @@ def main() -> int:
         [
             args.gcovr,
             "-r",
-            str(ROOT),
+            str(args.root),
             "--object-directory",
             str(build),
             "--filter",
@@ -176,9 +182,11 @@ def main() -> int:
             str(full),
             "-j",
             "2",
+            # Counter files only from this build (not from any tree under --root).
+            str(build),
         ],
         check=True,
-        cwd=ROOT,
+        cwd=args.root,
     )
     data = json.loads(full.read_text())
     exclusions = read_exclusions(args.exclusions)
@@ -189,8 +197,8 @@ def main() -> int:
     figures: dict = {"exclusions": len(exclusions)}
     failed = list(problems)
     for part, filt in PARTS.items():
-        s = summary(args.gcovr, counted, filt, build / f"coverage-{part}.json", merge=True)
-        r = summary(args.gcovr, counted, filt, build / f"coverage-{part}-instances.json", merge=False)
+        s = summary(args.gcovr, args.root, counted, filt, build / f"coverage-{part}.json", merge=True)
+        r = summary(args.gcovr, args.root, counted, filt, build / f"coverage-{part}-instances.json", merge=False)
         figures[part] = {
             "lines": [s["line_covered"], s["line_total"], s["line_percent"]],
             "branches": [s["branch_covered"], s["branch_total"], s["branch_percent"]],
