@@ -7,6 +7,7 @@ committed data. They use the diagnosis; the diagnosis never uses them
   validate_vehicle     the 12 kg inspector's logs, and its flight family's null calibration
   validate_basilisk    the 12 kg campaign flown by Basilisk (``--engine basilisk``)
   validate_random      a vehicle drawn for every run (``--vehicle random``)
+  validate_plans       the plan that separates an ambiguous answer, flown after its log (``--plans``)
   detectable           minimum detectable size of an effect in one run (the campaigns' sizes)
   separability         whether a run's data can tell its effect from each candidate (scoring)
   characterise         which manoeuvre tells thruster misalignment from thrust loss
