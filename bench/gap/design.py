@@ -381,7 +381,8 @@ def block_jacobians(description: dict, blocks: list, hyps: list) -> tuple:
     (valve, pulse) with the longest coast; and each hypothesis's exact
     signature there, the same flight with its effects less the flight
     without (sign as J theta: what its correction removes), where the
-    simulator flies all its members."""
+    simulator flies all its members at their fitted sizes (else its
+    linear signature, J theta, is used downstream)."""
     from bench.gap.attribute import signature
     from bench.gap.detection import context
     from bench.gap.load import prepare
@@ -409,7 +410,13 @@ def block_jacobians(description: dict, blocks: list, hyps: list) -> tuple:
     for i, h in enumerate(hyps):
         if not simulable(h) or not h.members:
             continue
-        log_h, _ = simulate(description, plan, effects_of(h), seed=0, with_truth=False, noise_scale=0.0)
+        try:
+            log_h, _ = simulate(description, plan, effects_of(h), seed=0, with_truth=False, noise_scale=0.0)
+        except ValueError:
+            # Fitted sizes the simulator refuses to fly (a differential drag
+            # whose host ballistic coefficient came out negative): the fit
+            # is a direction in the log's rows, so the linear signature.
+            continue
         ctx_h = context(prepare(log_h))
         if ctx_h.nominal.white.shape != ctx.nominal.white.shape or ctx_h.ch.e0.shape != ctx.ch.e0.shape:
             continue  # the streams changed length: the linear signature instead

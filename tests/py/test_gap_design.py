@@ -256,3 +256,19 @@ def test_distance_is_concave_and_its_gradient_exact(bundled_case):
             e[k] = h
             fd = (dr.distance(w1 + e)[0] - dr.distance(w1 - e)[0]) / (2 * h)
             assert fd == pytest.approx(g[k], rel=1e-3, abs=1e-6 * d0)
+
+
+def test_fitted_sizes_the_simulator_refuses_fall_back_to_the_linear_signature(bundled_case):
+    """A differential drag fitted with a negative host ballistic coefficient
+    cannot be flown: the design takes its linear signature instead of
+    stopping (the others keep their flown one)."""
+    _, _, hyps, description = bundled_case
+    drag = D.Hypothesis(["differential_drag"], {"differential_drag": [0.002, -0.01]})
+    with pytest.raises(ValueError, match="differential_drag"):
+        from bench.sim.vehicle_sim import simulate
+
+        simulate(description, [D.run_segment(3, 1.0, 2.0, 8)], D.effects_of(drag), seed=0, with_truth=False)
+    blocks = [b for b in D.catalogue(description, 0.1) if b.valve == 3 and b.pulse_s == 1.0]
+    jac, sig, _, _ = D.block_jacobians(description, blocks, [*hyps, drag])
+    assert "differential_drag" in jac and len(hyps) not in sig  # linear for the drag
+    assert set(range(len(hyps))) <= set(sig)  # flown for the others
