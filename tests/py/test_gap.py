@@ -477,6 +477,8 @@ def test_bootstrap_interval_of_a_median_narrows_with_more_runs_and_holds_the_med
     assert lo_s < np.median(small) < hi_s and lo_l < np.median(large) < hi_l
     assert (hi_l - lo_l) < 0.4 * (hi_s - lo_s)  # about sqrt(40 / 1000) = 0.2 as wide
     assert median_interval(small) == (lo_s, hi_s)  # seeded
+    assert median_interval(np.array([0.7])) == (0.7, 0.7)  # one run: every resample is it
+    assert median_interval(np.array([0.7, 0.7, 0.7])) == (0.7, 0.7)
 
 
 def test_the_clock_candidate_undoes_a_drifting_flight_clock():

@@ -225,8 +225,11 @@ def median_interval(v: np.ndarray, resamples: int = BOOTSTRAP_RESAMPLES, seed: i
     quote)."""
     from scipy.stats import bootstrap
 
+    v = np.asarray(v, float)
+    if v.size == 1:  # every resample is that one run (scipy asks for two)
+        return float(v[0]), float(v[0])
     ci = bootstrap(
-        (np.asarray(v),),
+        (v,),
         np.median,
         n_resamples=resamples,
         method="percentile",
