@@ -342,18 +342,23 @@ def plan_main(args, faults) -> int:
     else:
         print(f"  fsw_node: {_node_line(s)}")
     if args.report and p["started"]:
-        from hil_sim.report import write_hil_report
-
-        with staged_report_dir(args.report) as tmp:
-            write_json(tmp / "hil.json", s, strict=True)
-            not_written = write_hil_report(res, s, tmp)
-        print(f"  report: {args.report}/ (hil.json, " + ("" if not_written else "flight_log.h5, ") + "plots)")
-        if not_written:
-            print(f"  {not_written}")
+        _write_report(args.report, res, s)
     if args.json:
         _write_summary(args, s)
     flown = p["started"] and p["ended"] == "finished" and p["intervals_differing"] == 0
     return 0 if flown else 1
+
+
+def _write_report(report: str, res, s: dict) -> None:
+    """hil.json, the flight log and the plots, written whole into ``report``."""
+    from hil_sim.report import write_hil_report
+
+    with staged_report_dir(report) as tmp:
+        write_json(tmp / "hil.json", s, strict=True)
+        not_written = write_hil_report(res, s, tmp)
+    print(f"  report: {report}/ (hil.json, " + ("" if not_written else "flight_log.h5, ") + "plots)")
+    if not_written:
+        print(f"  {not_written}")
 
 
 def _write_summary(args, s: dict):
@@ -422,14 +427,7 @@ def _main(args):
     s = hil_summary(res, args)
     print_summary(s)
     if args.report:
-        from hil_sim.report import write_hil_report
-
-        with staged_report_dir(args.report) as tmp:
-            write_json(tmp / "hil.json", s, strict=True)
-            not_written = write_hil_report(res, s, tmp)
-        print(f"  report: {args.report}/ (hil.json, " + ("" if not_written else "flight_log.h5, ") + "plots)")
-        if not_written:
-            print(f"  {not_written}")
+        _write_report(args.report, res, s)
     if args.json:
         _write_summary(args, s)
     return 0
