@@ -90,7 +90,23 @@ def which_text(out: dict) -> str | None:
     return f"{out['attribution'][0]['effect']} ({v}{_sets_text(out)})"
 
 
+def identified(v: dict) -> bool:
+    """Whether a fitted parameter's value is shown: the diagnosis's own flag
+    (bench/gap/verdict.py parameters: not identified when its sigma exceeds
+    the candidate's physical bound, or when the log cannot identify it at
+    all); an answer written before the flag: whether it has a value."""
+    return bool(v.get("identified", v.get("value") is not None))
+
+
+def not_identified_count(params: dict) -> int:
+    """How many of a fit's parameters are not identified (identified)."""
+    return sum(not identified(v) for v in params.values())
+
+
 def fitted_text(out: dict) -> str | None:
+    """The named effects' parameters beyond 2 sigma, and for each effect
+    with parameters the data do not identify, how many: those are never
+    shown as values."""
     if not out["gap_detected"] or out["verdict"] == "unexplained" or not (out["attribution"] or out.get("effects")):
         return None
     members = out.get("effects") or [out["attribution"][0]]
@@ -99,10 +115,12 @@ def fitted_text(out: dict) -> str | None:
         pars = ", ".join(
             f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}"
             for k, v in m["parameters"].items()
-            if _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"]
+            if identified(v) and _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"]
         )
-        if pars:
-            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + pars)
+        n_not = not_identified_count(m["parameters"])
+        if pars or n_not:
+            text = (pars or "none") + (f" ({len(m['parameters'])} parameters, {n_not} not identified)" if n_not else "")
+            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + text)
     return "fitted (beyond 2 sigma): " + "; ".join(parts) if parts else None
 
 

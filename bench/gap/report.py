@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.gap import localise
+from bench.gap.answers import identified, not_identified_count
 from bench.gap.candidates import candidates_of
 from bench.gap.report_plots import gap_map_figure, residuals_figure, save
 
@@ -125,22 +126,37 @@ TABLE_PARAMETERS = 4
 
 
 def _parameter_text(k: str, v: dict) -> str:
-    return f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}" if v.get("value") is not None else f"{k}: not identifiable"
+    """One parameter: its value and sigma, or, when the data do not identify
+    it (answers.identified), no value: "not identifiable" when the log
+    cannot identify it at all, "not identified" with its sigma when that
+    exceeds the candidate's physical bound."""
+    if identified(v):
+        return f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}"
+    if v.get("value") is None:
+        return f"{k}: not identifiable"
+    return f"{k}: not identified (sigma {v['sigma']:.2g} beyond the physical bound)"
 
 
 def _parameters_cell(params: dict) -> str:
     """A ranking-table cell: every parameter, or for a long list the ones
-    beyond 2 sigma, the most significant first."""
+    beyond 2 sigma, the most significant first, and how many the data do
+    not identify."""
+    n_not = not_identified_count(params)
     if len(params) <= TABLE_PARAMETERS:
         return "; ".join(_parameter_text(k, v) for k, v in params.items())
     big = [
         (abs(v["value"]) / v["sigma"], k, v)
         for k, v in params.items()
-        if v.get("value") is not None and v.get("sigma") and abs(v["value"]) > 2 * v["sigma"]
+        if identified(v) and v.get("value") is not None and v.get("sigma") and abs(v["value"]) > 2 * v["sigma"]
     ]
     big.sort(key=lambda x: -x[0])
     shown = "; ".join(_parameter_text(k, v) for _, k, v in big[:TABLE_PARAMETERS])
-    return f"{len(big)} of {len(params)} beyond 2 sigma" + (f": {shown}" if shown else "") + " (all below)"
+    return (
+        f"{len(big)} of {len(params)} beyond 2 sigma"
+        + (f", {n_not} not identified" if n_not else "")
+        + (f": {shown}" if shown else "")
+        + " (all below)"
+    )
 
 
 def _ranking_lines(result: dict) -> list:
@@ -163,7 +179,9 @@ def _ranking_lines(result: dict) -> list:
             f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |"
         )
     for r in long:
-        lines += ["", f"{r['effect']}, every parameter:", ""]
+        n_not = not_identified_count(r["parameters"])
+        counted = f" ({len(r['parameters'])} parameters, {n_not} not identified)" if n_not else ""
+        lines += ["", f"{r['effect']}, every parameter{counted}:", ""]
         lines += [f"- {_parameter_text(k, v)}" for k, v in r["parameters"].items()]
     lines += [
         "",

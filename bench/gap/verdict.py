@@ -75,11 +75,21 @@ def signature_distance(a, b, cands: dict | None = None) -> float:
 
 
 def parameters(ctx: Context, name: str, theta, sigma) -> dict:
-    """{name: {"value", "sigma"}} of a fit; a parameter the log cannot
-    identify gets no value but why: a valve fired in one half of the
-    split only (quantify.excitation_split), or no signature of it in the
-    training time (its fitted spread zero or undefined). Never a value
-    with zero uncertainty."""
+    """{name: {"value", "sigma", "identified"}} of a fit. A parameter the
+    log cannot identify says why (``not_identifiable``) and has
+    ``identified`` false:
+
+    - no value at all (value and sigma None) when a valve fired in one half
+      of the split only (quantify.excitation_split), or when there is no
+      signature of it in the training time (its fitted spread zero or
+      undefined): never a value with zero uncertainty;
+    - its value and sigma kept, but not identified, when its 1-sigma is
+      larger than the candidate's physical bound (``Candidate.bound``, the
+      largest plausible |parameter|, inside which every fit is kept): the
+      data then narrow it no further than the range it was fitted in, and
+      the value is wherever the bounded fit happened to stop.
+      A sigma large beside the value alone is no such sign: a parameter
+      fitted at zero with a small sigma is identified as (near) zero."""
     c = candidates_of(ctx.d)[name]
     unexcited = {u["valve"]: u["why"] for u in (ctx.split.unexcited if ctx.split is not None else [])}
     per_valve = {"thrust_loss": 1, "thruster_misalignment": 3}.get(name)
@@ -88,12 +98,32 @@ def parameters(ctx: Context, name: str, theta, sigma) -> dict:
         why = unexcited.get(i // per_valve) if per_valve else None
         if why is None and not (np.isfinite(s) and s > 0.0):
             why = "no signature of it in the training time"
-        out[p] = (
-            {"value": None, "sigma": None, "not_identifiable": f"not identifiable from this log: {why}"}
-            if why
-            else {"value": float(v), "sigma": float(s)}
-        )
+        if why:
+            out[p] = {
+                "value": None,
+                "sigma": None,
+                "identified": False,
+                "not_identifiable": f"not identifiable from this log: {why}",
+            }
+        elif unidentified(float(s), c.bound):
+            out[p] = {
+                "value": float(v),
+                "sigma": float(s),
+                "identified": False,
+                "not_identifiable": (
+                    f"not identified: its sigma {float(s):.2g} exceeds the physical bound {c.bound:g}, "
+                    "the data do not narrow it beyond the range it is fitted in"
+                ),
+            }
+        else:
+            out[p] = {"value": float(v), "sigma": float(s), "identified": True}
     return out
+
+
+def unidentified(sigma: float, bound: float) -> bool:
+    """A fitted parameter the data do not identify: its 1-sigma is larger
+    than the candidate's physical bound (parameters())."""
+    return bool(np.isfinite(bound) and sigma > bound)
 
 
 def _judge(ctx: Context, f, scores: HeldOut, thr_map: float, t_map: float) -> dict:

@@ -65,7 +65,7 @@ def test_parameters_of_an_unexcited_valve_or_without_spread_have_no_value():
     theta, sigma = np.full(8, 0.1), np.full(8, 0.01)
     sigma[5] = 0.0
     p = parameters(ctx, "thrust_loss", theta, sigma)
-    assert p["loss_0 [1]"] == {"value": 0.1, "sigma": 0.01}
+    assert p["loss_0 [1]"] == {"value": 0.1, "sigma": 0.01, "identified": True}
     assert (
         p["loss_2 [1]"]["value"] is None and "thruster 2 fired only at 130-150 s" in p["loss_2 [1]"]["not_identifiable"]
     )
