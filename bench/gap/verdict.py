@@ -41,6 +41,9 @@ Without a detected gap the verdict is "no_gap".
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import numpy as np
 
 from bench.gap import localise, quantify
@@ -223,6 +226,27 @@ def single_answer(d: LogData, fits: list, ranking: list) -> tuple:
     return ("ambiguous" if ambiguous_with else "explained"), ambiguous_with, ranking
 
 
+@dataclass(frozen=True)
+class SetScores:
+    """What a jointly fitted set is fitted on and judged by, the same for the
+    set forward selection picks and for the partial answer made of its
+    members (_effect_set, _partial_set): the log's context and screened
+    fits, the screening threshold (-log10 p), the gap map's threshold and
+    statistic, the held-out scores (quantify.HeldOut: shrink, log-likelihood
+    gain, each training channel's gain) and the null's largest map |z| per
+    cell (to locate a remainder)."""
+
+    ctx: Context
+    fits: list
+    thr_glr: float
+    thr_map: float
+    t_map: float
+    held_shrink: Callable
+    held_dll: Callable
+    train_channels: Callable
+    null_map: object = None
+
+
 def set_answer(
     ctx: Context,
     fits: list,
@@ -240,7 +264,7 @@ def set_answer(
     replaces the single answer only when its joint fit explains the held-out
     data and beats the best single explanation there; with no explanation,
     the members that each earn their place make a partial answer."""
-    effect_set = _effect_set(
+    set_scores = SetScores(
         ctx,
         fits,
         thr_glr,
@@ -249,9 +273,10 @@ def set_answer(
         scores.shrink,
         scores.dll,
         scores.train_channels,
-        ranking if verdict in ("explained", "ambiguous") else [],
-        one_ok=verdict == "unexplained",
-        null_map=cal.get("null_map_max_abs_z"),
+        cal.get("null_map_max_abs_z"),
+    )
+    effect_set = _effect_set(
+        set_scores, ranking if verdict in ("explained", "ambiguous") else [], one_ok=verdict == "unexplained"
     )
     if effect_set is not None and effect_set["explains_heldout"]:
         # Sets the data cannot tell from this one: ambiguous.
@@ -261,18 +286,7 @@ def set_answer(
         ambiguous_with = _listed(ctx, fits, [ranking[0]["effect"]], thr_glr, ambiguous_with)
         verdict = "ambiguous" if ambiguous_with else verdict
     if verdict == "unexplained" and effect_set is not None:
-        effect_set = _partial_set(
-            effect_set,
-            ctx,
-            fits,
-            thr_glr,
-            thr_map,
-            t_map,
-            scores.shrink,
-            scores.dll,
-            scores.train_channels,
-            cal.get("null_map_max_abs_z"),
-        )
+        effect_set = _partial_set(effect_set, set_scores)
         if effect_set is not None and effect_set["partly_explains"]:
             verdict = "partly_explained"
             ambiguous_with = _partial_alternatives(ctx, fits, [m["effect"] for m in effect_set["members"]], thr_glr)
@@ -325,7 +339,7 @@ def _partial_alternatives(ctx: Context, fits: list, names: list, thr_glr: float)
     return _listed(ctx, fits, names, thr_glr, without)
 
 
-def _partial_set(es: dict, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held_dll, train_channels, null_map):
+def _partial_set(es: dict, set_scores: SetScores):
     """The set behind a partial answer: the selected members that each earn
     their place on the held-out data, refitted without the others once."""
     if es["partly_explains"] or es["explains_heldout"]:
@@ -333,30 +347,17 @@ def _partial_set(es: dict, ctx, fits, thr_glr, thr_map, t_map, held_shrink, held
     keep = [st for st, m in zip(es["_steps"], es["members"]) if m["adds_dll_heldout"] > HELDOUT_DLL_MIN]
     if not keep or len(keep) == len(es["members"]):
         return es
-    return _effect_set(
-        ctx,
-        fits,
-        thr_glr,
-        thr_map,
-        t_map,
-        held_shrink,
-        held_dll,
-        train_channels,
-        [],
-        one_ok=True,
-        null_map=null_map,
-        steps=keep,
-    )
+    return _effect_set(set_scores, [], one_ok=True, steps=keep)
 
 
-def _set_member(ctx, sf, step: dict, sh: dict, dll_h: float, held_shrink, held_dll) -> dict:
+def _set_member(set_scores: SetScores, sf, step: dict, sh: dict, dll_h: float) -> dict:
     """One member of a jointly fitted set: its parameters from the joint fit and
     what it adds beside the others (the set refitted without it)."""
     from bench.gap import select
 
-    n = step["effect"]
+    ctx, n = set_scores.ctx, step["effect"]
     nav_wo, dyn_wo = select.without(sf, ctx, n)
-    sh_wo = held_shrink(nav_wo, dyn_wo)
+    sh_wo = set_scores.held_shrink(nav_wo, dyn_wo)
     c = candidates_of(ctx.d)[n]
     return {
         "effect": n,
@@ -368,7 +369,7 @@ def _set_member(ctx, sf, step: dict, sh: dict, dll_h: float, held_shrink, held_d
             if np.isfinite(sh["fraction"]) and np.isfinite(sh_wo["fraction"])
             else None
         ),
-        "adds_dll_heldout": float(dll_h - held_dll(nav_wo, dyn_wo)),
+        "adds_dll_heldout": float(dll_h - set_scores.held_dll(nav_wo, dyn_wo)),
     }
 
 
@@ -382,34 +383,23 @@ def _members_shrink(members: list, sh: dict) -> bool:
     return each and (not sh["measurable"] or not np.isfinite(sh["ci95"][0]) or sh["ci95"][0] > 0.0)
 
 
-def _effect_set(
-    ctx,
-    fits,
-    thr_glr,
-    thr_map,
-    t_map,
-    held_shrink,
-    held_dll,
-    train_channels,
-    single: list,
-    one_ok: bool = False,
-    null_map=None,
-    steps: list | None = None,
-):
-    """The forward-selected set, jointly refitted and tested on the held-out
-    data like a single candidate; None when the selection stops at one effect
-    (or at none: ``one_ok`` keeps a set of one, for the partial answer)."""
+def _effect_set(set_scores: SetScores, single: list, one_ok: bool = False, steps: list | None = None):
+    """The forward-selected set (or ``steps``), jointly refitted and tested on
+    the held-out data like a single candidate; None when the selection stops
+    at one effect (or at none: ``one_ok`` keeps a set of one, for the partial
+    answer)."""
     from bench.gap import select
 
+    ctx, fits, thr_map = set_scores.ctx, set_scores.fits, set_scores.thr_map
     d, ch = ctx.d, ctx.ch
     if steps is None:
-        steps = select.forward_select(ctx, fits, thr_glr)
+        steps = select.forward_select(ctx, fits, set_scores.thr_glr)
     if len(steps) < (1 if one_ok else 2):
         return None
     names = [st["effect"] for st in steps]
     sf = select.confirm_set(ctx, names, fits)
-    sh = held_shrink(sf.after_nav, sf.after_dyn)
-    dll_h = held_dll(sf.after_nav, sf.after_dyn)
+    sh = set_scores.held_shrink(sf.after_nav, sf.after_dyn)
+    dll_h = set_scores.held_dll(sf.after_nav, sf.after_dyn)
     cells_after = map_cells(d, sf.after_nav) + localise.dyn_cells(d, ch, sf.after_dyn)
     map_after = localise.map_statistic(cells_after)
     shrink_ok = (
@@ -417,9 +407,9 @@ def _effect_set(
         or not sh["measurable"]
         or sh["deficit_after"] <= 2.0 * sh["deficit_null_sd"]
     )
-    consistent = all(c["z"] >= -Z_CONTRADICT for c in train_channels(sf.after_nav, sf.after_dyn).values())
+    consistent = all(c["z"] >= -Z_CONTRADICT for c in set_scores.train_channels(sf.after_nav, sf.after_dyn).values())
     best_single = max((r["evidence"]["dll_heldout"] for r in single if r["explains_heldout"]), default=-np.inf)
-    members = [_set_member(ctx, sf, st, sh, dll_h, held_shrink, held_dll) for st in steps]
+    members = [_set_member(set_scores, sf, st, sh, dll_h) for st in steps]
     needed = all(m["adds_dll_heldout"] > HELDOUT_DLL_MIN for m in members)
     remainder_left = map_after > thr_map
     explains = bool(
@@ -441,7 +431,7 @@ def _effect_set(
         and dll_h > HELDOUT_DLL_MIN
         and (remainder_left or not shrink_ok)
     )
-    rem = localise.summarise(cells_after, null_map)["where"]
+    rem = localise.summarise(cells_after, set_scores.null_map)["where"]
     return {
         "members": members,
         "shrink_heldout": sh,
