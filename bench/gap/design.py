@@ -74,6 +74,10 @@ START_R_HILL_M = (0.2, -1.5, 0.1)  # each run from rest here, body axes on the H
 DEFAULT_MAX_DURATION_S = 120.0
 DEFAULT_MIN_ON_TIME_S = 0.1
 MAX_REPEATS = 50  # repetitions of one block
+# The probability with which a designed plan should make each of the
+# diagnosis's tests pass (selection_level), as DELTA2_95 separates a pair.
+POWER = 0.95
+CRITERIA = ("selection", "pairwise")
 # Passes of the designed schedule. The diagnosis trains on alternate time
 # blocks and scores on the others (quantify.excitation_split), so a firing
 # flown once falls in one half only; two passes put every firing in both
@@ -153,6 +157,8 @@ def _fit_set(ctx, jac: dict, names: list, target: np.ndarray) -> tuple:
     bounded least-squares fit of the names' stacked Jacobians to ``target``."""
     from bench.gap.select import bounded_lstsq
 
+    if not names:  # the empty set reproduces nothing
+        return {}, np.zeros_like(target)
     J, lo, hi, sc = _scaled(ctx, jac, names)
     u = bounded_lstsq(J, target, lo, hi)
     return _split(names, jac, u * sc), J @ u
@@ -441,9 +447,14 @@ class Direction:
     hi: np.ndarray
     # A member of a family (worst_case_directions): {"member", "parameter", "theta"}.
     family: dict | None = None
+    # The distance this direction must reach (selection_levels), and which
+    # test of the diagnosis asks it: distance() is in units of it.
+    required: float = 1.0
+    test: str = "pair"
+    b_name: str | None = None  # set B when it is none of the hypotheses (a member test's A less one member)
 
     def distance(self, w: np.ndarray) -> tuple:
-        """(d_AB(w), its gradient in w, u*)."""
+        """(d_AB(w), its gradient in w, u*), d and its gradient in units of ``required``."""
         from scipy.optimize import lsq_linear
 
         G = np.tensordot(w, self.G, 1)
@@ -452,7 +463,7 @@ class Direction:
         lam, V = np.linalg.eigh(G)
         keep = lam > max(lam.max(initial=0.0), 0.0) * 1e-12
         if not keep.any():
-            return c, self.s2.copy(), np.zeros(self.lo.size)
+            return c / self.required, self.s2 / self.required, np.zeros(self.lo.size)
         R = np.sqrt(lam[keep])[:, None] * V[:, keep].T
         y = (V[:, keep].T @ h) / np.sqrt(lam[keep])
         u = V[:, keep] @ (y / np.sqrt(lam[keep]))
@@ -460,20 +471,23 @@ class Direction:
             u = lsq_linear(R, y, bounds=(self.lo, self.hi), method="bvls").x
         d = max(c - 2.0 * float(h @ u) + float(u @ G @ u), 0.0)
         grad = self.s2 - 2.0 * (self.h @ u) + np.einsum("i,kij,j->k", u, self.G, u)
-        return d, grad, u
+        return d / self.required, grad / self.required, u
+
+
+def _signatures(ia: int, A: Hypothesis, jac: dict, sig: dict) -> list:
+    """A's signature per block: ``sig[ia]`` (flown with its effects), else its linearisation J_A theta_A."""
+    if ia in sig:
+        return sig[ia]
+    n_blocks = len(next(iter(jac.values())))
+    return [sum(jac[n][k] @ A.theta[n] for n in A.members) for k in range(n_blocks)]
 
 
 def directions(hyps: list, jac: dict, sig: dict, d) -> list:
     """Every counting direction (A at its sizes against set B; not when B
-    holds every member of A). A's signature per block: ``sig[A]`` (flown
-    with its effects), else its linearisation J_A theta_A."""
+    holds every member of A)."""
     out = []
-    n_blocks = len(next(iter(jac.values())))
     for ia, A in enumerate(hyps):
-        if ia in sig:
-            sigs = sig[ia]
-        else:
-            sigs = [sum(jac[n][k] @ A.theta[n] for n in A.members) for k in range(n_blocks)]
+        sigs = _signatures(ia, A, jac, sig)
         for ib, B in enumerate(hyps):
             if ia != ib and not set(A.members) <= set(B.members):
                 out.append(_direction(ia, ib, B, jac, d, sigs))
@@ -485,8 +499,8 @@ def _direction(ia: int, ib: int, B: Hypothesis, jac: dict, d, sigs: list, family
     from bench.gap.attribute import candidate
 
     cs = [candidate(d, n) for n in B.members]
-    lo = np.concatenate([np.full(jac[n][0].shape[1], c.lower / c.scale) for n, c in zip(B.members, cs)])
-    hi = np.concatenate([np.full(jac[n][0].shape[1], c.bound / c.scale) for n, c in zip(B.members, cs)])
+    lo = np.concatenate([np.full(jac[n][0].shape[1], c.lower / c.scale) for n, c in zip(B.members, cs)] + [[]])
+    hi = np.concatenate([np.full(jac[n][0].shape[1], c.bound / c.scale) for n, c in zip(B.members, cs)] + [[]])
     s2, h, G = [], [], []
     for k, s in enumerate(sigs):
         JB = np.hstack([jac[n][k] * c.scale for n, c in zip(B.members, cs)] + [np.zeros((s.size, 0))])
@@ -528,6 +542,82 @@ def worst_case_directions(hyps: list, jac: dict, d) -> list:
                 u = e / np.linalg.norm(e) * size
                 fam = {"member": c, "parameter": pname, "theta": (u * cand.scale).tolist(), "of": ib}
                 out.append(_direction(ib, ia, A, jac, d, [J @ u for J in Jc], fam))
+    return out
+
+
+def selection_level(screen_logp: float, rank: int, power: float = POWER) -> float:
+    """The distance (noise variances, on the rows the selection trains on)
+    at which a member of ``rank`` parameters passes the screening threshold
+    (-log10 p = ``screen_logp`` against chi-square with ``rank`` degrees of
+    freedom) with probability ``power``: its gain in 2 dLL is a noncentral
+    chi-square with that noncentrality."""
+    from scipy.optimize import brentq
+    from scipy.stats import chi2, ncx2
+
+    x = float(chi2.isf(10.0 ** (-screen_logp), rank))
+    hi = max(x, 1.0)
+    while ncx2.sf(x, rank, hi) < power:
+        hi *= 2.0
+    return float(brentq(lambda lam: ncx2.sf(x, rank, lam) - power, 1e-9, hi, xtol=1e-6))
+
+
+def member_ranks(jac: dict, names: list) -> dict:
+    """{name: the rank of its Jacobian over every block} (attribute.numerical_rank, as the selection counts it)."""
+    from bench.gap.attribute import numerical_rank
+
+    return {n: max(numerical_rank(np.vstack(jac[n])), 1) for n in names}
+
+
+def member_levels(jac: dict, names: list, screen_logp: float) -> dict:
+    """{name: {"rank", "required_half"}}: each member's rank and the
+    distance the selection asks of it on the training half (at least
+    DELTA2_95, which the listing asks of any pair)."""
+    ranks = member_ranks(jac, names)
+    return {n: {"rank": r, "required_half": max(DELTA2_95, selection_level(screen_logp, r))} for n, r in ranks.items()}
+
+
+def selection_directions(hyps: list, jac: dict, sig: dict, d, dirs: list, screen_logp: float) -> list:
+    """The directions of the diagnosis's own tests, each with the distance
+    it must reach over the whole plan (``required``: twice the level on the
+    training half, which holds half the plan's rows; two passes put every
+    firing in both halves):
+
+    - a member c of a set A, at A's sizes, against A without c (free): the
+      selection adds c only when its gain beside the others passes the
+      screening threshold over c's rank (selection_level, 95 %); so does a
+      larger set's extra member along each of its directions
+      (worst_case_directions) against the smaller set;
+    - any other pair: the answer lists a set that reproduces its fitted
+      signature to within DELTA2_95 on the training rows (alternatives.py),
+      so DELTA2_95 on the half.
+
+    ``dirs`` (directions and worst_case_directions) get their levels; the
+    member tests against sets that are none of the hypotheses are added."""
+    levels = member_levels(jac, sorted({n for h in hyps for n in h.members}), screen_logp)
+    ranks = {n: v["rank"] for n, v in levels.items()}
+    level = {n: v["required_half"] for n, v in levels.items()}
+    for dr in dirs:
+        A, B = hyps[dr.a], hyps[dr.b]
+        extra = set(A.members) - set(B.members)
+        c = dr.family["member"] if dr.family is not None else (next(iter(extra)) if len(extra) == 1 else None)
+        if c is not None and set(B.members) <= set(A.members):
+            dr.required, dr.test = 2.0 * level[c], f"selection: {c} ({ranks[c]} parameters) beside the others"
+        else:
+            dr.required, dr.test = 2.0 * DELTA2_95, "listing: a set that reproduces the other"
+    listed = {frozenset(h.members) for h in hyps}
+    out = []
+    for ia, A in enumerate(hyps):
+        sigs = None
+        for c in A.members:
+            rest = [n for n in A.members if n != c]
+            if frozenset(rest) in listed:
+                continue
+            sigs = sigs or _signatures(ia, A, jac, sig)
+            B = Hypothesis(rest, {n: A.theta[n] for n in rest}, "free")
+            dr = _direction(ia, -1, B, jac, d, sigs)
+            dr.required, dr.test = 2.0 * level[c], f"selection: {c} ({ranks[c]} parameters) beside the others"
+            dr.b_name = B.name
+            out.append(dr)
     return out
 
 
@@ -734,6 +824,69 @@ def fixed_weights(blocks: list) -> np.ndarray:
     return np.array([1.0 if (b.pulse_s, b.coast_s) == fixed else 0.0 for b in blocks])
 
 
+def _all_directions(hyps: list, jac: dict, sig: dict, d, worst_case: bool, screen_logp: float | None) -> list:
+    """Every counting direction, with ``worst_case`` every direction of a
+    larger set's extra member, and with ``screen_logp`` (the selection
+    criterion) each at its test's level."""
+    dirs = directions(hyps, jac, sig, d) + (worst_case_directions(hyps, jac, d) if worst_case else [])
+    if screen_logp is not None:
+        dirs += selection_directions(hyps, jac, sig, d, dirs, screen_logp)
+    if not dirs:
+        raise ValueError("every hypothesis holds another's members: nothing to separate")
+    return dirs
+
+
+def _fixed_text(fixed_w: np.ndarray, fixed_t: float, fixed_v: float) -> str:
+    return (
+        f"each valve alone for {CHARACTERISATION_FIRE_S:g} s, then {CHARACTERISATION_COAST_S:g} s without "
+        f"firing, after {LEAD_S:g} s closed ({int(fixed_w.sum())} runs, {fixed_t:g} s, {fixed_v:.4g} m/s)"
+    )
+
+
+def _inputs(hyps: list, blocks: list, n_rows: list) -> dict:
+    """The hypotheses and the blocks a design is made of, as written to its JSON."""
+    return {
+        "hypotheses": [
+            {"set": h.members, "how": h.how, "parameters": {n: np.asarray(v).tolist() for n, v in h.theta.items()}}
+            for h in hyps
+        ],
+        "delta2_95": DELTA2_95,
+        "blocks": [
+            {**dataclasses.asdict(b), "lead_s": LEAD_S, "duration_s": b.duration_s, "rows": n}
+            for b, n in zip(blocks, n_rows)
+        ],
+    }
+
+
+def _criterion(criterion: str | None, target_delta2: float | None, reach: bool) -> str:
+    """The criterion design() uses (default: pairwise with a target distance, else selection), its options checked."""
+    criterion = criterion or ("pairwise" if target_delta2 is not None else "selection")
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion {criterion!r}: one of {', '.join(CRITERIA)}")
+    if criterion == "selection" and target_delta2 is not None:
+        raise ValueError("a target distance is the pairwise criterion's; with the selection's, reach its levels")
+    if criterion == "pairwise" and reach:
+        raise ValueError("reaching the levels is the selection criterion's; the pairwise one takes a target distance")
+    return criterion
+
+
+def _objective(criterion: str, target_delta2: float | None, reach: bool) -> str:
+    if criterion == "selection":
+        if reach:
+            return "the shortest plan that makes each of the diagnosis's tests pass 95 % of the time"
+        return "the largest smallest share of its level, each test of the diagnosis at its own, within the limits"
+    if target_delta2 is not None:
+        return f"the shortest plan whose smallest pair distance reaches {target_delta2:g}"
+    return "the largest smallest pair distance within the limits"
+
+
+def committed_screen_logp() -> float:
+    """The committed docking calibration's screening threshold (-log10 p)."""
+    from bench.gap import null as nullmod
+
+    return float(nullmod.load()["thresholds"]["screen_logp"])
+
+
 def design(
     hyps: list,
     description: dict,
@@ -743,15 +896,22 @@ def design(
     target_delta2: float | None = None,
     worst_case: bool = True,
     passes: int = DEFAULT_PASSES,
+    criterion: str | None = None,
+    screen_logp: float | None = None,
+    reach: bool = False,
 ) -> dict:
-    """The designed plan and the fixed characterisation's, with the
-    distance of every counting pair direction for each (docstring above);
-    ``worst_case``: also every direction of a larger set's extra member
-    (worst_case_directions). The plan is ``passes`` passes of one designed
-    schedule (each within 1 / passes of the limits and of the target)."""
+    """The designed plan and the fixed characterisation's, each direction's
+    distance for both (module docstring). ``worst_case``: also every
+    direction of a larger set's extra member; ``passes`` passes of one
+    schedule, each within 1 / passes of the limits. ``criterion``:
+    "selection" (each test at its level, selection_directions, from
+    ``screen_logp``, default the committed calibration's; ``reach``: the
+    shortest plan reaching them) or "pairwise" (one distance, DELTA2_95;
+    ``target_delta2``: the shortest plan reaching it; the default then)."""
     import time
 
     t0 = time.perf_counter()
+    criterion = _criterion(criterion, target_delta2, reach)
     if len(hyps) < 2:
         raise ValueError("give at least two hypotheses to separate")
     blocks = catalogue(description, min_on_time_s)
@@ -763,90 +923,108 @@ def design(
     fixed_t, fixed_v = float(T @ fixed_w), float(V @ fixed_w)
     max_v = float(max_delta_v) if max_delta_v is not None else fixed_v
     if passes * T.min() > max_duration_s:
-        raise ValueError(
-            f"--max-duration-s {max_duration_s:g}: shorter than the shortest block times passes ({passes * T.min():g} s)"
-        )
+        raise ValueError(f"--max-duration-s {max_duration_s:g}: shorter than the shortest block times passes")
     jac, sig, n_rows, d = block_jacobians(description, blocks, hyps)
-    dirs = directions(hyps, jac, sig, d) + (worst_case_directions(hyps, jac, d) if worst_case else [])
-    if not dirs:
-        raise ValueError("every hypothesis holds another's members: nothing to separate")
-    per_pass = None if target_delta2 is None else target_delta2 / passes
+    if criterion == "selection":
+        screen_logp = committed_screen_logp() if screen_logp is None else float(screen_logp)
+    dirs = _all_directions(hyps, jac, sig, d, worst_case, screen_logp if criterion == "selection" else None)
+    target = (1.0 if reach else None) if criterion == "selection" else target_delta2  # selection: in levels
+    per_pass = None if target is None else target / passes
     w, solver = _solve(dirs, T, V, max_duration_s / passes, max_v / passes, per_pass)
-    predicted_continuous = evaluate(dirs, w)
+    share = evaluate(dirs, w)  # of each direction's level, one pass
     valve = np.array([b.valve for b in blocks])
     pulse_coast = [(b.pulse_s, b.coast_s) for b in blocks]
     wi = _round(dirs, w, valve, pulse_coast, T, V, max_duration_s / passes, max_v / passes, per_pass)
     if not wi.any():
         raise ValueError("no block fits the limits")
+    summary = {"criterion": criterion, "target": target_delta2}
     out = {
-        "objective": (
-            f"the shortest plan whose smallest pair distance reaches {target_delta2:g}"
-            if target_delta2 is not None
-            else "the largest smallest pair distance within the limits"
-        ),
+        "objective": _objective(criterion, target_delta2, reach),
+        "criterion": criterion,
         "limits": {
             "max_duration_s": float(max_duration_s),
             "max_delta_v_mps": max_v,
             "max_delta_v_source": "given" if max_delta_v is not None else "the fixed characterisation's",
             "min_on_time_s": float(min_on_time_s),
         },
-        "hypotheses": [
-            {"set": h.members, "how": h.how, "parameters": {n: np.asarray(v).tolist() for n, v in h.theta.items()}}
-            for h in hyps
-        ],
-        "delta2_95": DELTA2_95,
-        "blocks": [
-            {**dataclasses.asdict(b), "lead_s": LEAD_S, "duration_s": b.duration_s, "rows": n}
-            for b, n in zip(blocks, n_rows)
-        ],
+        **_inputs(hyps, blocks, n_rows),
         "passes": int(passes),
-        "designed": _plan_summary(dirs, hyps, blocks, wi, T, V, passes),
-        "designed_continuous": {"repeats": w.tolist(), "delta2": predicted_continuous.tolist(), "solver": solver},
-        "fixed": _plan_summary(dirs, hyps, blocks, fixed_w, T, V),
-        "fixed_plan": (
-            f"each valve alone for {CHARACTERISATION_FIRE_S:g} s, then {CHARACTERISATION_COAST_S:g} s without "
-            f"firing, after {LEAD_S:g} s closed ({int(fixed_w.sum())} runs, {fixed_t:g} s, {fixed_v:.4g} m/s)"
-        ),
+        "designed": _plan_summary(dirs, hyps, blocks, wi, T, V, passes, **summary),
+        "designed_continuous": {
+            "repeats": w.tolist(),
+            "delta2": (share * [dr.required for dr in dirs]).tolist(),
+            "level_min": float(passes * share.min()) if criterion == "selection" else None,
+            "solver": solver,
+        },
+        "fixed": _plan_summary(dirs, hyps, blocks, fixed_w, T, V, **summary),
+        "fixed_plan": _fixed_text(fixed_w, fixed_t, fixed_v),
         "elapsed_s": time.perf_counter() - t0,
     }
-    if target_delta2 is not None:
-        out["target_reached"] = bool(out["designed"]["delta2_min"] >= target_delta2)
+    if criterion == "selection":
+        names = sorted({n for h in hyps for n in h.members})
+        out.update(screen_logp=screen_logp, power=POWER, levels=member_levels(jac, names, screen_logp))
+    if target is not None:
+        out["target_reached"] = bool(out["designed"]["level_min"] >= 1.0 - 1e-9)
     return out
 
 
 def pair_rows(dirs: list, hyps: list, d2: np.ndarray) -> list:
     """One row per counting direction; a family (worst_case_directions) as
-    one row, its smallest distance and the direction that gives it."""
+    one row, its smallest distance and the direction that gives it. Each
+    row: the whole plan's distance ``delta2``; under the selection
+    criterion the diagnosis's ``test``, the distance it asks of each half
+    (``required_half``), the half's (``delta2_half``) and ``reached``."""
     rows, fams = [], {}
     for dr, x in zip(dirs, d2):
+        row = {"a": hyps[dr.a].name, "b": dr.b_name or hyps[dr.b].name, "delta2": float(x)}
+        if dr.required != 1.0:
+            row.update(
+                test=dr.test,
+                required_half=0.5 * dr.required,
+                delta2_half=0.5 * float(x),
+                reached=bool(x >= dr.required * (1 - 1e-9)),
+            )
         if dr.family is None:
-            rows.append({"a": hyps[dr.a].name, "b": hyps[dr.b].name, "delta2": float(x)})
+            rows.append(row)
             continue
         key = (dr.a, dr.b)
-        if key not in fams or x < fams[key]["delta2"]:
+        if key not in fams or x < fams[key]["delta2"]:  # one member: one level
             f = dr.family
             size = float(np.linalg.norm(f["theta"]))
-            fams[key] = {
-                "a": f"{hyps[dr.a].name}, any one {f['member']} direction at {size:.3g}",
-                "b": hyps[dr.b].name,
-                "delta2": float(x),
-                "worst": {"parameter": f["parameter"], "theta": f["theta"], "member": f["member"], "of": f["of"]},
-            }
+            row["a"] = f"{hyps[dr.a].name}, any one {f['member']} direction at {size:.3g}"
+            row["worst"] = {"parameter": f["parameter"], "theta": f["theta"], "member": f["member"], "of": f["of"]}
+            fams[key] = row
     rows += list(fams.values())
     return [dict(r, separated_95=bool(r["delta2"] >= DELTA2_95)) for r in rows]
 
 
-def _plan_summary(dirs: list, hyps: list, blocks: list, w_pass: np.ndarray, T, V, passes: int = 1) -> dict:
+def _plan_summary(
+    dirs: list,
+    hyps: list,
+    blocks: list,
+    w_pass: np.ndarray,
+    T,
+    V,
+    passes: int = 1,
+    criterion: str = "pairwise",
+    target: float | None = None,
+) -> dict:
     """A plan of ``passes`` passes of the repetitions ``w_pass``: its cost,
-    distances (of the whole plan) and schedule."""
+    distances (of the whole plan), how far it is to its levels
+    (``level_min``: the smallest share of a test's level under the
+    selection criterion; the smallest distance over DELTA2_95, or over the
+    target, under the pairwise one) and schedule."""
     w = passes * w_pass
-    d2 = evaluate(dirs, w)
+    share = evaluate(dirs, w)
+    d2 = share * np.array([dr.required for dr in dirs])
+    level = float(share.min()) if criterion == "selection" else float(d2.min()) / (target or DELTA2_95)
     return {
         "duration_s": float(T @ w),
         "delta_v_mps": float(V @ w),
         "runs": int(w.sum()),
         "repeats": {i: int(round(x)) for i, x in enumerate(w) if x > 0},
         "delta2_min": float(d2.min()),
+        "level_min": level,
         "pairs": pair_rows(dirs, hyps, d2),
         "schedule": schedule(blocks, w_pass, passes),
     }
@@ -993,7 +1171,11 @@ def plot(result: dict, path) -> None:
             fl = {(p["a"], p["b"]): p["delta2"] for f in result["flown"][key] for p in f["pairs"]}
             ys = [fl.get((p["a"], p["b"]), np.nan) for p in des]
             ax.plot(x + dx, ys, "kx", ms=9, label="flown" if k == 0 else None)
-    ax.axhline(result["delta2_95"], color="r", ls="--", label="10.8: separated 95 % of the time")
+    if "required_half" in des[0]:
+        # Each direction's own level, on the whole plan (twice the half's).
+        ax.plot(x, [2.0 * p["required_half"] for p in des], "r_", ms=22, mew=2, label="the test's level (whole plan)")
+    else:
+        ax.axhline(result["delta2_95"], color="r", ls="--", label="10.8: separated 95 % of the time")
     ax.set_yscale("log")
     ax.set_xlim(-0.8, len(des) - 0.2)
     ax.set_xticks(x, labels, fontsize=7)
@@ -1026,9 +1208,15 @@ FIELDS = {
     "limits": "the user's limits: plan duration [s], delta-v [m/s], shortest valve opening [s]",
     "hypotheses": "the sets to separate, each at its sizes on the log (parameters in the candidates' units)",
     "delta2_95": "the distance at which two hypotheses are told apart 95 % of the time [noise variances]",
+    "criterion": "selection: each direction at the level the diagnosis's own test asks of it on the training "
+    "half; pairwise: every direction against one distance",
+    "screen_logp": "the screening threshold (-log10 p) the selection levels are computed from",
+    "power": "the probability with which each test should pass at its level",
+    "levels": "each member's rank over the blocks and the distance the selection asks of it on a half",
     "blocks": "the elementary blocks: valve, pulse_s, coast_s after lead_s closed, delta_v_mps, duration_s",
-    "designed": "the designed plan: duration_s, delta_v_mps, runs, repeats per block, predicted distance "
-    "per pair (a at its sizes vs set b), and schedule: each run from rest, every valve's [open, close] "
+    "designed": "the designed plan: duration_s, delta_v_mps, runs, repeats per block, level_min (the smallest "
+    "share of a level reached), predicted distance per pair (a at its sizes vs set b; under the selection "
+    "criterion with the test, required_half, delta2_half and reached), and schedule: each run from rest, every valve's [open, close] "
     "times [s] from the run's start",
     "designed_continuous": "the optimiser's repetitions before rounding, and their distances",
     "fixed": "the fixed characterisation plan, evaluated the same way",
@@ -1065,6 +1253,17 @@ def check(result: dict, hyps: list, description: dict, seed: int = 0) -> dict:
     return out
 
 
+def diagnosis_screen_logp(diagnosis: dict | None) -> float | None:
+    """The screening threshold a diagnosis was judged by (its
+    statistics.screen_logp_threshold), None when it has none."""
+    import math
+
+    thr = ((diagnosis or {}).get("statistics") or {}).get("screen_logp_threshold")
+    if isinstance(thr, (int, float)) and not isinstance(thr, bool) and math.isfinite(thr) and thr > 0:
+        return float(thr)
+    return None
+
+
 def separate(
     log,
     diagnosis: dict | None = None,
@@ -1076,19 +1275,40 @@ def separate(
     check_seed: int | None = None,
     worst_case: bool = True,
     passes: int = DEFAULT_PASSES,
+    criterion: str | None = None,
+    reach: bool = False,
 ) -> dict:
     """`proxops plan LOG --separate`: the hypotheses (``named``: the
     ``--hypotheses`` text and the ``--hypothesis`` list; else the given or a
     fresh diagnosis), the designed and the fixed plan for the log's
-    described vehicle, and with ``check_seed`` both flown (check)."""
-    hyps, source = hypotheses_for(log, diagnosis, parse_sets(*named))
+    described vehicle, and with ``check_seed`` both flown (check). Under
+    the selection criterion the levels are the diagnosis's screening
+    threshold (else the committed calibration's)."""
+    named_sets = parse_sets(*named)
+    if diagnosis is None and not named_sets:
+        from bench.gap.diagnose import diagnose, public
+
+        diagnosis = public(diagnose(log))
+    hyps, source = hypotheses_for(log, diagnosis, named_sets)
     description = description_of(log)
-    res = design(hyps, description, max_duration_s, max_delta_v, min_on_time_s, target_delta2, worst_case, passes)
+    res = design(
+        hyps,
+        description,
+        max_duration_s,
+        max_delta_v,
+        min_on_time_s,
+        target_delta2,
+        worst_case,
+        passes,
+        criterion,
+        None if named_sets else diagnosis_screen_logp(diagnosis),
+        reach,
+    )
     res["hypotheses_from"] = source
     res["description"] = description
     if check_seed is not None:
         res["flown"] = check(res, hyps, description, check_seed)
-    res["fields"] = FIELDS
+    res["fields"] = {k: v for k, v in FIELDS.items() if k in res or k == "flown"}
     return res
 
 

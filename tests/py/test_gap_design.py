@@ -56,7 +56,7 @@ def test_the_bundled_ambiguity_is_the_case(bundled_case):
 
 def test_plan_for_the_listed_sizes_separates_as_predicted_and_beats_the_fixed_one(bundled_case):
     _, _, hyps, description = bundled_case
-    res = D.design(hyps, description, worst_case=False)
+    res = D.design(hyps, description, worst_case=False, criterion="pairwise")
     des, fix = res["designed"], res["fixed"]
     lim = res["limits"]
     assert des["duration_s"] <= lim["max_duration_s"] + 1e-9
@@ -101,6 +101,44 @@ def test_shortest_plan_reaching_the_fixed_distance(bundled_case):
     assert pair["delta2"] >= fixed["delta2_min"] / FACTOR
 
 
+def test_selection_level_is_where_the_screening_test_passes_95_percent_of_the_time():
+    from scipy.stats import chi2, ncx2
+
+    levels = []
+    for rank in (1, 3, 8, 20):
+        lam = D.selection_level(4.15, rank)
+        x = chi2.isf(10**-4.15, rank)
+        assert ncx2.sf(x, rank, lam) == pytest.approx(0.95, abs=1e-6)
+        levels.append(lam)
+    assert levels == sorted(levels) and levels[0] > DELTA2_95  # more parameters ask more
+    assert D.selection_level(4.15, 8, power=0.5) < D.selection_level(4.15, 8)
+
+
+def test_selection_criterion_holds_each_test_at_its_level(bundled_case):
+    """Under the selection criterion every member has its own test (the
+    answer's loss against nothing, the loss beside the tilt, the tilt beside
+    the loss), each at the level its rank asks on the training half; the
+    summary's smallest share is the smallest of the rows'; the shortest
+    plan reaching the levels for the listed sizes does, and flown, the
+    tilt's test holds its predicted distance."""
+    _, _, hyps, description = bundled_case
+    res = D.design(hyps, description, worst_case=False, reach=True, max_duration_s=600.0, max_delta_v=0.8)
+    levels = res["levels"]
+    assert levels["thrust_loss"]["rank"] == 8 and levels["thruster_misalignment"]["rank"] > 8
+    des = res["designed"]
+    tests = {(p["a"], p["b"]): p for p in des["pairs"]}
+    both, loss = "thrust_loss + thruster_misalignment", "thrust_loss"
+    assert set(tests) == {(both, loss), (both, "thruster_misalignment"), (loss, "nothing in the library")}
+    assert tests[(both, loss)]["required_half"] == levels["thruster_misalignment"]["required_half"]
+    assert tests[(both, "thruster_misalignment")]["required_half"] == levels["thrust_loss"]["required_half"]
+    shares = [p["delta2_half"] / p["required_half"] for p in des["pairs"]]
+    assert des["level_min"] == pytest.approx(min(shares), rel=1e-9)
+    assert res["target_reached"] and all(p["reached"] for p in des["pairs"])
+    assert des["duration_s"] <= 600.0 and des["delta_v_mps"] <= 0.8 * (1 + 1e-9)
+    (pair,) = _flown(res, "designed", hyps, description, truth=1)["pairs"]
+    assert 1 / FACTOR <= pair["delta2"] / tests[(both, loss)]["delta2"] <= FACTOR
+
+
 def test_a_docking_tilt_beside_a_loss_separated_by_the_plan(tmp_path):
     """A docking log with thrust losses and nozzle tilts on valves 3 and 6
     is answered "thrust_loss (ambiguous; ... thrust_loss +
@@ -122,12 +160,18 @@ def test_a_docking_tilt_beside_a_loss_separated_by_the_plan(tmp_path):
     hyps = D.fit_hypotheses(log, sets)
     description = D.description_of(log)
     truth = D.Hypothesis(["thrust_loss", "thruster_misalignment"], {k: np.asarray(v) for k, v in effects.items()})
-    every = D.design(hyps, description)
+    every = D.design(hyps, description, criterion="pairwise")
     (pair,) = _flown(every, "designed", [truth, hyps[0]], description, truth=0)["pairs"]
     assert pair["delta2"] >= DELTA2_95
-    listed = D.design(hyps, description, worst_case=False)
+    listed = D.design(hyps, description, worst_case=False, criterion="pairwise")
     (blind_pair,) = _flown(listed, "designed", [truth, hyps[0]], description, truth=0)["pairs"]
     assert blind_pair["delta2"] < DELTA2_95
+    # The selection's plan for the listed sizes holds each member's own test
+    # too (the loss beside the tilt, the loss alone) and flies the true tilt
+    # apart from a loss alone as well.
+    listed_selection = D.design(hyps, description, worst_case=False)
+    (pair,) = _flown(listed_selection, "designed", [truth, hyps[0]], description, truth=0)["pairs"]
+    assert pair["delta2"] >= DELTA2_95
 
 
 def test_plan_command_writes_a_documented_plan_and_figure(tmp_path, capsys):

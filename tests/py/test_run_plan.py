@@ -19,9 +19,12 @@ def test_the_bundled_ambiguous_answer_prints_the_plan_before_the_key(tmp_path, c
     assert [h["set"] for h in res["hypotheses"]] == [["thrust_loss"], ["thrust_loss", "thruster_misalignment"]]
     d, f = res["designed"], res["fixed"]
     assert d["duration_s"] <= res["limits"]["max_duration_s"] and d["delta_v_mps"] <= res["limits"]["max_delta_v_mps"]
-    # Each pair printed with its distance and the fixed plan's, and whether it is separated.
+    # Each test printed with its distance on a half, the fixed plan's, the
+    # level the diagnosis's test asks, and whether it passes.
+    assert res["criterion"] == "selection"
     for pd, pf in zip(d["pairs"], f["pairs"]):
-        assert f"{pd['a']} vs {pd['b']}: distance {pd['delta2']:.3g} (fixed plan {pf['delta2']:.3g}" in out
+        assert f"{pd['a']} vs {pd['b']}: {pd['delta2_half']:.3g} on a half (fixed plan {pf['delta2_half']:.3g}" in out
+        assert f"test asks {pd['required_half']:.3g}): " + ("passes" if pd["reached"] else "short of it") in out
     assert (tmp_path / "plan.png").stat().st_size > 10_000
     assert res["command"].startswith("proxops plan ") and "--separate --diagnosis" in res["command"]
 

@@ -71,16 +71,35 @@ def test_scores_fall_back_to_the_answer_when_no_plan_was_designed():
     before = dict(vp.answer_of(_pub("ambiguous", ["thrust_loss"], [["thrust_loss", "thruster_misalignment"]]), key))
     after = vp.answer_of(_pub("explained", ["thrust_loss", "thruster_misalignment"]), key)
     plan = {"run": 0, "plans": {}, "null": {"gap_detected": True}, "after": after, "designed": True}
-    row = {"duration_s": 60.0, "delta_v_mps": 0.08, "delta2_min": 12.0, "target_reached": True, "below_95": []}
+    row = {
+        "duration_s": 60.0,
+        "delta_v_mps": 0.08,
+        "delta2_min": 12.0,
+        "level_min": 1.2,
+        "continuous_level_min": 1.5,
+        "target_reached": True,
+        "short": [],
+    }
     plan["plans"] = {"designed": row, "half": row, "fixed": dict(row, duration_s=200.0, delta_v_mps=0.16)}
-    plan["flown_true"] = {n: {"flown": True, "delta2_min": 20.0} for n in ("designed", "half", "fixed")}
+    plan["plans"]["needed"] = dict(row, level_min=0.5, target_reached=False)
+    members = [{"member": "thrust_loss", "delta2_half": 60.0, "required_half": 46.2, "reached": True}]
+    short = [dict(members[0], delta2_half=30.0, reached=False)]
+    plan["flown_true"] = {
+        "designed": {"flown": True, "delta2_min": 20.0, "members": members},
+        "half": {"flown": True, "delta2_min": 20.0, "members": members + short},
+        "fixed": {"flown": False, "members": members},
+    }
     none = {"run": 1, "designed": False, "why": "the diagnosis names no effect"}
     s = vp.score_plans([key, dict(key, run=1)], [before, before], [plan, none], [])
     assert s["kept"] == 2 and s["designed"] == 1
     assert s["settled_after"]["k"] == 1 and s["listed_after"]["k"] == 2
     assert s["false_alarms"] == {"n": 1, "k": 1, "fraction": 1.0}
-    assert s["distances"]["half_limits_reach_flown"]["k"] == 1
-    assert s["distances"]["half_duration_share_median"] == pytest.approx(0.3)
+    dist = s["distances"]
+    assert dist["listed_reach_flown"]["designed"]["k"] == 1 and dist["listed_reach_flown"]["fixed"]["n"] == 0
+    # every true member's selection test at its level: one short of it on the half plan
+    assert [dist["members_reached_flown"][k]["k"] for k in ("designed", "half", "fixed")] == [1, 0, 1]
+    assert dist["designed_reach_predicted"]["k"] == 1 and dist["needed_reach_predicted"]["k"] == 0
+    assert dist["half_duration_share_median"] == pytest.approx(0.3)
     assert s["not_designed"] == [{"run": 1, "why": "the diagnosis names no effect"}]
 
 

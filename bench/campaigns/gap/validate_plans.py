@@ -55,6 +55,10 @@ from bench.sim.plans import DT_S
 
 TARGETS = {"exact_set": 0.90, "false_alarms": 0.02, "duration_share": 0.5, "delta_v_share": 0.5}
 SCALE = 2.0
+# The widest limits the campaign asks the shortest plan reaching every
+# level within (duration [s], delta-v [m/s]): what the data would need.
+NEEDED_LIMITS = (1200.0, 1.6)
+DEFAULT_SCREEN_LOGP = 4.15  # a true member no listed set holds: the committed docking threshold
 
 
 # --- the draws -----------------------------------------------------------------------------------
@@ -175,20 +179,24 @@ def plan_scripts(plan: dict) -> list:
 
 
 def plan_row(res: dict, key: str) -> dict:
-    """A plan's cost and predicted distances; the pairs below 10.8."""
+    """A plan's cost, predicted distances and share of the selection's
+    levels; the tests it leaves short of their level."""
     p = res[key]
     return {
         "duration_s": p["duration_s"],
         "delta_v_mps": p["delta_v_mps"],
         "runs": p["runs"],
         "delta2_min": p["delta2_min"],
+        "level_min": p["level_min"],
         # before rounding to whole runs (the optimiser's plan)
-        "continuous_delta2_min": (
-            float(min(res["designed_continuous"]["delta2"]))
-            if key == "designed" and "designed_continuous" in res
-            else None
+        "continuous_level_min": (
+            res["designed_continuous"]["level_min"] if key == "designed" and "designed_continuous" in res else None
         ),
-        "below_95": [{k: r[k] for k in ("a", "b", "delta2")} for r in p["pairs"] if not r["separated_95"]],
+        "short": [
+            {k: r[k] for k in ("a", "b", "test", "delta2_half", "required_half")}
+            for r in p["pairs"]
+            if not r.get("reached", r["separated_95"])
+        ],
         "pairs": len(p["pairs"]),
     }
 
@@ -200,11 +208,14 @@ def true_hypothesis(key: dict):
     return Hypothesis(truth_in(key), {k: np.asarray(v) for k, v in key["effects"].items()}, "the true effects")
 
 
-def flown_true(key: dict, description: dict, plan: dict, hyps: list) -> dict:
+def flown_true(key: dict, description: dict, plan: dict, hyps: list, levels: dict | None = None) -> dict:
     """The true effects flown on ``plan`` by the bench's vehicle simulator
     (common random numbers): their distance from each listed set that does
-    not hold the true set (design.flown_distances), and the smallest."""
-    from bench.gap.design import flown_distances, plan_segments
+    not hold the true set (design.flown_distances), and the smallest; and
+    the selection's own test of each true member on that flight: the true
+    set against it without that member, half of it against the level
+    ``levels`` (design.member_levels) asks."""
+    from bench.gap.design import Hypothesis, flown_distances, plan_segments, selection_level
     from bench.sim.vehicle_sim import KNOWN
 
     missing = sorted(set(key["effects"]) - set(KNOWN))
@@ -214,17 +225,29 @@ def flown_true(key: dict, description: dict, plan: dict, hyps: list) -> dict:
     others = [h for h in hyps if set(h.members) != set(truth.members)]
     if not others or not truth.members:
         return {"flown": False, "why": "no listed set to measure against"}
+    listed = {frozenset(h.members) for h in others}
+    without = [
+        Hypothesis([n for n in truth.members if n != c], {}, f"without {c}")
+        for c in truth.members
+        if frozenset(n for n in truth.members if n != c) not in listed
+    ]
     segs = plan_segments(plan, len(description["vehicle"]["thrusters"]))
-    f = flown_distances(description, segs, [truth, *others], 0, key["seed"])
-    pairs = [{"b": p["b"], "delta2": p["delta2"]} for p in f["pairs"]]
+    f = flown_distances(description, segs, [truth, *others, *without], 0, key["seed"])
+    d2 = {p["b"]: p["delta2"] for p in f["pairs"]}
+    pairs = [{"b": h.name, "delta2": d2[h.name]} for h in others if h.name in d2]
+    members = []
+    for c in truth.members:
+        rest = Hypothesis([n for n in truth.members if n != c], {}).name
+        lv = (levels or {}).get(c)
+        rank = np.asarray(key["effects"][c]).size  # no listed set holds it: its parameters
+        req = lv["required_half"] if lv else max(DELTA2_95, selection_level(DEFAULT_SCREEN_LOGP, rank))
+        members.append({"member": c, "delta2_half": 0.5 * d2[rest], "required_half": req})
+    for m in members:
+        m["reached"] = bool(m["delta2_half"] >= m["required_half"])
+    out = {"flown": bool(pairs), "lambda": f["lambda"], "members": members}
     if not pairs:  # every listed set holds the true set: nothing it must be told from
-        return {"flown": False, "why": "every other listed set holds the true set", "lambda": f["lambda"]}
-    return {
-        "flown": True,
-        "lambda": f["lambda"],
-        "pairs": pairs,
-        "delta2_min": min((p["delta2"] for p in pairs), default=None),
-    }
+        return {**out, "why": "every other listed set holds the true set"}
+    return {**out, "pairs": pairs, "delta2_min": min(p["delta2"] for p in pairs)}
 
 
 def listed_of_unexplained(diagnosis: dict) -> list | None:
@@ -239,15 +262,19 @@ def listed_of_unexplained(diagnosis: dict) -> list | None:
 
 def designs(key: dict, log, diagnosis: dict) -> tuple:
     """(hypotheses, description, the default design, the shortest design
-    reaching 10.8 within half the fixed plan's duration and delta-v)."""
-    from bench.gap.design import description_of, design, hypotheses_for
+    reaching the selection's levels within half the fixed plan's duration
+    and delta-v, and within NEEDED_LIMITS), each at the screening threshold
+    the docking log was judged by."""
+    from bench.gap.design import description_of, design, diagnosis_screen_logp, hypotheses_for
 
     hyps, _ = hypotheses_for(log, diagnosis, listed_of_unexplained(diagnosis))
     description = description_of(log)
-    res = design(hyps, description)
+    thr = diagnosis_screen_logp(diagnosis)
+    res = design(hyps, description, screen_logp=thr)
     fixed_t, fixed_v = res["fixed"]["duration_s"], res["fixed"]["delta_v_mps"]
-    half = design(hyps, description, 0.5 * fixed_t, 0.5 * fixed_v, target_delta2=DELTA2_95)
-    return hyps, description, res, half
+    half = design(hyps, description, 0.5 * fixed_t, 0.5 * fixed_v, screen_logp=thr, reach=True)
+    needed = design(hyps, description, *NEEDED_LIMITS, screen_logp=thr, reach=True)
+    return hyps, description, res, half, needed
 
 
 def appended(key: dict, duration_s: float, scripts: list, calibration: dict) -> dict:
@@ -286,7 +313,7 @@ def plan_run(item, shared) -> dict:
     out = {"run": key["run"], "before": {k: answer[k] for k in ("verdict", "named", "alternatives", "exact")}}
     log = docking_log(key, duration_s)
     try:
-        hyps, description, res, half = designs(key, log, answer["diagnosis"])
+        hyps, description, res, half, needed = designs(key, log, answer["diagnosis"])
     except ValueError as exc:  # e.g. an answer that names no effect: nothing to design from
         out.update(designed=False, why=str(exc), elapsed_s=time.time() - t0)
         return out
@@ -297,14 +324,20 @@ def plan_run(item, shared) -> dict:
         if listed_of_unexplained(answer["diagnosis"])
         else "the answer and the sets it lists"
     )
-    out["plans"] = {"designed": plan_row(res, "designed"), "half": plan_row(half, "designed")}
+    out["plans"] = {
+        "designed": plan_row(res, "designed"),
+        "half": plan_row(half, "designed"),
+        "needed": plan_row(needed, "designed"),
+    }
     out["plans"]["fixed"] = plan_row(res, "fixed")
     out["plans"]["half"]["target_reached"] = bool(half.get("target_reached"))
+    out["plans"]["needed"]["target_reached"] = bool(needed.get("target_reached"))
+    out["levels"] = res.get("levels")
     out["schedule"] = [{"valves": r["valves"], "duration_s": r["duration_s"]} for r in res["designed"]["schedule"]]
     out["flown_true"] = {
-        "designed": flown_true(key, description, res["designed"], hyps),
-        "half": flown_true(key, description, half["designed"], hyps),
-        "fixed": flown_true(key, description, res["fixed"], hyps),
+        "designed": flown_true(key, description, res["designed"], hyps, res.get("levels")),
+        "half": flown_true(key, description, half["designed"], hyps, res.get("levels")),
+        "fixed": flown_true(key, description, res["fixed"], hyps, res.get("levels")),
     }
     out.update(appended(key, duration_s, plan_scripts(res["designed"]), calibration))
     out["fixed_after"] = fixed_appended(key, duration_s)
@@ -383,35 +416,53 @@ def _after(p: dict | None, a: dict) -> dict:
     return p["after"] if p and p.get("designed") else a
 
 
+def _members_reached(f: dict) -> bool:
+    """Every true member's selection test reached on the flight (flown_true)."""
+    return bool(f.get("members")) and all(m["reached"] for m in f["members"])
+
+
 def _distance_scores(done: list) -> dict:
-    """The designed plans' reach: predicted and flown (true effects) against 10.8, and their cost."""
+    """The designed plans' reach: predicted (every test at its level) and
+    flown (the true effects: their distance from the nearest listed set
+    against 10.8, and every true member's selection test against its
+    level), and their cost."""
     half = [p["plans"]["half"] for p in done]
-    flown_half = [p["flown_true"]["half"] for p in done if p["flown_true"]["half"].get("flown")]
-    flown_des = [p["flown_true"]["designed"] for p in done if p["flown_true"]["designed"].get("flown")]
-    flown_fix = [p["flown_true"]["fixed"] for p in done if p["flown_true"]["fixed"].get("flown")]
+    needed = [p["plans"]["needed"] for p in done if "needed" in p["plans"]]
+    flown = {
+        k: [p["flown_true"][k] for p in done if p["flown_true"][k].get("members")]
+        for k in ("designed", "half", "fixed")
+    }
+    paired = {k: [f for f in v if f.get("flown")] for k, v in flown.items()}
     fixed_t = [p["plans"]["fixed"]["duration_s"] for p in done]
     fixed_v = [p["plans"]["fixed"]["delta_v_mps"] for p in done]
     med = lambda xs: float(np.median(xs)) if xs else None  # noqa: E731
+    reached_needed = [n for n in needed if n["target_reached"]]
     return {
         "half_limits_reach_predicted": _rate([h["target_reached"] for h in half]),
-        "half_limits_reach_flown": _rate([f["delta2_min"] >= DELTA2_95 for f in flown_half]),
         "half_duration_share_median": med([h["duration_s"] / t for h, t in zip(half, fixed_t)]),
         "half_delta_v_share_median": med([h["delta_v_mps"] / v for h, v in zip(half, fixed_v)]),
-        "designed_reach_predicted": _rate([p["plans"]["designed"]["delta2_min"] >= DELTA2_95 for p in done]),
-        "designed_reach_flown": _rate([f["delta2_min"] >= DELTA2_95 for f in flown_des]),
-        "fixed_reach_predicted": _rate([p["plans"]["fixed"]["delta2_min"] >= DELTA2_95 for p in done]),
-        "fixed_reach_flown": _rate([f["delta2_min"] >= DELTA2_95 for f in flown_fix]),
+        "designed_reach_predicted": _rate([p["plans"]["designed"]["level_min"] >= 1.0 for p in done]),
+        "fixed_reach_predicted": _rate([p["plans"]["fixed"]["level_min"] >= 1.0 for p in done]),
+        "level_min_median": {
+            "designed": med([p["plans"]["designed"]["level_min"] for p in done]),
+            "designed_continuous": med([p["plans"]["designed"]["continuous_level_min"] for p in done]),
+            "half": med([h["level_min"] for h in half]),
+            "half_continuous": med([h["continuous_level_min"] for h in half]),
+            "fixed": med([p["plans"]["fixed"]["level_min"] for p in done]),
+        },
+        "needed_reach_predicted": _rate([n["target_reached"] for n in needed]),
+        "needed_limits": list(NEEDED_LIMITS),
+        "needed_duration_s_median": med([n["duration_s"] for n in reached_needed]),
+        "needed_delta_v_median": med([n["delta_v_mps"] for n in reached_needed]),
+        "members_reached_flown": {k: _rate([_members_reached(f) for f in v]) for k, v in flown.items()},
+        "listed_reach_flown": {k: _rate([f["delta2_min"] >= DELTA2_95 for f in v]) for k, v in paired.items()},
         "designed_duration_share_median": med(
             [p["plans"]["designed"]["duration_s"] / t for p, t in zip(done, fixed_t)]
         ),
         "designed_delta_v_share_median": med(
             [p["plans"]["designed"]["delta_v_mps"] / v for p, v in zip(done, fixed_v)]
         ),
-        "flown_true_delta2_median": {
-            "designed": med([f["delta2_min"] for f in flown_des]),
-            "half": med([f["delta2_min"] for f in flown_half]),
-            "fixed": med([f["delta2_min"] for f in flown_fix]),
-        },
+        "flown_true_delta2_median": {k: med([f["delta2_min"] for f in v]) for k, v in paired.items()},
     }
 
 
@@ -432,11 +483,17 @@ def run_rows(keys: list, answers: list, planned: list) -> list:
         }
         if p and p.get("designed"):
             row["plans"] = {
-                n: {x: v[x] for x in ("duration_s", "delta_v_mps", "delta2_min")} for n, v in p["plans"].items()
+                n: {
+                    x: v.get(x)
+                    for x in ("duration_s", "delta_v_mps", "delta2_min", "level_min", "continuous_level_min")
+                }
+                for n, v in p["plans"].items()
             }
             row["half_target_reached"] = p["plans"]["half"]["target_reached"]
-            row["below_95_designed"] = p["plans"]["designed"]["below_95"]
+            row["needed_target_reached"] = p["plans"].get("needed", {}).get("target_reached")
+            row["short_designed"] = p["plans"]["designed"]["short"]
             row["flown_true_delta2_min"] = {n: f.get("delta2_min") for n, f in p["flown_true"].items()}
+            row["flown_true_members"] = {n: f.get("members") for n, f in p["flown_true"].items()}
             row["null_gap_detected"] = p["null"]["gap_detected"]
             if "fixed_after" in p:
                 row["fixed_appended"] = {x: p["fixed_after"][x] for x in ("verdict", "named", "exact", "settled")}
@@ -510,12 +567,17 @@ def summary_lines(res: dict) -> list:
         f"(target <= {100 * TARGETS['false_alarms']:.0f} %)",
     ]
     if d:
+        lv = d["level_min_median"]
+        fl = d["members_reached_flown"]
         lines += [
-            f"within half the fixed plan's duration and delta-v, 10.8 reached: predicted "
-            f"{_pct(d['half_limits_reach_predicted'])}, the true effects flown {_pct(d['half_limits_reach_flown'])}",
-            f"default design (120 s, the fixed plan's delta-v): 10.8 predicted {_pct(d['designed_reach_predicted'])}, "
-            f"true effects flown {_pct(d['designed_reach_flown'])}; fixed characterisation: predicted "
-            f"{_pct(d['fixed_reach_predicted'])}, flown {_pct(d['fixed_reach_flown'])}",
+            f"each test of the diagnosis at its level (the smallest share of a level, median): default design "
+            f"{lv['designed']:.3g} (the optimiser's, before whole runs, {lv['designed_continuous']:.3g}), within half "
+            f"the fixed plan {lv['half']:.3g} ({lv['half_continuous']:.3g}), fixed characterisation {lv['fixed']:.3g}",
+            f"every level reached, predicted: default {_pct(d['designed_reach_predicted'])}, within half the fixed "
+            f"plan {_pct(d['half_limits_reach_predicted'])}, fixed {_pct(d['fixed_reach_predicted'])}, within "
+            f"{d['needed_limits'][0]:g} s and {d['needed_limits'][1]:g} m/s {_pct(d['needed_reach_predicted'])}",
+            f"the true effects flown, every true member's selection test at its level: designed "
+            f"{_pct(fl['designed'])}, half {_pct(fl['half'])}, fixed {_pct(fl['fixed'])}",
         ]
     for engine, v in s.get("elsewhere", {}).items():
         lines.append(
