@@ -1233,10 +1233,25 @@ def check(result: dict, hyps: list, description: dict, seed: int = 0) -> dict:
     "fixed": [...]}."""
     n_valves = len(description["vehicle"]["thrusters"])
     truths = [i for i, A in enumerate(hyps) if any(not set(A.members) <= set(B.members) for B in hyps if B is not A)]
+    against = list(hyps)
+    if result.get("criterion") == "selection":  # each member's own test: its set without it, where none is listed
+        truths = [i for i, A in enumerate(hyps) if A.members]
+        listed = {frozenset(h.members) for h in hyps}
+        for A in hyps:
+            for c in A.members:
+                rest = [n for n in A.members if n != c]
+                if frozenset(rest) not in listed:
+                    listed.add(frozenset(rest))
+                    against.append(Hypothesis(rest, {}, "free"))
     out = {}
     for key in ("designed", "fixed"):
         segs = plan_segments(result[key], n_valves)
-        out[key] = [flown_distances(description, segs, hyps, i, seed) for i in truths]
+        out[key] = []
+        for i in truths:
+            f = flown_distances(description, segs, against, i, seed)
+            A = set(hyps[i].members)
+            f["pairs"] = [p for p in f["pairs"] if p["b"] in {h.name for h in hyps} or _one_less(A, p["b"])]
+            out[key].append(f)
         for row in result["designed"]["pairs"]:
             if "worst" not in row:
                 continue
@@ -1251,6 +1266,12 @@ def check(result: dict, hyps: list, description: dict, seed: int = 0) -> dict:
                 p["a"] = row["a"]
             out[key].append(f)
     return out
+
+
+def _one_less(members: set, name: str) -> bool:
+    """Set ``name`` (a Hypothesis name) is ``members`` less one of them."""
+    rest = set() if name == Hypothesis([], {}).name else set(name.split(" + "))
+    return rest < members and len(members - rest) == 1
 
 
 def diagnosis_screen_logp(diagnosis: dict | None) -> float | None:
