@@ -1333,7 +1333,9 @@ def separate(
     return res
 
 
-def docking_tilt(seed: int = 5, tilt_rad: float = 0.03, diagnose_flights: bool = False) -> dict:
+def docking_tilt(
+    seed: int = 5, tilt_rad: float = 0.03, diagnose_flights: bool = False, criterion: str = "pairwise"
+) -> dict:
     """A docking log (bench/sim/reality.py) with thrust losses of 0.06 and
     0.04 on valves 3 and 6 and nozzle tilts of ``tilt_rad`` on the same
     valves, diagnosed; plans designed from its answer (for every direction
@@ -1372,6 +1374,7 @@ def docking_tilt(seed: int = 5, tilt_rad: float = 0.03, diagnose_flights: bool =
             None if fixed_v is None else scale * fixed_v,
             passes=passes,
             worst_case=worst,
+            criterion=criterion,
         )
         fixed_v = res["fixed"]["delta_v_mps"]
         for key in ("designed", "fixed") if name == "every direction" else ("designed",):
@@ -1400,8 +1403,9 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--tilt", type=float, default=0.03, help="nozzle tilt of valves 3 and 6 [rad]")
     ap.add_argument("--diagnose-flights", action="store_true", help="diagnose each flown plan (minutes)")
+    ap.add_argument("--criterion", choices=CRITERIA, default="pairwise", help="the design's criterion")
     a = ap.parse_args(argv)
-    print(json.dumps(docking_tilt(a.seed, a.tilt, a.diagnose_flights), indent=1))
+    print(json.dumps(docking_tilt(a.seed, a.tilt, a.diagnose_flights, a.criterion), indent=1))
 
 
 if __name__ == "__main__":
