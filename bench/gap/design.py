@@ -968,6 +968,39 @@ def design(
     return out
 
 
+def continuous_bound(
+    hyps: list,
+    description: dict,
+    max_duration_s: float,
+    max_delta_v: float,
+    screen_logp: float | None = None,
+    passes: int = DEFAULT_PASSES,
+    min_on_time_s: float = DEFAULT_MIN_ON_TIME_S,
+) -> dict:
+    """The selection criterion's continuous problem alone (no whole runs,
+    which cost most on long plans): within the limits, the largest
+    smallest share of the levels (``level_max``), an upper bound on every
+    plan of whole runs from the blocks in ``passes`` passes (the problem is
+    convex and holds them all); when it reaches 1, the shortest continuous
+    plan that does (``duration_s``, ``delta_v_mps``), a lower bound on
+    theirs."""
+    blocks = catalogue(description, min_on_time_s)
+    T = np.array([b.duration_s for b in blocks])
+    V = np.array([b.delta_v_mps for b in blocks])
+    jac, sig, _, d = block_jacobians(description, blocks, hyps)
+    thr = committed_screen_logp() if screen_logp is None else float(screen_logp)
+    dirs = _all_directions(hyps, jac, sig, d, True, thr)
+    lim = (max_duration_s / passes, max_delta_v / passes)
+    w, solver = _solve(dirs, T, V, *lim, None)
+    out = {"limits": [max_duration_s, max_delta_v], "level_max": float(passes * evaluate(dirs, w).min())}
+    out.update(reached=out["level_max"] >= 1.0 - 1e-6, solver=solver)
+    if out["reached"]:
+        w, solver = _solve(dirs, T, V, *lim, 1.0 / passes)
+        ok = evaluate(dirs, w).min() * passes >= 1.0 - 1e-3
+        out.update(duration_s=float(passes * T @ w) if ok else None, delta_v_mps=float(passes * V @ w) if ok else None)
+    return out
+
+
 def pair_rows(dirs: list, hyps: list, d2: np.ndarray) -> list:
     """One row per counting direction; a family (worst_case_directions) as
     one row, its smallest distance and the direction that gives it. Each

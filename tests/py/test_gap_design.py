@@ -322,3 +322,16 @@ def test_fitted_sizes_the_simulator_refuses_fall_back_to_the_linear_signature(bu
     jac, sig, _, _ = D.block_jacobians(description, blocks, [*hyps, drag])
     assert "differential_drag" in jac and len(hyps) not in sig  # linear for the drag
     assert set(range(len(hyps))) <= set(sig)  # flown for the others
+
+
+def test_continuous_bound_holds_every_plan_of_whole_runs(bundled_case):
+    """The continuous problem holds every plan of whole runs within the same
+    limits: its largest share of the levels bounds the designed plan's, and
+    is the design's own optimiser's figure before rounding."""
+    _, _, hyps, description = bundled_case
+    res = D.design(hyps, description)
+    fixed_v = res["fixed"]["delta_v_mps"]
+    bound = D.continuous_bound(hyps, description, res["limits"]["max_duration_s"], fixed_v)
+    assert bound["level_max"] >= res["designed"]["level_min"]
+    assert bound["level_max"] == pytest.approx(res["designed_continuous"]["level_min"], rel=1e-3)
+    assert bound["reached"] == (bound["level_max"] >= 1.0) and "duration_s" not in bound

@@ -81,7 +81,7 @@ def test_scores_fall_back_to_the_answer_when_no_plan_was_designed():
         "short": [],
     }
     plan["plans"] = {"designed": row, "half": row, "fixed": dict(row, duration_s=200.0, delta_v_mps=0.16)}
-    plan["plans"]["needed"] = dict(row, level_min=0.5, target_reached=False)
+    plan["needed"] = {"limits": [1200.0, 1.6], "level_max": 0.5, "reached": False}
     members = [{"member": "thrust_loss", "delta2_half": 60.0, "required_half": 46.2, "reached": True}]
     short = [dict(members[0], delta2_half=30.0, reached=False)]
     plan["flown_true"] = {
@@ -98,7 +98,7 @@ def test_scores_fall_back_to_the_answer_when_no_plan_was_designed():
     assert dist["listed_reach_flown"]["designed"]["k"] == 1 and dist["listed_reach_flown"]["fixed"]["n"] == 0
     # every true member's selection test at its level: one short of it on the half plan
     assert [dist["members_reached_flown"][k]["k"] for k in ("designed", "half", "fixed")] == [1, 0, 1]
-    assert dist["designed_reach_predicted"]["k"] == 1 and dist["needed_reach_predicted"]["k"] == 0
+    assert dist["designed_reach_predicted"]["k"] == 1 and dist["needed_reach_continuous"]["k"] == 0
     assert dist["half_duration_share_median"] == pytest.approx(0.3)
     assert s["not_designed"] == [{"run": 1, "why": "the diagnosis names no effect"}]
 
