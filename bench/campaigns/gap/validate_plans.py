@@ -13,15 +13,19 @@ that separates") checked as a campaign, not on one log:
    campaign does); a run is kept when its answer is ambiguous, or when its
    true in-library set is not the answer but is one of the sets it lists.
 2. For each kept run (``plan_run``): the plan designed from the answer
-   (the defaults: every direction of a hidden member, two passes, 120 s and
-   the fixed characterisation's delta-v), and the shortest plan reaching
-   the separability distance within half the fixed plan's duration and
-   delta-v (``--target-delta2 10.8``); their predicted distances and the
-   pairs they leave below 10.8. The true effects are flown on each plan
+   under the selection criterion (the defaults: every direction of a
+   hidden member, two passes, 120 s and the fixed characterisation's
+   delta-v; each test at its level at the docking log's screening
+   threshold), the shortest plan reaching every level within half the
+   fixed plan's duration and delta-v (``--reach``), and the continuous
+   bound within NEEDED_LIMITS (design.continuous_bound: whether any plan
+   of the blocks reaches the levels there); their shares of the levels
+   and the tests they leave short. The true effects are flown on each plan
    and on the fixed characterisation by the bench's vehicle simulator
-   (bench/sim/vehicle_sim.py, as ``proxops plan --check``), and their
-   distance from every listed set that does not hold the true set is
-   measured on that flight. The designed plan is then appended to the
+   (bench/sim/vehicle_sim.py, as ``proxops plan --check``): their distance
+   from every listed set that does not hold the true set, and each true
+   member's selection test (the true set against it without that member,
+   half of it against the member's level). The designed plan is then appended to the
    docking log: the same docking runs with the same effects, then the
    plan's runs open loop (bench.sim.reality ``then_scripts``, as the
    docking-then-characterisation campaign appends the fixed plan), and the
@@ -36,8 +40,9 @@ that separates") checked as a campaign, not on one log:
 Scores (``score_plans``), over the kept runs: the exact set named after
 the plan (the named set is the true in-library set), and settled (named,
 and the answer no longer ambiguous); the true set the answer or listed;
-the designed plan within half the fixed plan's duration and delta-v
-reaching 10.8 (predicted, and the true effects' flown distance); false
+every level reached (predicted: the default plan, within half the fixed
+plan, the fixed plan, the continuous bound within NEEDED_LIMITS; flown:
+every true member's test, and 10.8 from the nearest listed set); false
 alarms on the effect-free flights. Targets: TARGETS.
 """
 
