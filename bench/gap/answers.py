@@ -103,6 +103,14 @@ def not_identified_count(params: dict) -> int:
     return sum(not identified(v) for v in params.values())
 
 
+def counted_text(params: dict) -> str:
+    """How many parameters a fit has and how many the data do not identify,
+    as the printed answer and the report both say it: " (24 parameters, 16
+    not identified)"; "" when every one is identified."""
+    n_not = not_identified_count(params)
+    return f" ({len(params)} parameter{'s' if len(params) != 1 else ''}, {n_not} not identified)" if n_not else ""
+
+
 def fitted_text(out: dict) -> str | None:
     """The named effects' parameters beyond 2 sigma, and for each effect
     with parameters the data do not identify, how many: those are never
@@ -117,10 +125,9 @@ def fitted_text(out: dict) -> str | None:
             for k, v in m["parameters"].items()
             if identified(v) and _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"]
         )
-        n_not = not_identified_count(m["parameters"])
-        if pars or n_not:
-            text = (pars or "none") + (f" ({len(m['parameters'])} parameters, {n_not} not identified)" if n_not else "")
-            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + text)
+        counted = counted_text(m["parameters"])
+        if pars or counted:
+            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + (pars or "none") + counted)
     return "fitted (beyond 2 sigma): " + "; ".join(parts) if parts else None
 
 

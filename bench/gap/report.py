@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.gap import localise
-from bench.gap.answers import identified, not_identified_count
+from bench.gap.answers import counted_text, identified, not_identified_count
 from bench.gap.candidates import candidates_of
 from bench.gap.report_plots import gap_map_figure, residuals_figure, save
 
@@ -159,6 +159,86 @@ def _parameters_cell(params: dict) -> str:
     )
 
 
+def _every_parameter_lines(label: str, params: dict) -> list:
+    """A long parameter list in full, below the table whose cell shows only
+    the ones beyond 2 sigma (_parameters_cell), with how many the data do
+    not identify."""
+    lines = ["", f"{label}, every parameter{counted_text(params)}:", ""]
+    return lines + [f"- {_parameter_text(k, v)}" for k, v in params.items()]
+
+
+def _set_status(result: dict, es: dict) -> str:
+    """What the jointly fitted set is to the answer."""
+    v = result["verdict"]
+    if es.get("explains_heldout"):
+        return "The answer: refitted together, the set explains the held-out data."
+    if v == "partly_explained":
+        each = "each member earns its place" if len(es["members"]) > 1 else "it earns its place"
+        return (
+            f"The partial answer: {each} on the held-out data; a remainder no effect in the library accounts for stays."
+        )
+    if v in ("explained", "ambiguous") and result["attribution"]:
+        best = result["attribution"][0]["effect"]
+        return (
+            f"Not the answer ({best} alone is): the set's refit does not pass the held-out tests, "
+            f"or does not beat {best} there."
+        )
+    return (
+        "Not an answer: the set's refit does not pass the held-out tests, so the gap stays unexplained "
+        "and no value below is an answer."
+    )
+
+
+def _set_lines(result: dict) -> list:
+    """The set of effects forward selection chose (``effect_set``), when it
+    chose one: what it is to the answer, its held-out scores, each member's
+    share and its jointly fitted parameters, as the ranking shows a single
+    candidate's (_parameters_cell), and how many the data do not identify."""
+    es = result.get("effect_set")
+    if not es or not es.get("members"):
+        return []
+    members = es["members"]
+    thr = result["statistics"]["map_threshold"]
+    shares = (
+        " Each member adds what the set loses on the held-out data with its parameters set to zero, the others kept."
+        if len(members) > 1
+        else ""
+    )
+    lines = [
+        f"## The selected set: {' + '.join(m['effect'] for m in members)}",
+        "",
+        _set_status(result, es),
+        "",
+        f"On the held-out data: shrink {_shrink_cell(es['shrink_heldout'])}, log-likelihood "
+        f"{es['dll_heldout']:+.1f}; gap-map max |z| after the fit {es['map_max_abs_z_after']:.2f} "
+        f"(threshold {thr:.2f}).{shares} Parameters from the set's refit, not from the single fits ranked below.",
+        "",
+        "| member | kind | adds shrink held-out | adds dLL held-out | parameters |",
+        "|---|---|---|---|---|",
+    ]
+    long = []
+    for m in members:
+        if len(m["parameters"]) > TABLE_PARAMETERS:
+            long.append(m)
+        adds = m.get("adds_shrink")
+        lines.append(
+            f"| {m['effect']} | {m['kind']} | {'not measurable' if adds is None else f'{adds:.2f}'} | "
+            f"{m['adds_dll_heldout']:+.1f} | {_parameters_cell(m['parameters'])} |"
+        )
+    for m in long:
+        lines += _every_parameter_lines(f"{m['effect']} in the set", m["parameters"])
+    n = sum(len(m["parameters"]) for m in members)
+    n_not = sum(not_identified_count(m["parameters"]) for m in members)
+    if n_not:
+        lines += [
+            "",
+            f"{n_not} of the set's {n} parameters are not identified (their 1-sigma beyond the candidate's "
+            "physical bound, or not identifiable from this log): the data do not narrow them, and no value "
+            "is shown.",
+        ]
+    return lines + [""]
+
+
 def _ranking_lines(result: dict) -> list:
     """The ranking table and the screening line."""
     lines = [
@@ -179,10 +259,7 @@ def _ranking_lines(result: dict) -> list:
             f"{'yes' if r['explains_heldout'] else 'no'} | {pars} |"
         )
     for r in long:
-        n_not = not_identified_count(r["parameters"])
-        counted = f" ({len(r['parameters'])} parameters, {n_not} not identified)" if n_not else ""
-        lines += ["", f"{r['effect']}, every parameter{counted}:", ""]
-        lines += [f"- {_parameter_text(k, v)}" for k, v in r["parameters"].items()]
+        lines += _every_parameter_lines(r["effect"], r["parameters"])
     lines += [
         "",
         "Screening (linearised GLR, every candidate, -log10 p against chi-square(rank)): "
@@ -276,6 +353,7 @@ def write_report(result: dict, out_dir, log_name: str = "log") -> Path:
         "",
     ]
     lines += _not_told_apart_lines(result, best)
+    lines += _set_lines(result)
     lines += _ranking_lines(result)
     lines += _gap_map_lines(loc)
     lines += _residual_lines(series, named, what)

@@ -41,6 +41,11 @@ def test_thrust_loss_and_gyro_bias_are_both_named(tmp_path):
     assert "thrust_loss + gyro_bias (ambiguous, together; cannot be told from: " in text and "adds" in text
     page = write_report(full, tmp_path, "mixture").read_text()
     assert "RMS on held-out rows, nominal -> with thrust_loss + gyro_bias" in page
+    # the set's members with their shares and jointly fitted parameters
+    assert "## The selected set: thrust_loss + gyro_bias" in page
+    members = page.split("## The selected set")[1].split("## Ranking")[0]
+    assert "| thrust_loss | dynamics |" in members and "| gyro_bias | sensor |" in members
+    assert "loss_3 [1] = " in members and "b_x [rad/s] = " in members
     # the channel shown is where the gap map found the gap, not the one an effect of the set acts on
     assert "Where**: gyro vs valve torques" in page and "accelerometer and gyro against the valve model" in page
 

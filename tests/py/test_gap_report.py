@@ -66,3 +66,122 @@ def test_the_gap_map_says_how_its_gyro_regime_columns_differ():
 
     text = " ".join(_gap_map_lines({"top_cells": []}))
     assert "raw sample-to-sample differences" in text and "'all' columns test the whitened rows" in text
+
+
+def _tilt(n_not: int) -> dict:
+    """A 24-parameter nozzle tilt from a joint fit: a_20 well beyond 2 sigma,
+    the first ``n_not`` not identified (sigmas of 1 rad and more against a
+    bound of 0.5 rad, their values kept inside it)."""
+    params = {f"a_{i} [rad]": _p(0.3, 1.0 + i, False) for i in range(n_not)}
+    params |= {f"a_{i} [rad]": _p(1e-4, 1e-3, True) for i in range(n_not, 24)}
+    params["a_20 [rad]"] = _p(5e-3, 1e-3, True)
+    return params
+
+
+def _set_answer(verdict: str, members: list, explains: bool) -> dict:
+    return {
+        "verdict": verdict,
+        "gap_detected": True,
+        "attribution": [],
+        "effects": members if verdict != "unexplained" else [],
+        "statistics": {"map_threshold": 4.74},
+        "effect_set": {
+            "members": members,
+            "shrink_heldout": {"measurable": True, "fraction": 0.62, "ci95": [0.5, 0.7]},
+            "dll_heldout": 120.0,
+            "map_max_abs_z_after": 9.1,
+            "explains_heldout": explains,
+            "partly_explains": verdict == "partly_explained",
+        },
+    }
+
+
+def test_a_set_answer_lists_each_member_its_share_and_its_parameters():
+    """A partly explained answer of a nozzle tilt and a gyro bias, fitted
+    together: the page shows each member's share and its jointly fitted
+    parameters, the tilt's 16 not identified without a value."""
+    from bench.gap.report import _set_lines
+
+    tilt = {
+        "effect": "thruster_misalignment",
+        "kind": "dynamics",
+        "adds_shrink": 0.41,
+        "adds_dll_heldout": 80.2,
+        "parameters": _tilt(16),
+    }
+    bias = {
+        "effect": "gyro_bias",
+        "kind": "sensor",
+        "adds_shrink": None,
+        "adds_dll_heldout": 12.5,
+        "parameters": {"b_x [rad/s]": _p(2e-3, 2e-4, True), "b_y [rad/s]": _p(0.4, 3.0, False)},
+    }
+    text = "\n".join(_set_lines(_set_answer("partly_explained", [tilt, bias], explains=False)))
+    assert "## The selected set: thruster_misalignment + gyro_bias" in text
+    assert "The partial answer: each member earns its place on the held-out data" in text
+    assert "shrink 0.62 [0.50, 0.70], log-likelihood +120.0" in text
+    assert (
+        "| thruster_misalignment | dynamics | 0.41 | +80.2 | 1 of 24 beyond 2 sigma, 16 not identified: "
+        "a_20 [rad] = 0.005 +/- 0.001 (all below) |" in text
+    )
+    assert (
+        "| gyro_bias | sensor | not measurable | +12.5 | b_x [rad/s] = 0.002 +/- 0.0002; "
+        "b_y [rad/s]: not identified (sigma 3 beyond the physical bound) |" in text
+    )
+    assert "thruster_misalignment in the set, every parameter (24 parameters, 16 not identified):" in text
+    assert "- a_3 [rad]: not identified (sigma 4 beyond the physical bound)" in text
+    assert "a_3 [rad] = " not in text and "b_y [rad/s] = " not in text
+    assert "17 of the set's 26 parameters are not identified" in text
+
+
+def test_a_selected_set_that_is_no_answer_is_shown_as_such():
+    """An unexplained answer whose selected set is a nozzle tilt with 35 of
+    its 36 parameters not identified (a 12 kg log with a hinged panel): the
+    page shows the fit and says it is no answer."""
+    from bench.gap.report import _set_lines
+
+    params = {f"phi_{i // 3}{'xyz'[i % 3]} [rad]": _p(0.01, 1e3 + i, False) for i in range(36)}
+    params["phi_10y [rad]"] = _p(-0.0164, 0.024, True)
+    tilt = {
+        "effect": "thruster_misalignment",
+        "kind": "dynamics",
+        "adds_shrink": -0.04,
+        "adds_dll_heldout": -148.4,
+        "parameters": params,
+    }
+    text = "\n".join(_set_lines(_set_answer("unexplained", [tilt], explains=False)))
+    assert "## The selected set: thruster_misalignment" in text
+    assert "Not an answer: the set's refit does not pass the held-out tests" in text
+    assert (
+        "| thruster_misalignment | dynamics | -0.04 | -148.4 | 0 of 36 beyond 2 sigma, 35 not identified (all below) |"
+        in text
+    )
+    assert "thruster_misalignment in the set, every parameter (36 parameters, 35 not identified):" in text
+    assert "- phi_10y [rad] = -0.0164 +/- 0.024" in text and "- phi_0x [rad]: not identified (sigma 1e+03" in text
+    assert "35 of the set's 36 parameters are not identified" in text
+    # beside a single answer, the set that did not replace it
+    single = _set_answer("ambiguous", [tilt], explains=False) | {"attribution": [{"effect": "thrust_loss"}]}
+    assert "Not the answer (thrust_loss alone is)" in "\n".join(_set_lines(single))
+
+
+def test_no_selected_set_no_section():
+    from bench.gap.report import _set_lines
+
+    assert _set_lines({"verdict": "explained", "effect_set": None}) == []
+
+
+def test_the_page_and_the_printed_answer_count_a_member_alike():
+    from bench.gap.answers import fitted_text
+    from bench.gap.report import _set_lines
+
+    tilt = {"effect": "thruster_misalignment", "kind": "dynamics", "adds_shrink": 0.5, "adds_dll_heldout": 9.0}
+    bias = {"effect": "gyro_bias", "kind": "sensor", "adds_shrink": 0.4, "adds_dll_heldout": 7.0}
+    out = _set_answer(
+        "explained",
+        [tilt | {"parameters": _tilt(16)}, bias | {"parameters": {"b_x [rad/s]": _p(2e-3, 2e-4, True)}}],
+        explains=True,
+    )
+    printed, page = fitted_text(out), "\n".join(_set_lines(out))
+    assert "thruster_misalignment: a_20 [rad] 0.005 +/- 0.001 (24 parameters, 16 not identified)" in printed
+    assert "thruster_misalignment in the set, every parameter (24 parameters, 16 not identified):" in page
+    assert "The answer: refitted together, the set explains the held-out data." in page
