@@ -151,3 +151,26 @@ def test_the_basilisk_subset_is_spread_over_the_runs_its_engine_flies():
     kept[1] = ({"effects": {"clock_drift": [1e-5]}}, {})
     assert vp.basilisk_subset(kept, 3) == {0, 3, 5}
     assert vp.basilisk_subset(kept, 0) == set() and len(vp.basilisk_subset(kept, 20)) == 8
+
+
+def test_a_true_members_test_is_found_whatever_order_a_listed_set_names_it(monkeypatch):
+    """The true set's test of each member is its distance from the set
+    without it; a listed set may name those members in another order."""
+    from bench.gap import design as D
+
+    def flown(description, segs, hyps, truth, seed):
+        A = hyps[truth]
+        pairs = [{"a": A.name, "b": h.name, "delta2": 100.0 + i} for i, h in enumerate(hyps) if i != truth]
+        return {"lambda": 1.0, "pairs": pairs}
+
+    monkeypatch.setattr(D, "flown_distances", flown)
+    monkeypatch.setattr(D, "plan_segments", lambda plan, n: [])
+    effects = {"com_offset": [0.01, 0, 0], "thrust_loss": [0.05] + [0.0] * 7, "thruster_misalignment": [0.0] * 24}
+    key = {"seed": 1, "members": sorted(effects), "effects": effects}
+    listed = [D.Hypothesis(["thruster_misalignment", "com_offset"], {}), D.Hypothesis(["thrust_loss"], {})]
+    f = vp.flown_true(key, {"vehicle": {"thrusters": [{}] * 8}}, {}, listed, None)
+    assert [m["member"] for m in f["members"]] == vp.truth_in(key)
+    # the set without thrust_loss is the first listed one, named the other way round
+    without_loss = next(m for m in f["members"] if m["member"] == "thrust_loss")
+    assert without_loss["delta2_half"] == 0.5 * 101.0
+    assert f["pairs"][0] == {"b": "thruster_misalignment + com_offset", "delta2": 101.0}

@@ -238,11 +238,12 @@ def flown_true(key: dict, description: dict, plan: dict, hyps: list, levels: dic
     ]
     segs = plan_segments(plan, len(description["vehicle"]["thrusters"]))
     f = flown_distances(description, segs, [truth, *others, *without], 0, key["seed"])
-    d2 = {p["b"]: p["delta2"] for p in f["pairs"]}
-    pairs = [{"b": h.name, "delta2": d2[h.name]} for h in others if h.name in d2]
+    nothing = Hypothesis([], {}).name
+    d2 = {frozenset() if p["b"] == nothing else frozenset(p["b"].split(" + ")): p["delta2"] for p in f["pairs"]}
+    pairs = [{"b": h.name, "delta2": d2[frozenset(h.members)]} for h in others if frozenset(h.members) in d2]
     members = []
     for c in truth.members:
-        rest = Hypothesis([n for n in truth.members if n != c], {}).name
+        rest = frozenset(n for n in truth.members if n != c)  # a listed set may name its members in another order
         lv = (levels or {}).get(c)
         rank = np.asarray(key["effects"][c]).size  # no listed set holds it: its parameters
         req = lv["required_half"] if lv else max(DELTA2_95, selection_level(DEFAULT_SCREEN_LOGP, rank))
