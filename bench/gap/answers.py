@@ -111,8 +111,41 @@ def counted_text(params: dict) -> str:
     return f" ({len(params)} parameter{'s' if len(params) != 1 else ''}, {n_not} not identified)" if n_not else ""
 
 
+def at_bound(v: dict) -> bool:
+    """Whether the fit holds a parameter at a physical bound (bench/gap/verdict.py
+    parameters): shown at the bound, with no sigma, never beyond 2 sigma."""
+    return identified(v) and v.get("at_bound") in ("lower", "upper")
+
+
+def significant(v: dict) -> bool:
+    """An identified parameter fitted beyond 2 sigma of zero; one held at a
+    bound has no sampling sigma and never is."""
+    return (
+        identified(v)
+        and not at_bound(v)
+        and _finite(v.get("value"), v.get("sigma"))
+        and v["sigma"] > 0
+        and abs(v["value"]) > 2 * v["sigma"]
+    )
+
+
+def bound_text(params: dict) -> str:
+    """The parameters held at a physical bound, grouped by bound, as the
+    printed answer and the report both say it: " (at the lower bound 0:
+    loss_5 [1], loss_7 [1])"; "" when none is."""
+    groups = {}
+    for k, v in params.items():
+        if at_bound(v):
+            groups.setdefault((v["at_bound"], v.get("bound")), []).append(k)
+    parts = [
+        f"at the {side} bound{f' {b:g}' if _finite(b) else ''}: {', '.join(ks)}" for (side, b), ks in groups.items()
+    ]
+    return f" ({'; '.join(parts)})" if parts else ""
+
+
 def fitted_text(out: dict) -> str | None:
-    """The named effects' parameters beyond 2 sigma, and for each effect
+    """The named effects' parameters beyond 2 sigma, those the fit holds at a
+    physical bound (never beyond 2 sigma: bound_text), and for each effect
     with parameters the data do not identify, how many: those are never
     shown as values."""
     if not out["gap_detected"] or out["verdict"] == "unexplained" or not (out["attribution"] or out.get("effects")):
@@ -121,13 +154,12 @@ def fitted_text(out: dict) -> str | None:
     parts = []
     for m in members:
         pars = ", ".join(
-            f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}"
-            for k, v in m["parameters"].items()
-            if identified(v) and _finite(v["value"], v["sigma"]) and v["sigma"] > 0 and abs(v["value"]) > 2 * v["sigma"]
+            f"{k} {v['value']:.3g} +/- {v['sigma']:.2g}" for k, v in m["parameters"].items() if significant(v)
         )
+        held = bound_text(m["parameters"])
         counted = counted_text(m["parameters"])
-        if pars or counted:
-            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + (pars or "none") + counted)
+        if pars or held or counted:
+            parts.append((f"{m['effect']}: " if len(members) > 1 else "") + (pars or "none") + held + counted)
     return "fitted (beyond 2 sigma): " + "; ".join(parts) if parts else None
 
 

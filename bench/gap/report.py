@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.gap import localise
-from bench.gap.answers import counted_text, identified, not_identified_count
+from bench.gap.answers import at_bound, counted_text, identified, not_identified_count, significant
 from bench.gap.candidates import candidates_of
 from bench.gap.report_plots import gap_map_figure, residuals_figure, save
 
@@ -126,10 +126,14 @@ TABLE_PARAMETERS = 4
 
 
 def _parameter_text(k: str, v: dict) -> str:
-    """One parameter: its value and sigma, or, when the data do not identify
-    it (answers.identified), no value: "not identifiable" when the log
-    cannot identify it at all, "not identified" with its sigma when that
+    """One parameter: its value and sigma; held at a physical bound
+    (answers.at_bound), the bound and no sigma; or, when the data do not
+    identify it (answers.identified), no value: "not identifiable" when the
+    log cannot identify it at all, "not identified" with its sigma when that
     exceeds the candidate's physical bound."""
+    if at_bound(v):
+        b = v.get("bound")
+        return f"{k} = {(b if b is not None else v['value']):.3g}, at its {v['at_bound']} bound (no sampling sigma)"
     if identified(v):
         return f"{k} = {v['value']:.3g} +/- {v['sigma']:.2g}"
     if v.get("value") is None:
@@ -140,20 +144,18 @@ def _parameter_text(k: str, v: dict) -> str:
 def _parameters_cell(params: dict) -> str:
     """A ranking-table cell: every parameter, or for a long list the ones
     beyond 2 sigma, the most significant first, and how many the data do
-    not identify."""
+    not identify and how many the fit holds at a bound."""
     n_not = not_identified_count(params)
     if len(params) <= TABLE_PARAMETERS:
         return "; ".join(_parameter_text(k, v) for k, v in params.items())
-    big = [
-        (abs(v["value"]) / v["sigma"], k, v)
-        for k, v in params.items()
-        if identified(v) and v.get("value") is not None and v.get("sigma") and abs(v["value"]) > 2 * v["sigma"]
-    ]
+    big = [(abs(v["value"]) / v["sigma"], k, v) for k, v in params.items() if significant(v)]
     big.sort(key=lambda x: -x[0])
     shown = "; ".join(_parameter_text(k, v) for _, k, v in big[:TABLE_PARAMETERS])
+    n_bound = sum(at_bound(v) for v in params.values())
     return (
         f"{len(big)} of {len(params)} beyond 2 sigma"
         + (f", {n_not} not identified" if n_not else "")
+        + (f", {n_bound} at a bound" if n_bound else "")
         + (f": {shown}" if shown else "")
         + " (all below)"
     )
@@ -236,7 +238,22 @@ def _set_lines(result: dict) -> list:
             "physical bound, or not identifiable from this log): the data do not narrow them, and no value "
             "is shown.",
         ]
+    lines += _bound_note(sum(sum(at_bound(v) for v in m["parameters"].values()) for m in members), f"the set's {n}")
     return lines + [""]
+
+
+def _bound_note(n_bound: int, of: str) -> list:
+    """What a parameter held at a physical bound is (answers.at_bound), when
+    any is."""
+    if not n_bound:
+        return []
+    return [
+        "",
+        f"{n_bound} of {of} parameters {'is' if n_bound == 1 else 'are'} held at a physical bound (a thrust "
+        "loss at 0): the data push against the bound, so the value is the bound, with no sampling sigma, "
+        f"never counted beyond 2 sigma; the other parameters' sigmas are computed with "
+        f"{'it' if n_bound == 1 else 'them'} held there.",
+    ]
 
 
 def _ranking_lines(result: dict) -> list:
@@ -260,6 +277,8 @@ def _ranking_lines(result: dict) -> list:
         )
     for r in long:
         lines += _every_parameter_lines(r["effect"], r["parameters"])
+    n_bound = sum(sum(at_bound(v) for v in r["parameters"].values()) for r in result["attribution"])
+    lines += _bound_note(n_bound, "the ranked candidates'")
     lines += [
         "",
         "Screening (linearised GLR, every candidate, -log10 p against chi-square(rank)): "

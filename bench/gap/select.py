@@ -29,7 +29,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.gap.attribute import Context, Fit, candidate, numerical_rank, run_pass, screen_logp, training_residuals
+from bench.gap.attribute import (
+    Context,
+    Fit,
+    candidate,
+    fit_sigma,
+    numerical_rank,
+    run_pass,
+    screen_logp,
+    training_residuals,
+)
 
 MAX_EFFECTS = 3
 
@@ -190,7 +199,7 @@ def confirm_set(ctx: Context, names: list, fits: list, max_nfev: int = 12) -> Se
         resid, u0, method="trf", bounds=(lb, ub), max_nfev=max_nfev * (u0.size + 1) if any_nav else None, diff_step=1e-3
     )
     theta = sol.x * sc
-    sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)), 0, None)) * sc
+    sigma = fit_sigma(sol.jac, sol.x, lb, ub) * sc
     after = run_pass(d, corr(theta)) if any_nav else nominal
     dll = float(np.nansum(after.loglik[ctx.train_nav]) - np.nansum(nominal.loglik[ctx.train_nav]))
     ad = dyn_after(theta)

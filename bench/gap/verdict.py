@@ -47,7 +47,7 @@ from typing import Callable
 import numpy as np
 
 from bench.gap import localise, quantify
-from bench.gap.attribute import BF_AMBIGUOUS, DELTA2_95, Context, bounded_fit, confirm
+from bench.gap.attribute import BF_AMBIGUOUS, DELTA2_95, Context, at_bounds, bounded_fit, confirm
 from bench.gap.candidates import CANDIDATES, candidates_of
 from bench.gap.detection import map_cells
 from bench.gap.load import LogData
@@ -92,10 +92,19 @@ def parameters(ctx: Context, name: str, theta, sigma) -> dict:
       data then narrow it no further than the range it was fitted in, and
       the value is wherever the bounded fit happened to stop.
       A sigma large beside the value alone is no such sign: a parameter
-      fitted at zero with a small sigma is identified as (near) zero."""
+      fitted near zero with a small sigma is identified as (near) zero.
+
+    A parameter the fit holds at one of its physical bounds (attribute.at_bounds:
+    a thrust loss at 0, a gyro scale at -0.5) is identified, at that bound:
+    ``at_bound`` "lower" or "upper", ``bound`` the bound's value, and no
+    sigma (None): the data push it against the bound, and the curvature
+    there is no sampling uncertainty (a loss of 4e-15 +/- 2e-18 read as
+    beyond 2 sigma). The free parameters' sigmas are computed with it held
+    (attribute.fit_sigma)."""
     c = candidates_of(ctx.d)[name]
     unexcited = {u["valve"]: u["why"] for u in (ctx.split.unexcited if ctx.split is not None else [])}
     per_valve = {"thrust_loss": 1, "thruster_misalignment": 3}.get(name)
+    held = at_bounds(np.asarray(theta, float) / c.scale, c.lower / c.scale, c.bound / c.scale)
     out = {}
     for i, (p, v, s) in enumerate(zip(c.params, theta, sigma)):
         why = unexcited.get(i // per_valve) if per_valve else None
@@ -117,6 +126,15 @@ def parameters(ctx: Context, name: str, theta, sigma) -> dict:
                     f"not identified: its sigma {float(s):.2g} exceeds the physical bound {c.bound:g}, "
                     "the data do not narrow it beyond the range it is fitted in"
                 ),
+            }
+        elif held[i]:
+            side = "lower" if held[i] < 0 else "upper"
+            out[p] = {
+                "value": float(v),
+                "sigma": None,
+                "identified": True,
+                "at_bound": side,
+                "bound": float(c.lower if held[i] < 0 else c.bound),
             }
         else:
             out[p] = {"value": float(v), "sigma": float(s), "identified": True}

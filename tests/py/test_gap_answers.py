@@ -47,3 +47,22 @@ def test_every_parameter_identified_reads_as_before():
 def test_an_answer_without_the_flag_counts_only_the_missing_values():
     old = {"a": {"value": 0.1, "sigma": 0.01}, "b": {"value": None, "sigma": None, "not_identifiable": "why"}}
     assert identified(old["a"]) and not identified(old["b"]) and not_identified_count(old) == 1
+
+
+def test_a_parameter_held_at_its_bound_is_never_beyond_2_sigma():
+    """A loss of 4.45e-15 pinned at its lower bound 0 was listed first as
+    beyond 2 sigma (its "sigma" 1.8e-18): it is said to be at the bound."""
+    from bench.gap.answers import at_bound, significant
+
+    loss = {f"loss_{i} [1]": _p(2e-3, 4e-3) for i in range(8)}
+    loss["loss_3 [1]"] = _p(0.0616, 0.0036)
+    for k in ("loss_5 [1]", "loss_7 [1]"):
+        loss[k] = {"value": 4.45e-15, "sigma": None, "identified": True, "at_bound": "lower", "bound": 0.0}
+    assert at_bound(loss["loss_5 [1]"]) and not significant(loss["loss_5 [1]"]) and significant(loss["loss_3 [1]"])
+    # the flag alone, whatever sigma an older answer kept, is never beyond 2 sigma
+    assert not significant(loss["loss_7 [1]"] | {"sigma": 2e-18})
+    r = _answer(loss, "explained") | {"effects": [{"effect": "thrust_loss", "parameters": loss}]}
+    assert (
+        fitted_text(r)
+        == "fitted (beyond 2 sigma): loss_3 [1] 0.0616 +/- 0.0036 (at the lower bound 0: loss_5 [1], loss_7 [1])"
+    )

@@ -39,6 +39,15 @@ def test_thrust_loss_and_gyro_bias_are_both_named(tmp_path):
     assert all(m["adds_dll_heldout"] > 3.0 for m in r["effects"])
     text = "\n".join(t for _, t in answer_lines(r))
     assert "thrust_loss + gyro_bias (ambiguous, together; cannot be told from: " in text and "adds" in text
+    # The losses of valves 5 and 7, held at 0 by the bounded fit (4e-15 and
+    # 1e-14), are at the bound, with no sigma, never beyond 2 sigma; the
+    # others' sigmas come with them held, alike in the set and alone.
+    loss = next(m for m in r["effects"] if m["effect"] == "thrust_loss")["parameters"]
+    assert {k for k, v in loss.items() if v.get("at_bound") == "lower"} == {"loss_5 [1]", "loss_7 [1]"}
+    assert loss["loss_5 [1]"]["sigma"] is None
+    assert "thrust_loss: loss_3 [1] 0.0616 +/- 0.0036, loss_6 [1] 0.0502 +/- 0.0032 (at the lower bound 0: " in text
+    alone = next(a for a in r["attribution"] if a["effect"] == "thrust_loss")["parameters"]
+    assert alone["loss_3 [1]"]["sigma"] == pytest.approx(loss["loss_3 [1]"]["sigma"], rel=1e-3)
     page = write_report(full, tmp_path, "mixture").read_text()
     assert "RMS on held-out rows, nominal -> with thrust_loss + gyro_bias" in page
     # the set's members with their shares and jointly fitted parameters

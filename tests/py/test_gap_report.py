@@ -185,3 +185,23 @@ def test_the_page_and_the_printed_answer_count_a_member_alike():
     assert "thruster_misalignment: a_20 [rad] 0.005 +/- 0.001 (24 parameters, 16 not identified)" in printed
     assert "thruster_misalignment in the set, every parameter (24 parameters, 16 not identified):" in page
     assert "The answer: refitted together, the set explains the held-out data." in page
+
+
+def test_a_parameter_held_at_its_bound_shows_the_bound_and_no_sigma():
+    """Losses pinned at their lower bound 0 by the bounded fit: the page shows
+    them at the bound, counts them, and never beyond 2 sigma."""
+    from bench.gap.report import _set_lines
+
+    held = {"value": 4.45e-15, "sigma": None, "identified": True, "at_bound": "lower", "bound": 0.0}
+    loss = {f"loss_{i} [1]": _p(2e-3, 4e-3, True) for i in range(8)}
+    loss["loss_3 [1]"] = _p(0.0616, 0.0036, True)
+    loss["loss_5 [1]"] = loss["loss_7 [1]"] = held
+    cell = _parameters_cell(loss)
+    assert cell == "1 of 8 beyond 2 sigma, 2 at a bound: loss_3 [1] = 0.0616 +/- 0.0036 (all below)"
+    member = {"effect": "thrust_loss", "kind": "dynamics", "adds_shrink": 0.98, "adds_dll_heldout": 5788.8}
+    text = "\n".join(_set_lines(_set_answer("explained", [member | {"parameters": loss}], explains=True)))
+    assert "- loss_5 [1] = 0, at its lower bound (no sampling sigma)" in text
+    assert "4.45e-15" not in text
+    assert "2 of the set's 8 parameters are held at a physical bound" in text
+    short = _parameters_cell({"s_x [1]": held | {"value": -0.49999999975, "bound": -0.5}, "s_y [1]": _p(-0.02, 0.02)})
+    assert short == "s_x [1] = -0.5, at its lower bound (no sampling sigma); s_y [1] = -0.02 +/- 0.02"

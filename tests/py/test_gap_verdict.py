@@ -57,3 +57,23 @@ def test_a_parameter_without_a_value_is_not_identified_either():
     p = parameters(ctx, "thrust_loss", np.full(8, 0.1), np.full(8, 0.01))
     assert p["loss_2 [1]"]["value"] is None and p["loss_2 [1]"]["identified"] is False
     assert all(v["identified"] for k, v in p.items() if k != "loss_2 [1]")
+
+
+def test_a_parameter_held_at_its_bound_is_at_it_with_no_sigma():
+    """A thrust loss fitted at 4.45e-15 +/- 1.8e-18 on a log with a loss and a
+    gyro bias (the loss pinned at its lower bound 0): no sampling sigma, at
+    the bound, never a value beyond 2 sigma."""
+    theta = np.array([4e-4, 1.6e-3, 3e-3, 0.0616, 1.6e-3, 4.45e-15, 0.0502, 1.08e-14])
+    sigma = np.array([3.6e-3, 4e-3, 3.7e-3, 3.6e-3, 2.9e-3, 1.8e-18, 3.2e-3, 2e-18])
+    p = parameters(_ctx(), "thrust_loss", theta, sigma)
+    held = {k: v["at_bound"] for k, v in p.items() if "at_bound" in v}
+    assert held == {"loss_5 [1]": "lower", "loss_7 [1]": "lower"}
+    assert p["loss_5 [1]"] == {"value": 4.45e-15, "sigma": None, "identified": True, "at_bound": "lower", "bound": 0.0}
+    assert p["loss_3 [1]"] == {"value": 0.0616, "sigma": 3.6e-3, "identified": True}
+    # Either bound, within a millionth of the candidate's typical size; no nearer.
+    s = parameters(_ctx(), "gyro_scale", np.array([-0.49999999975, -0.4987, 0.5 - 1e-9]), np.full(3, 0.01))
+    assert [v.get("at_bound") for v in s.values()] == ["lower", None, "upper"]
+    assert s["s_z [1]"]["bound"] == 0.5 and s["s_y [1]"]["sigma"] == 0.01
+    # A sigma beyond the physical bound still says the data do not narrow it.
+    t = parameters(_ctx(), "thruster_misalignment", np.full(24, 0.5), np.full(24, 40.0))
+    assert not any(v["identified"] or "at_bound" in v for v in t.values())
