@@ -136,7 +136,8 @@ def test_a_set_answer_lists_each_member_its_share_and_its_parameters():
 
 def test_a_selected_set_that_is_no_answer_is_shown_as_such():
     """An unexplained answer whose selected set is a nozzle tilt with 35 of
-    its 36 parameters not identified (a 12 kg log with a hinged panel): the
+    its 36 parameters not identified (a 12 kg log with a hinged panel, as
+    its set refit read before it was refitted as the tilt alone is): the
     page shows the fit and says it is no answer."""
     from bench.gap.report import _set_lines
 

@@ -73,6 +73,15 @@ def test_thrust_loss_fitted_on_the_right_valves(calibration):
 def test_out_of_library_flex_mode_is_unexplained(calibration):
     r = _answer(_log(11, {"flex_mode": [0.3, 0.01]}), calibration)
     assert r["gap_detected"] and r["verdict"] == "unexplained"
+    # The nozzle tilt forward selection picks is refitted alone as the single
+    # fit of the ranking is: the same angles and sigmas (it had 33 of its 36
+    # angles not identified, sigmas up to 6e4 rad, against 6e-4 to 0.03 rad).
+    (member,) = r["effect_set"]["members"]
+    assert member["effect"] == "thruster_misalignment"
+    alone = next(a for a in r["attribution"] if a["effect"] == "thruster_misalignment")["parameters"]
+    for k, v in member["parameters"].items():
+        assert v["identified"] == alone[k]["identified"] and v["value"] == pytest.approx(alone[k]["value"], abs=1e-6)
+        assert v["sigma"] == pytest.approx(alone[k]["sigma"], rel=1e-4)
 
 
 def test_without_valves_the_thrust_loss_is_not_claimed_and_the_answer_says_why(calibration):
