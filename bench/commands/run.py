@@ -135,7 +135,8 @@ def plan_if_ambiguous(log_path: Path, out: dict, report_dir: Path) -> None:
         )
     if not all(p["reached"] for p in d["pairs"]):
         print(
-            "    the shortest plan that reaches every level, with more delta-v and time: proxops plan LOG "
-            "--separate --reach --max-duration-s 600 --max-delta-v 0.8"
+            "    for the sizes listed, the shortest plan reaching every level: proxops plan LOG --separate "
+            "--as-listed --reach --max-duration-s 600 --max-delta-v 0.8; a hidden member along every one of its "
+            "directions may be out of any plan's reach (docs/GAP.md, the selection table)"
         )
     print(f"  plan {path}; figure {fig}")
