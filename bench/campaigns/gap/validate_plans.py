@@ -63,7 +63,6 @@ SCALE = 2.0
 # The widest limits the campaign asks the shortest plan reaching every
 # level within (duration [s], delta-v [m/s]): what the data would need.
 NEEDED_LIMITS = (1200.0, 1.6)
-DEFAULT_SCREEN_LOGP = 4.15  # a true member no listed set holds: the committed docking threshold
 
 
 # --- the draws -----------------------------------------------------------------------------------
@@ -220,7 +219,7 @@ def flown_true(key: dict, description: dict, plan: dict, hyps: list, levels: dic
     the selection's own test of each true member on that flight: the true
     set against it without that member, half of it against the level
     ``levels`` (design.member_levels) asks."""
-    from bench.gap.design import Hypothesis, flown_distances, plan_segments, selection_level
+    from bench.gap.design import Hypothesis, committed_screen_logp, flown_distances, plan_segments, selection_level
     from bench.sim.vehicle_sim import KNOWN
 
     missing = sorted(set(key["effects"]) - set(KNOWN))
@@ -246,7 +245,7 @@ def flown_true(key: dict, description: dict, plan: dict, hyps: list, levels: dic
         rest = frozenset(n for n in truth.members if n != c)  # a listed set may name its members in another order
         lv = (levels or {}).get(c)
         rank = np.asarray(key["effects"][c]).size  # no listed set holds it: its parameters
-        req = lv["required_half"] if lv else max(DELTA2_95, selection_level(DEFAULT_SCREEN_LOGP, rank))
+        req = lv["required_half"] if lv else max(DELTA2_95, selection_level(committed_screen_logp(), rank))
         members.append({"member": c, "delta2_half": 0.5 * d2[rest], "required_half": req})
     for m in members:
         m["reached"] = bool(m["delta2_half"] >= m["required_half"])
